@@ -1,0 +1,41 @@
+# Two entry points (see README): `make run` and `make test`.
+PY ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: run test lint bench chromium clean
+
+$(BIN)/python:
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+## Install and start the app with the bundled demo show.
+run: $(STAMP)
+	$(BIN)/swarmshow demo
+
+## Install everything the tests need (Debian's chromium included) and run the suite.
+test: $(STAMP) chromium
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest
+
+## Debian's chromium for browser tests (playwright cannot download browsers here).
+chromium:
+	@if [ ! -x /usr/bin/chromium ]; then \
+		if [ "$$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq chromium >/dev/null; \
+		else sudo apt-get update -qq && sudo apt-get install -y -qq chromium >/dev/null; fi; \
+	fi
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+## Every benchmark (slow); writes benchmarks/results.json.
+bench: $(STAMP)
+	$(BIN)/python -m pytest -m slow -p no:cacheprovider benchmarks tests
+
+clean:
+	rm -rf $(VENV) build *.egg-info

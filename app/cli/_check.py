@@ -1,0 +1,62 @@
+"""``swarmshow check SHOW [--json]``: plan the show and verify it exactly."""
+
+from __future__ import annotations
+
+import argparse
+
+from app.cli._common import EXIT_FAILED, EXIT_OK, load_show_arg, print_json, progress_bar
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``check`` command."""
+    p = sub.add_parser(
+        "check",
+        help="plan the show with CAPT and verify separation, speeds, acceleration and altitude exactly "
+        "(exit 1 if any limit is broken)",
+    )
+    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
+    p.set_defaults(func=_check)
+
+
+def _check(args: argparse.Namespace) -> int:
+    from sim import check_show
+
+    show = load_show_arg(args.show)
+    with progress_bar("check") as update:
+        report = check_show(show, progress=update)
+    if args.json:
+        print_json(report.to_json())
+    else:
+        print(format_report(report))
+    return EXIT_OK if report.ok else EXIT_FAILED
+
+
+def format_report(report) -> str:
+    """The check report as a few human-readable lines."""
+    lim = report.limits
+    lines = [
+        f"show {report.show!r}: {report.drones} drones, {report.duration_s:.1f} s, "
+        f"{len(report.transitions)} transitions",
+        f"  min distance   {report.min_distance_m:8.3f} m   (limit {lim['min_distance_m']} m; drones "
+        f"{report.min_distance_pair[0]} and {report.min_distance_pair[1]} at t = {report.min_distance_time_s:.2f} s)",
+        f"  speed xy       {report.max_speed_xy_mps:8.3f} m/s (limit {lim['max_speed_xy_mps']})",
+        f"  speed z        {report.max_speed_z_mps:8.3f} m/s (limit {lim['max_speed_z_mps']})",
+        f"  acceleration   {report.max_accel_mps2:8.3f} m/s² (limit {lim['max_accel_mps2']})",
+        f"  altitude       {report.min_altitude_m:.1f} .. {report.max_altitude_m:.1f} m "
+        f"(limit {lim['max_altitude_m']} m)",
+    ]
+    for t in report.transitions:
+        lines.append(
+            f"  {t.from_!r} -> {t.to!r}: start {t.start_s:.1f} s, {t.duration_s:.1f} s, "
+            f"cost {t.assignment_cost_m2:.1f} m², exact min {t.capt.exact_min_distance_m:.3f} m "
+            f"(CAPT bound {t.capt.guaranteed_min_distance_m:.3f} m)"
+        )
+    if report.ok:
+        lines.append("OK: no limit is broken")
+    else:
+        lines.append(f"UNSAFE: {report.violations_total} violation(s)")
+        lines.extend(f"  - {v.message}" for v in report.violations[:20])
+        if report.violations_total > 20:
+            lines.append(f"  ... and {report.violations_total - 20} more (see --json)")
+    return "\n".join(lines)

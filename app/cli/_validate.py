@@ -1,0 +1,42 @@
+"""``swarmshow validate SHOW`` and ``swarmshow schema``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from app.cli._common import EXIT_OK, load_show_arg, print_json
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``validate`` and ``schema`` commands."""
+    p = sub.add_parser("validate", help="check that a show file is valid (exit 2 with the reason if not)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.set_defaults(func=_validate)
+
+    p = sub.add_parser("schema", help="print the JSON Schema of the show file format")
+    p.set_defaults(func=_schema)
+
+
+def _validate(args: argparse.Namespace) -> int:
+    show = load_show_arg(args.show)
+    summary = {
+        "valid": True,
+        "name": show.name,
+        "drones": show.drones,
+        "formations": len(show.formations),
+        "content_hash": show.content_hash(),
+    }
+    if args.json:
+        print_json(summary)
+    else:
+        print(f"{args.show}: valid ({show.drones} drones, {len(show.formations)} formations)")
+    return EXIT_OK
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from formations import show_json_schema
+
+    print(json.dumps(show_json_schema(), indent=2))
+    return EXIT_OK

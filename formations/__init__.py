@@ -1,0 +1,44 @@
+"""The show model and formation sources.
+
+The show file format (``swarmshow/1``) and its validation live in ``_show``;
+formation sources (shapes, strokes, text, image, SVG, transforms, spacing
+repair) are re-exported from :mod:`formations.sources`.
+"""
+
+from __future__ import annotations
+
+from formations._show import MAX_DRONES as MAX_DRONES
+from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
+from formations._show import SHOW_FORMAT as SHOW_FORMAT
+from formations._show import Formation as Formation
+from formations._show import HomeFromGrid as HomeFromGrid
+from formations._show import HomeFromPoints as HomeFromPoints
+from formations._show import HomeGrid as HomeGrid
+from formations._show import Settings as Settings
+from formations._show import ShowFile as ShowFile
+from formations._show import ShowValidationError as ShowValidationError
+from formations._show import dump_show as dump_show
+from formations._show import hex_to_rgb as hex_to_rgb
+from formations._show import load_show as load_show
+from formations._show import parse_show as parse_show
+from formations._show import rgb_to_hex as rgb_to_hex
+from formations._show import show_json_schema as show_json_schema
+
+__all__ = [
+    "MAX_DRONES",
+    "MAX_SHOW_FILE_BYTES",
+    "SHOW_FORMAT",
+    "Formation",
+    "HomeFromGrid",
+    "HomeFromPoints",
+    "HomeGrid",
+    "Settings",
+    "ShowFile",
+    "ShowValidationError",
+    "dump_show",
+    "hex_to_rgb",
+    "load_show",
+    "parse_show",
+    "rgb_to_hex",
+    "show_json_schema",
+]

@@ -1,0 +1,167 @@
+"""Point sets, formation errors and argument validation shared by the formation sources.
+
+Units: metres, ENU (x east, y north, z up); colours ``#rrggbb``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+#: Most points one formation source returns.
+MAX_POINTS = 20_000
+#: Planes a 2-D source may be drawn in ("xz" faces the audience, "xy" is parallel to the ground).
+PLANES: tuple[str, ...] = ("xz", "xy", "yz")
+
+_HEX = re.compile(r"^#[0-9a-fA-F]{6}$")
+
+
+class FormationError(ValueError):
+    """A formation cannot be built; ``max_n`` is the largest N that fits (None if unknown)."""
+
+    def __init__(self, message: str, *, max_n: int | None = None) -> None:
+        super().__init__(message)
+        self.max_n = max_n
+
+
+class InputTooLargeError(FormationError):
+    """An uploaded image or SVG exceeds the size limits (the API maps this to HTTP 413)."""
+
+
+@dataclass(frozen=True)
+class PointSet:
+    """N formation points and their LED colours.
+
+    Attributes:
+        points_m: (N, 3) float64 positions, metres (ENU).
+        colors_rgb: (N, 3) uint8 colours.
+    """
+
+    points_m: np.ndarray
+    colors_rgb: np.ndarray
+
+    def __post_init__(self) -> None:
+        pts = np.array(self.points_m, dtype=np.float64, copy=True).reshape(-1, 3)
+        cols = np.array(self.colors_rgb, copy=True)
+        if cols.shape != pts.shape:
+            raise FormationError(
+                f"colors_rgb shape {cols.shape} does not match points_m shape {pts.shape}"
+            )
+        if not np.all(np.isfinite(pts)):
+            raise FormationError("points_m must be finite")
+        cols = np.clip(cols, 0, 255).astype(np.uint8)
+        pts.setflags(write=False)
+        cols.setflags(write=False)
+        object.__setattr__(self, "points_m", pts)
+        object.__setattr__(self, "colors_rgb", cols)
+
+    def __len__(self) -> int:
+        return int(self.points_m.shape[0])
+
+    def hex_colors(self) -> list[str]:
+        """Return the colours as ``"#rrggbb"`` strings."""
+        return rgb_to_hex(self.colors_rgb)
+
+    def min_spacing_m(self) -> float:
+        """Return the exact nearest-pair distance in metres (``inf`` for fewer than 2 points)."""
+        return nearest_pair_distance(self.points_m)
+
+    def to_json(self) -> dict[str, Any]:
+        """Return ``{"points": [[x, y, z], ...], "colors": [...], "min_spacing_m": float}``.
+
+        ``min_spacing_m`` is ``None`` for a single point (JSON has no infinity).
+        """
+        d = self.min_spacing_m()
+        return {
+            "points": self.points_m.tolist(),
+            "colors": self.hex_colors(),
+            "min_spacing_m": float(d) if math.isfinite(d) else None,
+        }
+
+
+def nearest_pair_distance(points: ArrayLike) -> float:
+    """Exact nearest-pair distance of an (N, d) array in metres (``inf`` for N < 2)."""
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.shape[0] < 2:
+        return math.inf
+    d, _ = cKDTree(pts).query(pts, k=2)
+    return float(d[:, 1].min())
+
+
+def rgb_to_hex(rgb: ArrayLike) -> list[str]:
+    """(N, 3) uint8 colours -> ``"#rrggbb"`` strings."""
+    arr = np.asarray(rgb, dtype=np.int64).reshape(-1, 3)
+    return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in arr.tolist()]
+
+
+def parse_color(color: str, *, name: str = "color") -> np.ndarray:
+    """``"#rrggbb"`` -> (3,) uint8; anything else raises FormationError naming ``name``."""
+    if not isinstance(color, str) or not _HEX.match(color):
+        raise FormationError(f"{name} must be a colour '#rrggbb', got {color!r}")
+    return np.array([int(color[i : i + 2], 16) for i in (1, 3, 5)], dtype=np.uint8)
+
+
+def check_n(n: Any, *, name: str = "n") -> int:
+    """Validate a point count: an int in [1, MAX_POINTS]."""
+    if isinstance(n, bool) or not isinstance(n, int | np.integer):
+        raise FormationError(f"{name} must be an integer, got {n!r}")
+    if not 1 <= int(n) <= MAX_POINTS:
+        raise FormationError(f"{name} must be between 1 and {MAX_POINTS}, got {n}")
+    return int(n)
+
+
+def check_positive(value: Any, *, name: str) -> float:
+    """Validate a finite number > 0 (metres, ratios...)."""
+    if isinstance(value, bool):
+        raise FormationError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise FormationError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise FormationError(f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def check_plane(plane: Any) -> str:
+    """Validate a plane name (one of PLANES)."""
+    if plane not in PLANES:
+        raise FormationError(f"plane must be one of {', '.join(PLANES)}, got {plane!r}")
+    return str(plane)
+
+
+def check_center(center: Any, *, name: str = "center_m") -> np.ndarray:
+    """Validate a centre: three finite numbers (metres)."""
+    try:
+        c = np.asarray(center, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FormationError(f"{name} must be three numbers (x, y, z), got {center!r}") from None
+    if c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise FormationError(f"{name} must be three finite numbers (x, y, z), got {center!r}")
+    return c
+
+
+def solid_colors(n: int, color: str, *, name: str = "color") -> np.ndarray:
+    """(n, 3) uint8 array of one colour."""
+    return np.tile(parse_color(color, name=name), (n, 1))
+
+
+def as_points(points: ArrayLike, *, name: str = "points", dims: Sequence[int] = (3,)) -> np.ndarray:
+    """Validate an (N, d) finite float array with d in ``dims``."""
+    try:
+        arr = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FormationError(f"{name} must be an array of numbers") from None
+    if arr.ndim != 2 or arr.shape[1] not in dims:
+        want = " or ".join(f"(N, {d})" for d in dims)
+        raise FormationError(f"{name} must have shape {want}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise FormationError(f"{name} must be finite")
+    return arr

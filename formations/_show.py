@@ -1,0 +1,448 @@
+"""The show file (``"format": "swarmshow/1"``): pydantic v2 models and loading.
+
+Units: metres in ENU (x east, y north, z up), seconds, metres per second,
+metres per second squared; colours ``#rrggbb``.
+
+Structural rules (types, ranges, unknown fields, non-finite numbers) are
+pydantic's; rules that relate fields to each other (point counts against the
+drone count, altitudes against ``max_altitude_m``, spacing against
+``min_distance_m``) run in one after-validator so that no invalid ``ShowFile``
+can exist. Every rejection carries the JSON path of the offending value.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from functools import cached_property
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+from scipy.spatial import cKDTree
+
+#: Most drones a show may have. The largest show flown so far had 15,947 drones;
+#: 20,000 leaves headroom while bounding memory (a 20k x 20k cost matrix is never built).
+MAX_DRONES = 20_000
+#: Most points one formation may hold (extra points beyond the drone count stay dark).
+MAX_FORMATION_POINTS = 100_000
+#: Most formations one show may hold.
+MAX_FORMATIONS = 500
+#: Largest show file accepted, bytes (DESIGN: 20 MB).
+MAX_SHOW_FILE_BYTES = 20 * 1024 * 1024
+#: Longest name (show or formation), characters.
+MAX_NAME_CHARS = 200
+
+SHOW_FORMAT = "swarmshow/1"
+
+_HEX_COLOR = re.compile(r"^#[0-9a-fA-F]{6}$")
+_CONTROL_CHARS = re.compile(r"[\x00-\x1f\x7f]")
+
+_CONFIG = ConfigDict(
+    extra="forbid",
+    strict=True,  # "3.0" is not a number; true is not 1
+    allow_inf_nan=False,
+    frozen=True,
+    revalidate_instances="never",
+)
+
+Point3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Color = Annotated[str, Field(pattern=_HEX_COLOR.pattern, examples=["#ff8800"])]
+
+
+def _check_name(value: str) -> str:
+    if not value.strip():
+        raise PydanticCustomError("name_empty", "must not be empty or blank")
+    if _CONTROL_CHARS.search(value):
+        raise PydanticCustomError("name_control", "must not contain control characters (NUL, newline, ...)")
+    return value
+
+
+Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS)]
+
+
+class Settings(BaseModel):
+    """Show-wide limits (defaults: Skybrush's, a de facto standard)."""
+
+    model_config = _CONFIG
+
+    min_distance_m: float = Field(3.0, gt=0, le=100, description="Minimum distance between any two drones, metres.")
+    max_speed_xy_mps: float = Field(10.0, gt=0, le=100, description="Peak horizontal speed, m/s.")
+    max_speed_z_mps: float = Field(2.0, gt=0, le=100, description="Peak vertical speed, m/s.")
+    max_accel_mps2: float = Field(4.0, gt=0, le=100, description="Peak acceleration magnitude, m/s^2.")
+    max_altitude_m: float = Field(150.0, gt=0, le=10_000, description="Highest allowed altitude, metres.")
+    takeoff_altitude_m: float = Field(10.0, gt=0, le=10_000, description="Altitude of the vertical takeoff, metres.")
+
+    @model_validator(mode="after")
+    def _takeoff_below_ceiling(self) -> Settings:
+        if self.takeoff_altitude_m > self.max_altitude_m:
+            raise PydanticCustomError(
+                "takeoff_above_ceiling",
+                "takeoff_altitude_m {takeoff} is above max_altitude_m {ceiling}",
+                {"takeoff": self.takeoff_altitude_m, "ceiling": self.max_altitude_m},
+            )
+        return self
+
+
+class HomeGrid(BaseModel):
+    """A rectangular ground grid, centred on ``center_m``; drone i starts at grid cell i (row-major)."""
+
+    model_config = _CONFIG
+
+    rows: int = Field(ge=1, le=MAX_DRONES)
+    cols: int = Field(ge=1, le=MAX_DRONES)
+    spacing_m: float = Field(3.0, gt=0, le=1000, description="Grid spacing, metres.")
+    center_m: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
+        default_factory=lambda: [0.0, 0.0], description="Grid centre [x, y], metres."
+    )
+
+    def positions_m(self) -> np.ndarray:
+        """All rows*cols grid positions, (rows*cols, 3) metres, z = 0, row-major (y then x)."""
+        xs = (np.arange(self.cols) - (self.cols - 1) / 2.0) * self.spacing_m + self.center_m[0]
+        ys = (np.arange(self.rows) - (self.rows - 1) / 2.0) * self.spacing_m + self.center_m[1]
+        gx, gy = np.meshgrid(xs, ys)
+        return np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+
+
+class HomeFromGrid(BaseModel):
+    """``{"grid": {...}}``."""
+
+    model_config = _CONFIG
+    grid: HomeGrid
+
+
+class HomeFromPoints(BaseModel):
+    """``{"points": [[x, y, 0], ...]}``: explicit ground positions, metres."""
+
+    model_config = _CONFIG
+    points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
+
+
+class Formation(BaseModel):
+    """One formation of the timeline: points (metres), colours, hold time (seconds).
+
+    ``colors`` gives one colour per point; ``color`` one for all (default white).
+    ``transition_s`` optionally fixes the duration of the transition *into* this
+    formation; it must not be shorter than the minimum the limits allow.
+    """
+
+    model_config = _CONFIG
+
+    name: Name
+    hold_s: float = Field(gt=0, le=86_400, description="Hold time at the formation, seconds.")
+    points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
+    colors: list[Color] | None = None
+    color: Color | None = None
+    transition_s: float | None = Field(
+        None, gt=0, le=86_400, description="Duration of the transition into this formation, seconds."
+    )
+
+    @field_validator("name")
+    @classmethod
+    def _name_ok(cls, value: str) -> str:
+        return _check_name(value)
+
+    @model_validator(mode="after")
+    def _colors_match(self) -> Formation:
+        if self.colors is not None and self.color is not None:
+            raise PydanticCustomError("color_conflict", "give either 'color' or 'colors', not both")
+        if self.colors is not None and len(self.colors) != len(self.points):
+            raise PydanticCustomError(
+                "colors_length",
+                "'colors' has {n_colors} entries but 'points' has {n_points}",
+                {"n_colors": len(self.colors), "n_points": len(self.points)},
+            )
+        return self
+
+    @cached_property
+    def points_m(self) -> np.ndarray:
+        """Formation points, (M, 3) float64 metres (read-only)."""
+        arr = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
+        arr.setflags(write=False)
+        return arr
+
+    @cached_property
+    def colors_rgb(self) -> np.ndarray:
+        """Point colours, (M, 3) float64 in [0, 1] (read-only)."""
+        hexes = self.colors if self.colors is not None else [self.color or "#ffffff"] * len(self.points)
+        arr = hex_to_rgb(hexes)
+        arr.setflags(write=False)
+        return arr
+
+
+def hex_to_rgb(colors: list[str]) -> np.ndarray:
+    """``#rrggbb`` strings -> (n, 3) float64 in [0, 1]."""
+    if not colors:
+        return np.zeros((0, 3))
+    raw = bytes.fromhex("".join(c[1:] for c in colors))
+    return np.frombuffer(raw, dtype=np.uint8).reshape(-1, 3).astype(np.float64) / 255.0
+
+
+def rgb_to_hex(rgb: np.ndarray) -> list[str]:
+    """(n, 3) floats in [0, 1] -> ``#rrggbb`` strings (rounded to the nearest 1/255)."""
+    u8 = np.clip(np.rint(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+    return ["#" + row.tobytes().hex() for row in u8.reshape(-1, 3)]
+
+
+def _home_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return "grid" if "grid" in value else ("points" if "points" in value else None)
+    if isinstance(value, HomeFromGrid):
+        return "grid"
+    return "points" if isinstance(value, HomeFromPoints) else None
+
+
+class ShowFile(BaseModel):
+    """A whole show: drones, home positions, limits and the formation timeline."""
+
+    model_config = ConfigDict(
+        **_CONFIG,
+        json_schema_extra={
+            "examples": [
+                {
+                    "format": SHOW_FORMAT,
+                    "name": "Demo",
+                    "drones": 4,
+                    "home": {"grid": {"rows": 2, "cols": 2, "spacing_m": 3.0}},
+                    "settings": {"min_distance_m": 3.0},
+                    "formations": [
+                        {
+                            "name": "square",
+                            "hold_s": 5.0,
+                            "points": [[0, 0, 20], [4, 0, 20], [0, 0, 24], [4, 0, 24]],
+                            "color": "#ff0000",
+                        }
+                    ],
+                }
+            ]
+        },
+    )
+
+    format: Literal["swarmshow/1"] = Field(description="Format tag; must be 'swarmshow/1'.")
+    name: Name
+    drones: int = Field(ge=1, le=MAX_DRONES, description=f"Number of drones (at most {MAX_DRONES}).")
+    home: Annotated[
+        Annotated[HomeFromGrid, Tag("grid")] | Annotated[HomeFromPoints, Tag("points")],
+        Discriminator(
+            _home_kind,
+            custom_error_type="home_kind",
+            custom_error_message="home must be {\"grid\": {...}} or {\"points\": [...]}",
+        ),
+    ] = Field(description="Ground start positions: a grid or explicit points (metres).")
+    settings: Settings = Field(default_factory=Settings)
+    formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
+
+    @field_validator("name")
+    @classmethod
+    def _name_ok(cls, value: str) -> str:
+        return _check_name(value)
+
+    @model_validator(mode="after")
+    def _semantics(self) -> ShowFile:
+        problem = _first_semantic_problem(self)
+        if problem is not None:
+            loc, message = problem
+            raise PydanticCustomError("show_rule", "{path}: {message}", {"path": _path(loc), "message": message})
+        return self
+
+    @cached_property
+    def home_positions_m(self) -> np.ndarray:
+        """The first ``drones`` home positions, (N, 3) metres (drone i starts at row i)."""
+        if isinstance(self.home, HomeFromGrid):
+            pts = self.home.grid.positions_m()
+        else:
+            pts = np.asarray(self.home.points, dtype=np.float64)
+        out = np.ascontiguousarray(pts[: self.drones])
+        out.setflags(write=False)
+        return out
+
+    @cached_property
+    def all_home_positions_m(self) -> np.ndarray:
+        """Every home position (landing may use any of them), (H, 3) metres."""
+        if isinstance(self.home, HomeFromGrid):
+            pts = self.home.grid.positions_m()
+        else:
+            pts = np.asarray(self.home.points, dtype=np.float64)
+        pts.setflags(write=False)
+        return pts
+
+    def canonical_json(self) -> str:
+        """Compact, key-sorted JSON of the show: identical for identical content."""
+        return json.dumps(self.model_dump(mode="json", exclude_none=True), sort_keys=True, separators=(",", ":"))
+
+    def content_hash(self) -> str:
+        """SHA-256 hex digest of :meth:`canonical_json` (cache key for plans and simulations)."""
+        return hashlib.sha256(self.canonical_json().encode()).hexdigest()
+
+
+def _path(loc: tuple[str | int, ...]) -> str:
+    """('formations', 2, 'points', 5) -> 'formations[2].points[5]'."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _closest_pair(points: np.ndarray) -> tuple[int, int, float]:
+    """Indices (i < j) and distance of the closest pair of ``points`` (n >= 2)."""
+    tree = cKDTree(points)
+    dist, idx = tree.query(points, k=2)
+    i = int(np.argmin(dist[:, 1]))
+    j = int(idx[i, 1])
+    return min(i, j), max(i, j), float(dist[i, 1])
+
+
+def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str] | None:
+    """The first cross-field rule the show breaks, as (JSON path, reason), or None."""
+    s = show.settings
+    n = show.drones
+    tol = 1e-9  # points exactly min_distance apart are allowed despite float rounding
+
+    if isinstance(show.home, HomeFromGrid):
+        g = show.home.grid
+        if g.rows * g.cols < n:
+            return ("home", "grid"), (
+                f"grid of {g.rows} x {g.cols} = {g.rows * g.cols} positions is smaller than drones = {n}"
+            )
+        if g.rows * g.cols > 1 and g.spacing_m < s.min_distance_m - tol:
+            return ("home", "grid", "spacing_m"), (
+                f"spacing {g.spacing_m} m is less than settings.min_distance_m {s.min_distance_m} m"
+            )
+    else:
+        pts = np.asarray(show.home.points, dtype=np.float64)
+        if len(pts) < n:
+            return ("home", "points"), f"{len(pts)} home points for drones = {n}; need at least {n}"
+        bad = np.flatnonzero((pts[:, 2] < 0) | (pts[:, 2] > s.max_altitude_m))
+        if bad.size:
+            return ("home", "points", int(bad[0]), 2), (
+                f"altitude {pts[bad[0], 2]} m is outside [0, max_altitude_m {s.max_altitude_m}]"
+            )
+        if len(pts) > 1:
+            i, j, d = _closest_pair(pts)
+            if d < s.min_distance_m - tol:
+                return ("home", "points"), (
+                    f"home points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
+                )
+
+    for k, f in enumerate(show.formations):
+        pts = f.points_m
+        if len(pts) < n:
+            return ("formations", k, "points"), (
+                f"{len(pts)} points for {n} drones; a formation needs at least as many points as drones"
+            )
+        z = pts[:, 2]
+        high = np.flatnonzero(z > s.max_altitude_m)
+        if high.size:
+            return ("formations", k, "points", int(high[0]), 2), (
+                f"altitude {z[high[0]]} m is above max_altitude_m {s.max_altitude_m} m"
+            )
+        low = np.flatnonzero(z < 0)
+        if low.size:
+            return ("formations", k, "points", int(low[0]), 2), f"altitude {z[low[0]]} m is below the ground (0 m)"
+        if len(pts) > 1:
+            i, j, d = _closest_pair(pts)
+            if d < s.min_distance_m - tol:
+                return ("formations", k, "points"), (
+                    f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
+                )
+    return None
+
+
+class ShowValidationError(ValueError):
+    """A show file was rejected. ``errors`` lists ``{"loc": (...), "path": str, "msg": str}``."""
+
+    def __init__(self, errors: list[dict[str, Any]]) -> None:
+        self.errors = errors
+        super().__init__(self.one_line())
+
+    def one_line(self) -> str:
+        """The first problem as ``path: reason``, plus how many more there are."""
+        if not self.errors:
+            return "invalid show file"
+        first = self.errors[0]
+        head = f"{first['path']}: {first['msg']}" if first["path"] else first["msg"]
+        more = len(self.errors) - 1
+        return head + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")
+
+    @classmethod
+    def from_pydantic(cls, exc: ValidationError, *, prefix: tuple[str | int, ...] = ()) -> ShowValidationError:
+        """Convert pydantic's errors, moving our cross-field rules' paths into ``loc``."""
+        out: list[dict[str, Any]] = []
+        for err in exc.errors(include_url=False):
+            loc = _drop_union_tag(prefix + tuple(err["loc"]))
+            msg = err["msg"]
+            ctx = err.get("ctx") or {}
+            if err["type"] == "show_rule":
+                path = ".".join(p for p in (_path(prefix), ctx["path"]) if p)
+                out.append({"loc": loc, "path": path, "msg": ctx["message"]})
+                continue
+            # Unions report every branch; "home" is the only union and its branch names help.
+            out.append({"loc": loc, "path": _path(loc), "msg": msg})
+        return cls(out)
+
+
+def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
+    """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
+    for i in range(len(loc) - 2):
+        if loc[i] == "home" and loc[i + 1] in ("grid", "points") and loc[i + 2] == loc[i + 1]:
+            return loc[: i + 1] + loc[i + 2 :]
+    return loc
+
+
+def parse_show(data: bytes | str | dict[str, Any]) -> ShowFile:
+    """Validate a show from JSON text/bytes or an already-parsed dict.
+
+    Raises:
+        ShowValidationError: with the JSON path and reason of every problem found
+            (malformed JSON, non-UTF-8 bytes, too large, or any rule above).
+    """
+    if isinstance(data, bytes | bytearray):
+        if len(data) > MAX_SHOW_FILE_BYTES:
+            raise ShowValidationError(
+                [{"loc": (), "path": "", "msg": f"show file is {len(data)} bytes; the limit is {MAX_SHOW_FILE_BYTES}"}]
+            )
+        try:
+            data = bytes(data).decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ShowValidationError(
+                [{"loc": (), "path": "", "msg": f"not UTF-8 text (byte {exc.start})"}]
+            ) from exc
+    try:
+        if isinstance(data, str):
+            return ShowFile.model_validate_json(data)
+        return ShowFile.model_validate(data)
+    except ValidationError as exc:
+        raise ShowValidationError.from_pydantic(exc) from exc
+
+
+def load_show(path: str | Path) -> ShowFile:
+    """Read and validate a show file from disk (see :func:`parse_show`)."""
+    path = Path(path)
+    size = path.stat().st_size
+    if size > MAX_SHOW_FILE_BYTES:
+        raise ShowValidationError(
+            [{"loc": (), "path": "", "msg": f"show file is {size} bytes; the limit is {MAX_SHOW_FILE_BYTES}"}]
+        )
+    return parse_show(path.read_bytes())
+
+
+def dump_show(show: ShowFile, *, indent: int | None = 2) -> str:
+    """The show as JSON text (``None`` fields omitted), loadable by :func:`parse_show`."""
+    return json.dumps(show.model_dump(mode="json", exclude_none=True), indent=indent)
+
+
+def show_json_schema() -> dict[str, Any]:
+    """JSON Schema of the show file format."""
+    return ShowFile.model_json_schema()

@@ -1,0 +1,51 @@
+"""Baseline for comparison: a cascaded PD controller with model-inversion feed-forward.
+
+Same interface and same inner plumbing as the ISMC (attitude resolution, command
+filter, mixer), with the discontinuity-rejection parts removed::
+
+    u   = -kp e1 - kd e2 + g e_z + p̈_ref                (position PD + feed-forward)
+    u_a = -kp_att e3 - kd_att e4 + Θ̈_c + W I⁻¹(Ω × IΩ) - ẆΩ
+    τ   = I W⁻¹ u_a
+
+This is exactly the ISMC nominal law with ``r = 1`` and zero switching gains, so the
+default gains equal the paper's linear gains (k1..k4): the comparison isolates what
+the finite-time exponents and the integral sliding mode add. Under a persistent
+disturbance a PD leaves a steady error ``≈ ||Δ1|| / kp``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from sim._attitude import CommandFilter
+from sim._ismc import AttitudeGains, IsmcGains, PositionGains
+
+__all__ = ["BaselineGains"]
+
+
+@dataclass(frozen=True, slots=True)
+class BaselineGains:
+    """Cascaded PD gains.
+
+    Attributes:
+        kp: Position gain (1/s²).
+        kd: Velocity gain (1/s).
+        kp_att: Attitude gain (1/s²).
+        kd_att: Attitude-rate gain (1/s).
+        filter: The same Θ_ref command filter as the ISMC.
+    """
+
+    kp: float = 5.0
+    kd: float = 4.0
+    kp_att: float = 12.0
+    kd_att: float = 5.0
+    filter: CommandFilter = CommandFilter()
+
+    def as_ismc(self) -> IsmcGains:
+        """The equivalent ISMC gains (r = 1, α = β = 0) the engines run."""
+        return IsmcGains(
+            position=PositionGains(k1=self.kp, k2=self.kd, r1=1.0, r2=1.0, alpha=0.0),
+            attitude=AttitudeGains(k3=self.kp_att, k4=self.kd_att, r3=1.0, r4=1.0, beta=0.0),
+            filter=self.filter,
+            kind="baseline",
+        )

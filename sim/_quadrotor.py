@@ -1,0 +1,296 @@
+"""Rigid-body quadrotor model of spec section 1 (eqs. 1-7), vectorised over drones.
+
+State layout (one row per drone, ``(N, 12)``): position ``p`` (m, world ENU, z up),
+velocity ``v`` (m/s, world), Euler angles ``Θ = [φ, θ, ψ]`` (rad, ZYX: roll, pitch,
+yaw) and body rates ``Ω`` (rad/s)::
+
+    ṗ = v
+    v̇ = -g e_z + τ_f R e_z / m + Δ1
+    Θ̇ = W(Θ) Ω
+    Ω̇ = I⁻¹ (τ - Ω × IΩ) + W⁻¹(Θ) Δ2
+
+``R = Rz(ψ) Ry(θ) Rx(φ)`` is body-to-world. ``Δ2`` is an *angular acceleration of the
+Euler angles* (rad/s², spec section 7): it is mapped through ``W⁻¹`` so that it appears
+unchanged in ``Θ̈`` and hence in the attitude error dynamics ``ė4``.
+
+Rotor layout ("+" configuration, viewed from above, x forward, y left, z up):
+rotor 1 on +x, rotor 2 on +y, rotor 3 on -x, rotor 4 on -y, each at arm length
+``d`` from the centre. Rotors 1 and 3 turn so that their drag reaction torque on the
+body is about +z, rotors 2 and 4 about -z. With ``w_i = ω_i²``::
+
+    τ_f = k_F (w1 + w2 + w3 + w4)
+    τ_x = d k_F (w2 - w4)          (rotor on +y lifts the left side: positive roll)
+    τ_y = d k_F (w3 - w1)          (rotor on -x lifts the back: positive pitch)
+    τ_z = k_M (w1 - w2 + w3 - w4)
+
+Saturation: each ``w_i`` is clipped to ``[0, ω_max²]`` (simple per-rotor clipping, no
+priority between thrust and torques); the clipped speeds are what acts on the body.
+``ω_max`` follows from a thrust-to-weight ratio: ``4 k_F ω_max² = (T/W) m g``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+__all__ = [
+    "STATE_SIZE",
+    "QuadrotorParams",
+    "euler_rate_matrix",
+    "euler_rate_matrix_inverse",
+    "mix",
+    "quadrotor_derivative",
+    "rotation_matrix",
+    "saturate",
+    "thrust_axis",
+    "unmix",
+    "w_dot_omega",
+]
+
+STATE_SIZE = 12
+
+
+@dataclass(frozen=True, slots=True)
+class QuadrotorParams:
+    """Physical parameters of one quadrotor (defaults: the paper's, section 3.4).
+
+    Attributes:
+        mass_kg: Mass m (kg).
+        inertia_kgm2: Principal moments of inertia (Ix, Iy, Iz) (kg·m²).
+        arm_m: Distance d from the centre to each rotor (m).
+        k_f: Thrust coefficient k_F (N·s²/rad²).
+        k_m: Drag-torque coefficient k_M (N·m·s²/rad²).
+        gravity_mps2: Gravitational acceleration g (m/s²).
+        thrust_to_weight: Ratio of full-throttle thrust to weight, sets ω_max when
+            ``omega_max_rad_s`` is None.
+        omega_max_rad_s: Explicit maximum rotor speed (rad/s); None derives it from
+            ``thrust_to_weight``.
+    """
+
+    mass_kg: float = 0.5
+    inertia_kgm2: tuple[float, float, float] = (2.3e-3, 2.4e-3, 2.6e-3)
+    arm_m: float = 0.225
+    k_f: float = 5.55e-8
+    k_m: float = 2.5e-9
+    gravity_mps2: float = 9.81
+    thrust_to_weight: float = 2.0
+    omega_max_rad_s: float | None = None
+
+    @property
+    def omega_max_sq(self) -> float:
+        """Maximum squared rotor speed ω_max² (rad²/s²)."""
+        if self.omega_max_rad_s is not None:
+            return float(self.omega_max_rad_s) ** 2
+        return self.thrust_to_weight * self.mass_kg * self.gravity_mps2 / (4.0 * self.k_f)
+
+    @property
+    def hover_thrust_n(self) -> float:
+        """Thrust that balances gravity, m g (N)."""
+        return self.mass_kg * self.gravity_mps2
+
+    def mismatched(self, *, fraction: float) -> QuadrotorParams:
+        """Return the parameters of a plant whose mass and inertia are off by ``fraction``.
+
+        The rotors are the same hardware, so ω_max is kept at this vehicle's value
+        (the plant's true thrust-to-weight ratio changes accordingly).
+
+        Args:
+            fraction: Relative error, e.g. 0.1 makes the plant 10 % heavier and
+                10 % harder to rotate than the controller believes (dimensionless).
+        """
+        scale = 1.0 + float(fraction)
+        return replace(
+            self,
+            mass_kg=self.mass_kg * scale,
+            inertia_kgm2=tuple(float(i) * scale for i in self.inertia_kgm2),
+            omega_max_rad_s=float(np.sqrt(self.omega_max_sq)),
+        )
+
+    def as_vector(self) -> np.ndarray:
+        """Pack for the fused kernel: ``[m, Ix, Iy, Iz, d, k_F, k_M, g, ω_max²]``."""
+        ix, iy, iz = self.inertia_kgm2
+        return np.array(
+            [self.mass_kg, ix, iy, iz, self.arm_m, self.k_f, self.k_m, self.gravity_mps2,
+             self.omega_max_sq],
+            dtype=np.float64,
+        )
+
+
+def rotation_matrix(euler_rad: np.ndarray) -> np.ndarray:
+    """Body-to-world rotation ``R = Rz(ψ) Ry(θ) Rx(φ)``.
+
+    Args:
+        euler_rad: ``(N, 3)`` Euler angles [φ, θ, ψ] (rad).
+
+    Returns:
+        ``(N, 3, 3)`` rotation matrices.
+    """
+    sph, cph = np.sin(euler_rad[:, 0]), np.cos(euler_rad[:, 0])
+    sth, cth = np.sin(euler_rad[:, 1]), np.cos(euler_rad[:, 1])
+    sps, cps = np.sin(euler_rad[:, 2]), np.cos(euler_rad[:, 2])
+    r = np.empty((euler_rad.shape[0], 3, 3))
+    r[:, 0, 0] = cth * cps
+    r[:, 0, 1] = sph * sth * cps - cph * sps
+    r[:, 0, 2] = cph * sth * cps + sph * sps
+    r[:, 1, 0] = cth * sps
+    r[:, 1, 1] = sph * sth * sps + cph * cps
+    r[:, 1, 2] = cph * sth * sps - sph * cps
+    r[:, 2, 0] = -sth
+    r[:, 2, 1] = sph * cth
+    r[:, 2, 2] = cph * cth
+    return r
+
+
+def thrust_axis(euler_rad: np.ndarray) -> np.ndarray:
+    """Third column of R, the body z axis in the world frame, ``(N, 3)`` (unit)."""
+    sph, cph = np.sin(euler_rad[:, 0]), np.cos(euler_rad[:, 0])
+    sth, cth = np.sin(euler_rad[:, 1]), np.cos(euler_rad[:, 1])
+    sps, cps = np.sin(euler_rad[:, 2]), np.cos(euler_rad[:, 2])
+    return np.stack(
+        [cph * sth * cps + sph * sps, cph * sth * sps - sph * cps, cph * cth], axis=1
+    )
+
+
+def euler_rate_matrix(euler_rad: np.ndarray) -> np.ndarray:
+    """``W(Θ)`` with ``Θ̇ = W Ω`` (ZYX Euler angles), ``(N, 3, 3)``; singular at θ = ±π/2."""
+    sph, cph = np.sin(euler_rad[:, 0]), np.cos(euler_rad[:, 0])
+    cth = np.cos(euler_rad[:, 1])
+    tth = np.sin(euler_rad[:, 1]) / cth
+    w = np.zeros((euler_rad.shape[0], 3, 3))
+    w[:, 0, 0] = 1.0
+    w[:, 0, 1] = sph * tth
+    w[:, 0, 2] = cph * tth
+    w[:, 1, 1] = cph
+    w[:, 1, 2] = -sph
+    w[:, 2, 1] = sph / cth
+    w[:, 2, 2] = cph / cth
+    return w
+
+
+def euler_rate_matrix_inverse(euler_rad: np.ndarray) -> np.ndarray:
+    """``W⁻¹(Θ)`` with ``Ω = W⁻¹ Θ̇``, ``(N, 3, 3)`` (defined everywhere)."""
+    sph, cph = np.sin(euler_rad[:, 0]), np.cos(euler_rad[:, 0])
+    sth, cth = np.sin(euler_rad[:, 1]), np.cos(euler_rad[:, 1])
+    w = np.zeros((euler_rad.shape[0], 3, 3))
+    w[:, 0, 0] = 1.0
+    w[:, 0, 2] = -sth
+    w[:, 1, 1] = cph
+    w[:, 1, 2] = sph * cth
+    w[:, 2, 1] = -sph
+    w[:, 2, 2] = cph * cth
+    return w
+
+
+def mix(thrust_n: np.ndarray, torque_nm: np.ndarray, params: QuadrotorParams) -> np.ndarray:
+    """Invert the "+" mixer: squared rotor speeds for a thrust and body torque.
+
+    Args:
+        thrust_n: ``(N,)`` collective thrust τ_f (N).
+        torque_nm: ``(N, 3)`` body torque τ (N·m).
+        params: Vehicle parameters (k_F, k_M, d).
+
+    Returns:
+        ``(N, 4)`` squared rotor speeds ω_i² (rad²/s²), unsaturated (may be negative).
+    """
+    base = thrust_n / (4.0 * params.k_f)
+    roll = torque_nm[:, 0] / (2.0 * params.arm_m * params.k_f)
+    pitch = torque_nm[:, 1] / (2.0 * params.arm_m * params.k_f)
+    yaw = torque_nm[:, 2] / (4.0 * params.k_m)
+    return np.stack(
+        [base - pitch + yaw, base + roll - yaw, base + pitch + yaw, base - roll - yaw], axis=1
+    )
+
+
+def unmix(omega_sq: np.ndarray, params: QuadrotorParams) -> tuple[np.ndarray, np.ndarray]:
+    """Forward mixer (eq. 7, "+" layout): thrust (N) and body torque (N·m) from ω_i².
+
+    Args:
+        omega_sq: ``(N, 4)`` squared rotor speeds (rad²/s²).
+        params: Vehicle parameters.
+
+    Returns:
+        ``(thrust (N,), torque (N, 3))`` in N and N·m.
+    """
+    w1, w2, w3, w4 = omega_sq[:, 0], omega_sq[:, 1], omega_sq[:, 2], omega_sq[:, 3]
+    thrust = params.k_f * (w1 + w2 + w3 + w4)
+    torque = np.stack(
+        [
+            params.arm_m * params.k_f * (w2 - w4),
+            params.arm_m * params.k_f * (w3 - w1),
+            params.k_m * (w1 - w2 + w3 - w4),
+        ],
+        axis=1,
+    )
+    return thrust, torque
+
+
+def saturate(omega_sq: np.ndarray, params: QuadrotorParams) -> tuple[np.ndarray, np.ndarray]:
+    """Clip squared rotor speeds to ``[0, ω_max²]``.
+
+    Returns:
+        ``(clipped (N, 4) rad²/s², saturated (N,) bool)``; ``saturated`` is True when
+        any rotor of that drone was clipped (used to freeze the ISMC integrators).
+    """
+    top = params.omega_max_sq
+    clipped = np.minimum(np.maximum(omega_sq, 0.0), top)
+    saturated = np.any((omega_sq < 0.0) | (omega_sq > top), axis=1)
+    return clipped, saturated
+
+
+def quadrotor_derivative(
+    state: np.ndarray,
+    thrust_n: np.ndarray,
+    torque_nm: np.ndarray,
+    accel_dist_mps2: np.ndarray,
+    ang_dist_radps2: np.ndarray,
+    params: QuadrotorParams,
+) -> np.ndarray:
+    """Time derivative of the ``(N, 12)`` state (eqs. 1-4) with inputs held.
+
+    Args:
+        state: ``(N, 12)`` rows ``[p (m), v (m/s), Θ (rad), Ω (rad/s)]``.
+        thrust_n: ``(N,)`` collective thrust τ_f actually produced (N).
+        torque_nm: ``(N, 3)`` body torque actually produced (N·m).
+        accel_dist_mps2: ``(N, 3)`` Δ1, added to v̇ (m/s²).
+        ang_dist_radps2: ``(N, 3)`` Δ2, an Euler-angle acceleration added to Θ̈
+            (rad/s²), i.e. ``W⁻¹ Δ2`` is added to Ω̇.
+        params: Plant parameters.
+
+    Returns:
+        ``(N, 12)`` derivative ``[ṗ, v̇, Θ̇, Ω̇]``.
+    """
+    euler = state[:, 6:9]
+    omega = state[:, 9:12]
+    inertia = np.asarray(params.inertia_kgm2)
+    acc = thrust_n[:, None] / params.mass_kg * thrust_axis(euler) + accel_dist_mps2
+    acc[:, 2] -= params.gravity_mps2
+    euler_dot = np.einsum("nij,nj->ni", euler_rate_matrix(euler), omega)
+    gyro = np.cross(omega, omega * inertia)
+    omega_dot = (torque_nm - gyro) / inertia + np.einsum(
+        "nij,nj->ni", euler_rate_matrix_inverse(euler), ang_dist_radps2
+    )
+    return np.concatenate([state[:, 3:6], acc, euler_dot, omega_dot], axis=1)
+
+
+def w_dot_omega(euler_rad: np.ndarray, omega_radps: np.ndarray) -> np.ndarray:
+    """``Ẇ(Θ, Θ̇) Ω`` with ``Θ̇ = W Ω``: the part of Θ̈ not produced by Ω̇, ``(N, 3)`` (rad/s²).
+
+    Args:
+        euler_rad: ``(N, 3)`` Euler angles (rad).
+        omega_radps: ``(N, 3)`` body rates (rad/s).
+    """
+    sph, cph = np.sin(euler_rad[:, 0]), np.cos(euler_rad[:, 0])
+    sth, cth = np.sin(euler_rad[:, 1]), np.cos(euler_rad[:, 1])
+    tth = sth / cth
+    q, r = omega_radps[:, 1], omega_radps[:, 2]
+    # Θ̇ = W Ω; only φ̇ and θ̇ enter Ẇ (W does not depend on ψ).
+    phid = omega_radps[:, 0] + sph * tth * q + cph * tth * r
+    thed = cph * q - sph * r
+    sec2 = 1.0 / (cth * cth)
+    x0 = (cph * tth * phid + sph * sec2 * thed) * q + (-sph * tth * phid + cph * sec2 * thed) * r
+    x1 = -sph * phid * q - cph * phid * r
+    x2 = (cph / cth * phid + sph * sth * sec2 * thed) * q + (
+        -sph / cth * phid + cph * sth * sec2 * thed
+    ) * r
+    return np.stack([x0, x1, x2], axis=1)
