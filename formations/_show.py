@@ -62,6 +62,21 @@ Point3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Color = Annotated[str, Field(pattern=_HEX_COLOR.pattern, examples=["#ff8800"])]
 
 
+class _ArrayCachingModel(BaseModel):
+    """Base for models that cache numpy views in ``cached_property``.
+
+    pydantic's ``__eq__`` compares ``__dict__``, where the cached arrays live, and an
+    array comparison has no truth value; equality is defined on the fields instead.
+    """
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return self.model_dump() == other.model_dump()  # type: ignore[union-attr]
+
+    __hash__ = None  # type: ignore[assignment]  # mutable-looking list fields; never hashed
+
+
 def _check_name(value: str) -> str:
     if not value.strip():
         raise PydanticCustomError("name_empty", "must not be empty or blank")
@@ -130,7 +145,7 @@ class HomeFromPoints(BaseModel):
     points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
 
 
-class Formation(BaseModel):
+class Formation(_ArrayCachingModel):
     """One formation of the timeline: points (metres), colours, hold time (seconds).
 
     ``colors`` gives one colour per point; ``color`` one for all (default white).
@@ -204,7 +219,7 @@ def _home_kind(value: Any) -> str | None:
     return "points" if isinstance(value, HomeFromPoints) else None
 
 
-class ShowFile(BaseModel):
+class ShowFile(_ArrayCachingModel):
     """A whole show: drones, home positions, limits and the formation timeline."""
 
     model_config = ConfigDict(
