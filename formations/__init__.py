@@ -7,6 +7,8 @@ repair) are re-exported from :mod:`formations.sources`.
 
 from __future__ import annotations
 
+from formations._demo import demo_show as demo_show
+from formations._demo import load_demo_show as load_demo_show
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
@@ -35,8 +37,10 @@ __all__ = [
     "Settings",
     "ShowFile",
     "ShowValidationError",
+    "demo_show",
     "dump_show",
     "hex_to_rgb",
+    "load_demo_show",
     "load_show",
     "parse_show",
     "rgb_to_hex",

@@ -27,6 +27,10 @@ _MARGIN = 2e-9
 
 #: A repair may move no point by more than this many minimum spacings (else the shape is lost).
 MAX_REPAIR_SHIFT = 1.0
+#: Repair is only tried for local defects (crossing or touching strokes): when at most this
+#: fraction of the points is too close to a neighbour. Denser sets cannot be spread within
+#: MAX_REPAIR_SHIFT anyway, and relaxing them would cost seconds for nothing.
+MAX_REPAIR_CLOSE_FRACTION = 0.25
 
 RawGenerator = Callable[[int], tuple[np.ndarray, np.ndarray]]
 
@@ -73,6 +77,26 @@ def no_fit_error(what: str, n: int, min_spacing_m: float, max_n: int) -> Formati
     )
 
 
+def accept_spacing(points: np.ndarray, min_spacing_m: float, *, repair: bool) -> np.ndarray | None:
+    """``points`` made to keep ``min_spacing_m`` (see :func:`ensure_spacing`), or None.
+
+    With ``repair``, points that are too close are spread with :func:`repair_spacing` when
+    the defect is local (at most MAX_REPAIR_CLOSE_FRACTION of the points involved) and the
+    result is accepted if no point moved more than MAX_REPAIR_SHIFT minimum spacings.
+    """
+    good = ensure_spacing(points, min_spacing_m)
+    if good is not None or not repair or len(points) < 2:
+        return good
+    nn, _ = cKDTree(points).query(points, k=2)
+    if np.mean(nn[:, 1] < min_spacing_m) > MAX_REPAIR_CLOSE_FRACTION:
+        return None
+    fixed, achieved = repair_spacing(points, min_spacing_m)
+    shift = float(np.linalg.norm(fixed - points, axis=1).max())
+    if achieved >= min_spacing_m and shift <= MAX_REPAIR_SHIFT * min_spacing_m:
+        return ensure_spacing(fixed, min_spacing_m)
+    return None
+
+
 def guarantee(
     raw: RawGenerator,
     n: int,
@@ -81,22 +105,16 @@ def guarantee(
     what: str,
     repair: bool = False,
 ) -> PointSet:
-    """Build ``n`` points with ``raw(n)`` and enforce ``min_spacing_m``.
+    """Build ``n`` points with ``raw(n)`` and enforce ``min_spacing_m`` (:func:`accept_spacing`).
 
-    If the raw points are too close, optionally try :func:`repair_spacing` (accepted if no
-    point moves more than MAX_REPAIR_SHIFT minimum spacings); otherwise raise
-    a FormationError whose ``max_n`` is the largest count the raw generator fits (bisection).
+    Otherwise raise a FormationError whose ``max_n`` is found by bisection with the same
+    acceptance rule, so ``max_n`` points are accepted and ``max_n + 1`` are not.
     """
     pts, cols = raw(n)
-    good = ensure_spacing(pts, min_spacing_m)
-    if good is None and repair:
-        fixed, achieved = repair_spacing(pts, min_spacing_m)
-        shift = float(np.linalg.norm(fixed - pts, axis=1).max())
-        if achieved >= min_spacing_m and shift <= MAX_REPAIR_SHIFT * min_spacing_m:
-            good = ensure_spacing(fixed, min_spacing_m)
+    good = accept_spacing(pts, min_spacing_m, repair=repair)
     if good is None:
         max_n = largest_fitting(
-            lambda k: meets(nearest_pair_distance(raw(k)[0]), min_spacing_m), n
+            lambda k: accept_spacing(raw(k)[0], min_spacing_m, repair=repair) is not None, n
         )
         raise no_fit_error(what, n, min_spacing_m, max_n)
     return PointSet(good, cols)

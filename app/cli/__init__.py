@@ -21,6 +21,7 @@ from app.cli._common import CliError
 _COMMAND_MODULES: tuple[str, ...] = (
     "app.cli._validate",
     "app.cli._check",
+    "app.cli._formation",
 )
 
 
