@@ -15,7 +15,8 @@ one model evaluation per step, which is what makes the fused kernel fast. The
 switching terms never meet an adaptive solver: the inputs are held over the step.
 Classical RK4 with the inputs held (disturbances at the stage times) is available
 here as ``integrator="rk4"`` to measure the discretisation error; on the paper
-scenario both meet the thresholds with a large margin (see ``tests/test_flight_paper``).
+scenario both meet the spec's thresholds (``run_paper_scenario(engine="numpy",
+integrator="rk4")``).
 
 Divergence: before a step, a drone whose position error exceeds ``divergence_limit_m``
 is frozen; a step that would make any state or input non-finite is not committed and
@@ -59,6 +60,8 @@ __all__ = [
     "SimResult",
     "TrackingReference",
     "hover_state",
+    "init_controller",
+    "numpy_step",
     "simulate",
 ]
 
@@ -410,16 +413,18 @@ def _run_chunk_numpy(
         k = step0 + j
         alive = dstep < 0
         pr, vr, ar = ref.at_step(chunk, j)
-        err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
-        runaway = alive & ~(err <= limit)
+        with np.errstate(all="ignore"):
+            err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
+        runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
         dstep[runaway] = k
-        dreason[runaway] = DIVERGED_RUNAWAY
+        dreason[runaway] = np.where(err[runaway] > limit, DIVERGED_RUNAWAY, DIVERGED_NONFINITE)
         alive &= ~runaway
-        ns, nc, trow = numpy_step(
-            state, ctrl, pr=pr, vr=vr, ar=ar, yaw=chunk.yaw[j], dist=dist[j], t_s=times[j],
-            disturbance=opts["disturbance"], params=opts["params"], plant=opts["plant"],
-            gains=opts["gains"], dt_s=opts["dt_s"], integrator=opts["integrator"],
-        )
+        with np.errstate(all="ignore"):  # a diverging row may overflow; it is caught below
+            ns, nc, trow = numpy_step(
+                state, ctrl, pr=pr, vr=vr, ar=ar, yaw=chunk.yaw[j], dist=dist[j], t_s=times[j],
+                disturbance=opts["disturbance"], params=opts["params"], plant=opts["plant"],
+                gains=opts["gains"], dt_s=opts["dt_s"], integrator=opts["integrator"],
+            )
         bad = alive & ~(np.all(np.isfinite(ns), axis=1) & np.all(np.isfinite(nc), axis=1))
         dstep[bad] = k
         dreason[bad] = DIVERGED_NONFINITE
@@ -451,6 +456,7 @@ def simulate(
     mismatch: float = 0.0,
     gains: IsmcGains | BaselineGains | None = None,
     disturbance: str | Disturbance | None = None,
+    seed: int = 0,
     dt_s: float = 1e-3,
     output_every: int = 40,
     telemetry: bool = False,
@@ -459,6 +465,8 @@ def simulate(
     divergence_limit_m: float = 100.0,
     chunk_steps: int = 1000,
     progress: Callable[[float], None] | None = None,
+    frames_out: np.ndarray | None = None,
+    on_chunk: Callable[[int, np.ndarray], None] | None = None,
 ) -> SimResult:
     """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
 
@@ -472,6 +480,7 @@ def simulate(
         mismatch: Plant mass and inertia off by this fraction (dimensionless).
         gains: ISMC gains (default the paper's) or ``BaselineGains`` for the PD baseline.
         disturbance: ``"none" | "paper" | "wind"`` or a ``Disturbance``.
+        seed: Seed of the wind gusts.
         dt_s: Control and integration step (s), default 1 ms (the paper's).
         output_every: Record positions (and telemetry) every this many steps.
         telemetry: Also record ``TELEMETRY_FIELDS`` at the frames.
@@ -479,7 +488,12 @@ def simulate(
         integrator: ``"euler"`` (semi-implicit; both engines) or ``"rk4"`` (numpy only).
         divergence_limit_m: Position error beyond which a drone is frozen (m).
         chunk_steps: Steps per kernel call (progress granularity).
-        progress: Called with the completed fraction in [0, 1].
+        progress: Called with the completed fraction in [0, 1] after every chunk; an
+            exception it raises stops the run and propagates (used to cancel).
+        frames_out: Optional preallocated ``(F, N, 3)`` frame buffer (float32 or
+            float64), F = ``(steps - 1) // output_every + 1``; saves a float64 copy.
+        on_chunk: Called after every chunk with ``(steps_done, diverged_step)``:
+            frames with index ``< ceil(steps_done / output_every)`` are final.
 
     Returns:
         A ``SimResult``.
@@ -490,7 +504,7 @@ def simulate(
         gains = IsmcGains()
     if isinstance(gains, BaselineGains):
         gains = gains.as_ismc()
-    dist = make_disturbance(disturbance)
+    dist = make_disturbance(disturbance, seed=seed)
     n = reference.drone_count
     steps = int(round(duration_s / dt_s)) + 1
     every = max(int(output_every), 1)
@@ -506,7 +520,12 @@ def simulate(
     stats = np.zeros((n, STATS_SIZE))
     dstep = np.full(n, -1, dtype=np.int64)
     dreason = np.zeros(n, dtype=np.int64)
-    frames = np.zeros((n_frames, n, 3))
+    if frames_out is None:
+        frames = np.zeros((n_frames, n, 3))
+    else:
+        frames = frames_out
+        if frames.shape != (n_frames, n, 3):
+            raise ValueError(f"frames_out must be {(n_frames, n, 3)}, got {frames.shape}")
     tel = np.full((n_frames, n, TEL_SIZE), np.nan) if telemetry else None
 
     if engine == "numba":
@@ -532,6 +551,8 @@ def simulate(
             every=every, frames=frames, tel=tel, opts=opts,
         )
         step += count
+        if on_chunk is not None:
+            on_chunk(step, dstep)
         if progress is not None:
             progress(step / steps)
 

@@ -18,6 +18,12 @@ silent on it):
 * Anti-windup: when any rotor of a drone saturates at step k, that drone's ``u_d``
   (position and attitude) is not advanced; ``∫(u_n + f)`` keeps integrating so ``s``
   keeps measuring the true mismatch.
+* The two directions of ω̃ use a boundary layer ``x / max(||x||, SWITCH_EPS)`` with
+  ``SWITCH_EPS = 1e-9`` (m/s or rad/s). In normal sliding the discrete twisting keeps
+  ``||s||`` near ``α dt²`` (~5e-6), far above it, so performance is unchanged; it only
+  replaces the direction of a vector made of rounding noise (e.g. ``s - s_prev`` when it
+  is exactly or nearly zero) by a proportional term, so a 1e-17 difference cannot turn
+  into a full-size switching step.
 * ``sig`` and unit vectors are guarded at zero (ISMC makes ``s(0) = 0`` exactly, an
   unguarded ``||s||^(r-1)`` is NaN at step 0). ``r = 1/2`` is evaluated as
   ``1/sqrt(||x||)`` (exact and cheap) in every engine.
@@ -36,6 +42,7 @@ import numpy as np
 from sim._attitude import CommandFilter
 
 __all__ = [
+    "SWITCH_EPS",
     "AttitudeGains",
     "IsmcGains",
     "IsmcIntegrators",
@@ -45,6 +52,10 @@ __all__ = [
     "sig",
     "unit",
 ]
+
+
+#: Boundary layer of the switching directions (m/s for the position loop, rad/s for attitude).
+SWITCH_EPS = 1e-9
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,11 +137,17 @@ def sig(x: np.ndarray, r: float) -> np.ndarray:
     return x * np.where(pos, scale, 0.0)[:, None]
 
 
-def unit(x: np.ndarray) -> np.ndarray:
-    """Row-wise ``x / ||x||``, 0 where ``x = 0`` (``(N, 3)``)."""
+def unit(x: np.ndarray, eps: float = 0.0) -> np.ndarray:
+    """Row-wise ``x / max(||x||, eps)``, 0 where ``x = 0`` (``(N, 3)``).
+
+    Args:
+        x: ``(N, 3)`` vectors (any unit).
+        eps: Boundary layer (unit of x): below it the result is ``x / eps``, linear
+            instead of a unit vector. 0 gives the pure direction.
+    """
     n = np.sqrt(np.sum(x * x, axis=1))
     pos = n > 0.0
-    return x * np.where(pos, 1.0 / np.where(pos, n, 1.0), 0.0)[:, None]
+    return x * np.where(pos, 1.0 / np.maximum(np.where(pos, n, 1.0), eps), 0.0)[:, None]
 
 
 def ismc_nominal(
@@ -142,8 +159,11 @@ def ismc_nominal(
 
 
 def ismc_switching(s: np.ndarray, s_prev: np.ndarray, *, gain: float) -> np.ndarray:
-    """Switching law ``ω̃ = -gain (s/||s|| + 0.5 ṡ/||ṡ||)`` (eq. 35), ṡ ∝ ``s - s_prev``."""
-    return -gain * (unit(s) + 0.5 * unit(s - s_prev))
+    """Switching law ``ω̃ = -gain (s/||s|| + 0.5 ṡ/||ṡ||)`` (eq. 35), ṡ ∝ ``s - s_prev``.
+
+    Both directions use the boundary layer ``SWITCH_EPS`` (see the module docstring).
+    """
+    return -gain * (unit(s, SWITCH_EPS) + 0.5 * unit(s - s_prev, SWITCH_EPS))
 
 
 @dataclass

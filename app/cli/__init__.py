@@ -21,7 +21,11 @@ from app.cli._common import CliError
 _COMMAND_MODULES: tuple[str, ...] = (
     "app.cli._validate",
     "app.cli._check",
+    "app.cli._simulate",
+    "app.cli._bench",
     "app.cli._formation",
+    "app.cli._export",
+    "app.cli._serve",
 )
 
 

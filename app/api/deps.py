@@ -1,0 +1,41 @@
+"""Access to the per-app services (created in the app's lifespan) from request handlers."""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from fastapi import Request
+
+from app.jobs import JobManager
+from app.settings import AppSettings
+from app.store import ShowStore
+
+T = TypeVar("T")
+
+
+def store(request: Request) -> ShowStore:
+    """The show store."""
+    return request.app.state.store
+
+
+def jobs(request: Request) -> JobManager:
+    """The job manager (worker pool, jobs, result cache)."""
+    return request.app.state.jobs
+
+
+def settings(request: Request) -> AppSettings:
+    """The server settings."""
+    return request.app.state.settings
+
+
+async def write(request: Request, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
+    """Run a store write on the app's one store thread.
+
+    Writes wait for an fsync; one dedicated thread keeps that off the event loop
+    without a crowd of threads contending for the store's lock and the GIL.
+    """
+    loop = asyncio.get_running_loop()
+    return await loop.run_in_executor(request.app.state.store_writer, functools.partial(fn, *args, **kwargs))

@@ -1,0 +1,93 @@
+"""``POST /api/formations/{shape|text|image|svg}``: formation points and colours from a source."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, File, Form, Request, UploadFile
+
+from app import tasks
+from app.api import deps
+from app.api.errors import ApiError
+from app.api.models import FormationPoints, Plane, ShapeRequest, TextRequest, error_responses
+from app.server._limits import BodyTooLarge
+
+router = APIRouter(prefix="/formations", tags=["formations"])
+
+_ERRORS = error_responses(422)
+_UPLOAD_ERRORS = error_responses(413, 422)
+_CENTER_DOC = "Centre 'x,y,z' in metres (a JSON array works too)."
+
+
+@router.post("/shape", response_model=FormationPoints, summary="Points of a preset shape", responses=_ERRORS)
+async def shape(request: Request, body: ShapeRequest) -> dict[str, Any]:
+    """``n`` points of a grid, circle, polygon, star, heart, sphere, helix or cube, at least
+    ``min_spacing_m`` apart. If they do not fit, 422 says how many do (``max_n``)."""
+    params = body.model_dump()
+    return await deps.jobs(request).run(tasks.formation_task, "shape", params, None)
+
+
+@router.post("/text", response_model=FormationPoints, summary="Points spelling a text", responses=_ERRORS)
+async def text(request: Request, body: TextRequest) -> dict[str, Any]:
+    """``n`` points spread over the letters of ``text``."""
+    return await deps.jobs(request).run(tasks.formation_task, "text", body.model_dump(), None)
+
+
+def _center(value: str) -> list[float]:
+    try:
+        parts = [float(v) for v in value.strip().strip("[]").split(",")]
+    except ValueError:
+        parts = []
+    if len(parts) != 3 or not all(math.isfinite(v) for v in parts):
+        raise ApiError(422, [{"loc": ["body", "center_m"], "path": "center_m", "msg": "must be three numbers 'x,y,z'"}])
+    return parts
+
+
+async def _read(file: UploadFile, *, limit: int, what: str) -> bytes:
+    data = await file.read(limit + 1)
+    if len(data) > limit:
+        raise BodyTooLarge(what, limit)
+    if not data:
+        raise ApiError(422, [{"loc": ["body", "file"], "path": "file", "msg": "the uploaded file is empty"}])
+    return data
+
+
+@router.post("/image", response_model=FormationPoints, summary="Points from an image", responses=_UPLOAD_ERRORS)
+async def image(
+    request: Request,
+    file: Annotated[UploadFile, File(description="PNG or JPEG, at most 40 megapixels.")],
+    n: Annotated[int, Form(ge=1, le=20_000, description="Number of points.")],
+    width_m: Annotated[float, Form(ge=0.01, le=10_000, description="Width of the whole image, m.")] = 40.0,
+    center_m: Annotated[str, Form(description=_CENTER_DOC)] = "0,0,30",
+    plane: Annotated[Plane, Form()] = "xz",
+    min_spacing_m: Annotated[float, Form(ge=0.01, le=100)] = 3.0,
+    mode: Annotated[Literal["auto", "bright", "alpha"], Form(
+        description="Pixels to fill: opaque if the image has transparency, else bright ('auto').")] = "auto",
+) -> dict[str, Any]:
+    """``n`` points spread over the bright (or opaque) pixels, each with its pixel's colour."""
+    limit = deps.settings(request).max_image_bytes
+    data = await _read(file, limit=limit, what="an image")
+    params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
+              "min_spacing_m": min_spacing_m, "mode": mode}
+    return await deps.jobs(request).run(tasks.formation_task, "image", params, data)
+
+
+@router.post("/svg", response_model=FormationPoints, summary="Points from an SVG drawing", responses=_UPLOAD_ERRORS)
+async def svg(
+    request: Request,
+    file: Annotated[UploadFile, File(description="An SVG file, at most 5 MB.")],
+    n: Annotated[int, Form(ge=1, le=20_000, description="Number of points.")],
+    width_m: Annotated[float, Form(ge=0.01, le=10_000, description="Width of the drawing, m.")] = 40.0,
+    center_m: Annotated[str, Form(description=_CENTER_DOC)] = "0,0,30",
+    plane: Annotated[Plane, Form()] = "xz",
+    min_spacing_m: Annotated[float, Form(ge=0.01, le=100)] = 3.0,
+    color: Annotated[str | None, Form(
+        pattern=r"^#[0-9a-fA-F]{6}$", description="LED colour of every point (default: the drawing's own).")] = None,
+) -> dict[str, Any]:
+    """``n`` points along the drawing's strokes and fills."""
+    limit = deps.settings(request).max_svg_bytes
+    data = await _read(file, limit=limit, what="an SVG file")
+    params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
+              "min_spacing_m": min_spacing_m, "color": color}
+    return await deps.jobs(request).run(tasks.formation_task, "svg", params, data)

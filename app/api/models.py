@@ -1,0 +1,243 @@
+"""Request and response models of the REST API (they make the OpenAPI document)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from formations import ShowFile
+from formations._shapes import SHAPE_KINDS
+from sim import CheckReport
+
+Plane = Literal["xz", "xy", "yz"]
+
+
+# -- errors -----------------------------------------------------------------------------------
+
+
+class Problem(BaseModel):
+    """One reason a request was rejected."""
+
+    model_config = ConfigDict(extra="allow")
+
+    loc: list[str | int] = Field(description="Where: 'body', 'query' or 'path', then the field's keys and indices.")
+    path: str = Field(description="The field as a JSON path inside the body, e.g. 'formations[2].hold_s'.")
+    msg: str = Field(description="Why it was rejected.")
+
+
+class ValidationErrorOut(BaseModel):
+    """422: the request is well-formed HTTP but its content is invalid."""
+
+    detail: list[Problem]
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"detail": [
+        {"loc": ["body", "formations", 2, "hold_s"], "path": "formations[2].hold_s",
+         "msg": "Input should be greater than 0"}]}]})
+
+
+class ErrorOut(BaseModel):
+    """Any other error: a one-line reason."""
+
+    detail: str = Field(examples=["no show with id '5f2c0a9e1b7d4c3a'"])
+
+
+class ConflictOut(BaseModel):
+    """409: the show changed since the client read it (or the job already finished)."""
+
+    detail: str
+    current_revision: int | None = Field(None, description="The stored revision (for a show).")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "detail": "show '5f2c0a9e1b7d4c3a' is at revision 4, not 3: it was changed meanwhile; "
+                  "reload it and apply your change again",
+        "current_revision": 4}]})
+
+
+def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` entries for the given error status codes."""
+    table: dict[int, dict[str, Any]] = {
+        404: {"model": ErrorOut, "description": "No such show, job or format."},
+        409: {"model": ConflictOut, "description": "Stale revision (or the job already finished)."},
+        413: {"model": ErrorOut, "description": "Upload over the limit: show file 20 MB, image 40 MP, SVG 5 MB."},
+        422: {"model": ValidationErrorOut, "description": "Invalid input, with the field path and the reason."},
+        503: {"model": ErrorOut, "description": "Too many jobs queued; retry later (see Retry-After)."},
+    }
+    return {code: table[code] for code in codes}
+
+
+# -- health -----------------------------------------------------------------------------------
+
+
+class HealthOut(BaseModel):
+    """The server is up, its store open and its worker pool running."""
+
+    status: Literal["ok"] = "ok"
+    version: str
+    schema_version: int = Field(description="Schema version of the show store.")
+    workers: int = Field(description="Worker processes for planning, checks and simulations.")
+    jobs_pending: int = Field(description="Jobs queued or running.")
+
+
+# -- shows ------------------------------------------------------------------------------------
+
+
+class ShowSummary(BaseModel):
+    """A stored show without its content."""
+
+    id: str = Field(examples=["5f2c0a9e1b7d4c3a"])
+    name: str
+    revision: int = Field(ge=1, description="Increments on every change; send it back with PUT.")
+    drones: int
+    formations: int
+    content_hash: str = Field(description="SHA-256 of the canonical show JSON (equal content, equal hash).")
+    created_at: str = Field(examples=["2026-11-24T13:21:57.123456Z"])
+    updated_at: str
+
+
+class ShowOut(ShowSummary):
+    """A stored show with its show file."""
+
+    show: ShowFile
+
+
+class ShowList(BaseModel):
+    """One page of shows, most recently updated first."""
+
+    items: list[ShowSummary]
+    total: int
+    limit: int
+    offset: int
+
+
+class ShowUpdate(BaseModel):
+    """PUT body: the revision the change is based on and the whole new show file."""
+
+    revision: int = Field(ge=1, description="The revision you read; a stale one gets 409.")
+    show: ShowFile
+
+
+# -- check and jobs ---------------------------------------------------------------------------
+
+
+class SegmentOut(BaseModel):
+    """One show-wide segment of the plan."""
+
+    index: int
+    kind: Literal["takeoff", "transition", "hold", "landing"]
+    label: str
+    start_s: float
+    duration_s: float
+
+
+class PlanSummary(BaseModel):
+    """The planned timeline."""
+
+    drones: int
+    duration_s: float
+    segments: list[SegmentOut]
+
+
+class CheckOut(BaseModel):
+    """Plan summary and exact verification of the stored show."""
+
+    show_id: str
+    revision: int
+    content_hash: str
+    cached: bool = Field(description="True when the show was checked before and not recomputed.")
+    plan: PlanSummary
+    report: CheckReport
+
+
+class SimulateOptions(BaseModel):
+    """How to fly the show in simulation."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    engine: Literal["numba", "numpy"] = Field("numba", description="Simulation engine.")
+    controller: Literal["ismc", "baseline"] = Field("ismc", description="Position and attitude controllers.")
+    disturbance: Literal["none", "paper", "wind"] = Field("none", description="External disturbance model.")
+    output_hz: float = Field(25.0, gt=0, le=1000, description="Rate of the recorded trajectory, Hz.")
+
+
+class JobError(BaseModel):
+    """Why a job failed or stopped."""
+
+    model_config = ConfigDict(extra="allow")
+
+    status: int = Field(description="The HTTP status the reason corresponds to (499: cancelled).")
+    message: str
+    detail: Any = None
+
+
+class JobOut(BaseModel):
+    """A background job."""
+
+    id: str
+    kind: str = Field(examples=["simulate"])
+    state: Literal["queued", "running", "done", "failed", "cancelled"]
+    progress: float = Field(ge=0, le=1)
+    show_id: str | None
+    show_revision: int | None
+    content_hash: str
+    options: dict[str, Any]
+    cached: bool = Field(description="True when the result came from the cache (not recomputed).")
+    created_at: str
+    started_at: str | None
+    finished_at: str | None
+    result: dict[str, Any] | None = Field(description="When done: the plan summary and the flight summary.")
+    error: JobError | None = Field(description="When failed or cancelled: why.")
+
+
+class JobList(BaseModel):
+    """Remembered jobs, newest first (results omitted)."""
+
+    items: list[JobOut]
+
+
+# -- formations -------------------------------------------------------------------------------
+
+
+class _FormationBase(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    n: int = Field(ge=1, le=20_000, description="Number of points.")
+    center_m: list[float] = Field([0.0, 0.0, 30.0], min_length=3, max_length=3, description="Centre (x, y, z), m.")
+    plane: Plane = Field("xz", description="'xz' faces the audience; 'xy' is parallel to the ground.")
+    min_spacing_m: float = Field(3.0, ge=0.01, le=100, description="Minimum distance between points, m.")
+
+
+class ShapeRequest(_FormationBase):
+    """A preset shape."""
+
+    kind: Literal[SHAPE_KINDS] = Field(description="Shape preset.")  # type: ignore[valid-type]
+    size_m: float = Field(20.0, ge=0.01, le=10_000, description="Diameter, side or height, m.")
+    color: str = Field("#ffffff", pattern=r"^#[0-9a-fA-F]{6}$", description="LED colour.")
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="Kind-specific: polygon sides; star points, inner_ratio; helix turns, radius_m; cube filled.",
+    )
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
+        {"kind": "star", "n": 50, "size_m": 40.0, "center_m": [0, 0, 40], "plane": "xz", "color": "#ffcc00",
+         "params": {"points": 5}}]})
+
+
+class TextRequest(_FormationBase):
+    """Text drawn with the bundled font."""
+
+    text: str = Field(min_length=1, max_length=1000, description="The text (newlines start new lines).")
+    height_m: float = Field(10.0, ge=0.01, le=10_000, description="Letter height, m.")
+    color: str = Field("#ffffff", pattern=r"^#[0-9a-fA-F]{6}$", description="LED colour.")
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
+        {"text": "HELLO", "n": 120, "height_m": 12.0, "center_m": [0, 0, 40], "color": "#00aaff"}]})
+
+
+class FormationPoints(BaseModel):
+    """Formation points (metres, ENU) and their LED colours."""
+
+    points: list[list[float]]
+    colors: list[str]
+    min_spacing_m: float | None = Field(description="Nearest-pair distance, m (null for one point).")
+    count: int

@@ -1,0 +1,322 @@
+"""Shows: create / import, list, read, revision-checked update, delete, check, simulate, export."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import re
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Body, Query, Request, Response
+from fastapi.responses import JSONResponse
+
+from app import tasks
+from app.api import deps
+from app.api.errors import ApiError, show_problems
+from app.api.models import CheckOut, JobOut, ShowList, ShowOut, ShowSummary, SimulateOptions, error_responses
+from app.server._limits import BodyTooLarge
+from app.store import ShowData, ShowRecord
+
+router = APIRouter(tags=["shows"])
+
+_UPLOAD_CONTENT = {
+    "application/json": {"schema": {"$ref": "#/components/schemas/ShowFile"}},
+    "multipart/form-data": {
+        "schema": {
+            "type": "object",
+            "properties": {"file": {"type": "string", "format": "binary", "description": "The show file (JSON)."}},
+            "required": ["file"],
+        }
+    },
+    "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+}
+_UPDATE_CONTENT = {"application/json": {"schema": {"$ref": "#/components/schemas/ShowUpdate"}}}
+
+
+def _summary(record: ShowRecord) -> dict[str, Any]:
+    return ShowSummary(**{k: getattr(record, k) for k in ShowSummary.model_fields}).model_dump()
+
+
+def _show_response(record: ShowRecord, *, status: int = 200, headers: dict[str, str] | None = None) -> Response:
+    # The stored text is already valid show JSON: splice it in rather than parse and re-encode megabytes.
+    head = json.dumps(_summary(record))[:-1]
+    return Response(
+        f'{head},"show":{record.json}}}',
+        status_code=status,
+        media_type="application/json",
+        headers={"ETag": f'"{record.revision}"', **(headers or {})},
+    )
+
+
+def _invalid(msg: str, *, loc: tuple[str | int, ...] = (), path: str = "") -> ApiError:
+    return ApiError(422, [{"loc": ["body", *loc], "path": path, "msg": msg}])
+
+
+#: Show files larger than this are validated in a worker process (seconds of CPU for the largest).
+INLINE_PARSE_BYTES = 256 * 1024
+
+
+async def _parse_show(request: Request, data: bytes | dict[str, Any], *, size: int,
+                      prefix: tuple[str | int, ...] = ()) -> ShowData:
+    """Validate a show file (``size`` bytes of JSON); 422 lists every problem with its path."""
+    from formations import ShowValidationError, parse_show
+
+    try:
+        if size > INLINE_PARSE_BYTES:
+            return ShowData(**await deps.jobs(request).run(tasks.validate_task, data))
+        return ShowData.of(await asyncio.to_thread(parse_show, data))
+    except ShowValidationError as exc:
+        raise ApiError(422, show_problems(exc.errors, prefix=prefix)) from None
+    except tasks.TaskFailure as exc:
+        if exc.status != 422:
+            raise
+        raise ApiError(422, show_problems(exc.detail, prefix=prefix)) from None
+
+
+async def _read_upload(request: Request, *, max_bytes: int) -> bytes:
+    """The show file's bytes from a JSON, raw or multipart (``file`` part) body."""
+    if request.headers.get("content-type", "").startswith("multipart/form-data"):
+        form = await request.form(max_files=1, max_fields=20)
+        try:
+            upload = form.get("file")
+            if upload is None or isinstance(upload, str):
+                raise _invalid("a multipart upload needs a 'file' part holding the show file", loc=("file",),
+                               path="file")
+            data = await upload.read(max_bytes + 1)
+        finally:
+            await form.close()
+    else:
+        data = await request.body()
+    if len(data) > max_bytes:
+        # A multipart file was read only up to the limit: its real size is unknown here.
+        multipart = request.headers.get("content-type", "").startswith("multipart/form-data")
+        raise BodyTooLarge("a show file", max_bytes, size=None if multipart else len(data))
+    if not data.strip():
+        raise _invalid("the body is empty; send a show file (JSON)")
+    return data
+
+
+@router.post(
+    "/shows",
+    status_code=201,
+    response_model=ShowOut,
+    summary="Create a show (or import a show file)",
+    responses=error_responses(413, 422),
+    openapi_extra={"requestBody": {"required": True, "content": _UPLOAD_CONTENT}},
+)
+async def create_show(request: Request) -> Response:
+    """Store a new show at revision 1.
+
+    The body is a show file: as JSON, as raw bytes, or as the ``file`` part of a
+    multipart upload (import). The show is validated completely before anything
+    is stored; 422 lists every problem with its JSON path.
+    """
+    s = deps.settings(request)
+    data = await _read_upload(request, max_bytes=s.max_show_bytes)
+    show = await _parse_show(request, data, size=len(data))
+    record = await deps.write(request, deps.store(request).create, show)
+    return _show_response(record, status=201, headers={"Location": f"/api/shows/{record.id}"})
+
+
+@router.get("/shows", response_model=ShowList, summary="List shows")
+async def list_shows(
+    request: Request,
+    limit: int = Query(50, ge=1, le=500, description="Page size."),
+    offset: int = Query(0, ge=0, le=2**62, description="Shows to skip."),
+) -> ShowList:
+    """A page of shows, most recently updated first (without their content)."""
+    records, total = deps.store(request).list(limit=limit, offset=offset)
+    return ShowList(items=[ShowSummary(**_summary(r)) for r in records], total=total, limit=limit, offset=offset)
+
+
+@router.get("/shows/{show_id}", response_model=ShowOut, summary="Read a show", responses=error_responses(404))
+async def get_show(request: Request, show_id: str) -> Response:
+    """The show with its revision (also in the ``ETag`` header) and its show file."""
+    return _show_response(deps.store(request).get(show_id))
+
+
+def _revision_from(body_value: Any, if_match: str | None) -> int:
+    if body_value is None and if_match:
+        body_value = if_match.strip().removeprefix("W/").strip('"')
+        try:
+            body_value = int(body_value)
+        except ValueError:
+            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match",
+                                  "msg": "must be a revision number, e.g. \"3\""}]) from None
+    if body_value is None:
+        raise _invalid("required: the revision you read (so that a concurrent change is never overwritten)",
+                       loc=("revision",), path="revision")
+    if isinstance(body_value, bool) or not isinstance(body_value, int) or body_value < 1:
+        raise _invalid("must be an integer >= 1", loc=("revision",), path="revision")
+    return body_value
+
+
+@router.put(
+    "/shows/{show_id}",
+    response_model=ShowOut,
+    summary="Replace a show (revision-checked)",
+    responses=error_responses(404, 409, 413, 422),
+    openapi_extra={"requestBody": {"required": True, "content": _UPDATE_CONTENT}},
+)
+async def update_show(request: Request, show_id: str) -> Response:
+    """Replace the show if it is still at ``revision``; the answer carries the new revision.
+
+    Body: ``{"revision": r, "show": {...}}``, or the bare show file with the revision
+    in an ``If-Match: "r"`` header. A stale revision gets 409 with
+    ``current_revision``; nothing is overwritten. Saving identical content keeps the revision.
+    """
+    raw = await request.body()
+    if not raw.strip():
+        raise _invalid("the body is empty; send {\"revision\": r, \"show\": {...}}")
+    try:
+        body = json.loads(raw)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _invalid(f"not valid JSON: {exc}") from None
+    if not isinstance(body, dict):
+        raise _invalid("must be a JSON object {\"revision\": r, \"show\": {...}}")
+    if "show" in body and "format" not in body:
+        unknown = sorted(set(body) - {"revision", "show"})
+        if unknown:
+            raise _invalid(f"unknown field {unknown[0]!r} (expected 'revision' and 'show')", loc=(unknown[0],),
+                           path=unknown[0])
+        revision = _revision_from(body.get("revision"), request.headers.get("if-match"))
+        show_data, prefix = body["show"], ("show",)
+        if not isinstance(show_data, dict):
+            raise _invalid("must be a show file object", loc=prefix, path="show")
+    else:
+        revision = _revision_from(None, request.headers.get("if-match"))
+        show_data, prefix = body, ()
+    show = await _parse_show(request, show_data, size=len(raw), prefix=prefix)
+    record = await deps.write(request, deps.store(request).update, show_id, show, expected_revision=revision)
+    return _show_response(record)
+
+
+@router.delete(
+    "/shows/{show_id}", status_code=204, summary="Delete a show", responses=error_responses(404, 409),
+    response_class=Response,
+)
+async def delete_show(
+    request: Request,
+    show_id: str,
+    revision: int | None = Query(None, ge=1, description="Delete only if the show is still at this revision."),
+) -> Response:
+    """Delete the show (only at ``revision`` when given: a stale one gets 409)."""
+    await deps.write(request, deps.store(request).delete, show_id, expected_revision=revision)
+    return Response(status_code=204)
+
+
+@router.post(
+    "/shows/{show_id}/check",
+    response_model=CheckOut,
+    summary="Plan and verify a show",
+    responses=error_responses(404, 422),
+)
+async def check_show(request: Request, show_id: str) -> JSONResponse:
+    """Plan the stored show with CAPT and verify it exactly (separation, speeds, acceleration, altitude).
+
+    Runs in a worker process; an unchanged show is answered from the cache (``cached``).
+    A transition forced shorter than the limits allow is reported as a violation, not an error.
+    """
+    record = deps.store(request).get(show_id)
+    result, cached = await deps.jobs(request).run_cached(
+        "check", record.content_hash, {}, tasks.check_task, record.json
+    )
+    return JSONResponse({
+        "show_id": record.id, "revision": record.revision, "content_hash": record.content_hash,
+        "cached": cached, **result,
+    })
+
+
+@router.post(
+    "/shows/{show_id}/simulate",
+    status_code=202,
+    response_model=JobOut,
+    summary="Fly a show in simulation (background job)",
+    responses=error_responses(404, 422, 503),
+)
+async def simulate_show(
+    request: Request, show_id: str, options: Annotated[SimulateOptions | None, Body()] = None
+) -> JSONResponse:
+    """Start a simulation job and answer 202 with it (``Location`` points at the job).
+
+    Follow it with ``GET /api/jobs/{id}`` or the server-sent events of
+    ``GET /api/jobs/{id}/events``; cancel it with ``DELETE /api/jobs/{id}``. An
+    unchanged show simulated before with the same options gives a job that is
+    already done (``cached``); the same simulation already running is shared.
+    """
+    record = deps.store(request).get(show_id)
+    opts = (options or SimulateOptions()).model_dump()
+    job = await asyncio.to_thread(
+        deps.jobs(request).submit, "simulate", tasks.simulate_task, show_text=record.json,
+        content_hash=record.content_hash, options=opts, show_id=record.id, show_revision=record.revision,
+    )
+    return JSONResponse(job.snapshot(), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
+
+
+def export_formats() -> tuple[str, ...]:
+    """Every format ``GET /api/shows/{id}/export/{fmt}`` serves (``show`` first)."""
+    try:
+        from app.exports import EXPORT_FORMATS
+    except ImportError:
+        return ("show",)
+    return ("show", *(f for f in EXPORT_FORMATS if f != "show"))
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.") or "show"
+
+
+def _parse_origin(origin: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in origin.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise ApiError(422, [{"loc": ["query", "origin"], "path": "origin",
+                              "msg": "must be 'latitude,longitude' or 'latitude,longitude,altitude_m'"}])
+    return values if len(values) == 3 else (*values, 0.0)
+
+
+@router.get(
+    "/shows/{show_id}/export/{fmt}",
+    summary="Export a show",
+    response_class=Response,
+    responses={
+        200: {"description": "The exported file (attachment).", "content": {
+            "application/json": {}, "application/zip": {}, "text/csv": {}, "text/plain": {}, "text/html": {},
+            "application/octet-stream": {}}},
+        **error_responses(404, 422),
+    },
+)
+async def export_show(
+    request: Request,
+    show_id: str,
+    fmt: str,
+    fps: float | None = Query(None, gt=0, le=1000, description="Sample rate of trajectory formats, Hz."),
+    origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
+    heading_deg: float = Query(0.0, ge=-360, le=360, description="Direction of the show's +y axis, degrees."),
+    source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
+) -> Response:
+    """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
+    format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
+    ``qgc-wpl``, ``waypoints-csv``, ``viser-html``). Warnings go in ``X-Swarmshow-Warnings`` (JSON list)."""
+    formats = export_formats()
+    if fmt not in formats:
+        raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
+    record = deps.store(request).get(show_id)
+    if fmt == "show":
+        text = json.dumps(json.loads(record.json), indent=2) + "\n"
+        return Response(text, media_type="application/json", headers={
+            "Content-Disposition": f'attachment; filename="{_slug(record.name)}.json"',
+            "ETag": f'"{record.revision}"'})
+    options: dict[str, Any] = {"heading_deg": heading_deg, "source": source}
+    if fps is not None:
+        options["fps"] = fps
+    if origin is not None:
+        options["origin"] = _parse_origin(origin)
+    out = await deps.jobs(request).run(tasks.export_task, record.json, fmt, options)
+    return Response(out["content"], media_type=out["media_type"], headers={
+        "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',
+        "X-Swarmshow-Warnings": json.dumps(out["warnings"]),
+    })

@@ -1,0 +1,125 @@
+"""``swarmshow bench KIND``: measure the speed of a pipeline stage on synthetic drones.
+
+Kinds live in ``BENCH_KINDS`` (name -> (help, add_arguments, run)); a kind's ``run``
+returns a JSON-safe dict. ``sim``: the flight engines, numba and the numpy reference in
+the same run, in drone-steps per second (one drone advanced by one 1 ms control step
+with the full controller and dynamics).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from collections.abc import Callable
+
+from app.cli._common import EXIT_OK, CliError, print_json
+
+
+def _sim_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seconds", type=float, default=2.0,
+                   help="simulated seconds for the numba engine (default 2)")
+    p.add_argument("--numpy-seconds", type=float, default=None,
+                   help="simulated seconds for the numpy reference (default min(seconds, 0.2))")
+
+
+def _bench_sim(args: argparse.Namespace) -> dict:
+    import numpy as np
+
+    from sim.flight import TrackingReference, simulate
+
+    n = int(args.drones)
+    if n < 1:
+        raise CliError(f"--drones must be >= 1, got {n}")
+    if not args.seconds > 0:
+        raise CliError(f"--seconds must be > 0, got {args.seconds}")
+    np_seconds = min(args.seconds, 0.2) if args.numpy_seconds is None else float(args.numpy_seconds)
+    # Drones on a 3 m grid, each flying a 2 m circle at 1 rad/s (a show-like load: full
+    # controller, non-trivial reference, no drone at rest).
+    side = int(np.ceil(np.sqrt(n)))
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2)[:n]
+    centers = np.c_[3.0 * grid, np.full(n, 30.0)]
+    ref = TrackingReference.circle(centers, radius_m=2.0, omega_rad_s=1.0)
+
+    def rate(engine: str, seconds: float) -> dict:
+        steps = int(round(seconds / 1e-3)) + 1
+        start, cpu0 = time.perf_counter(), time.process_time()
+        res = simulate(ref, duration_s=seconds, engine=engine, output_every=40)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu0
+        # Per CPU-second (all threads) as well: on a shared machine the wall-clock
+        # rate drops with the other load, the CPU-time rate shows the code's own cost.
+        return {"engine": engine, "drones": n, "simulated_s": seconds, "wall_s": wall, "cpu_s": cpu,
+                "drone_steps_per_s": n * steps / wall, "drone_steps_per_cpu_s": n * steps / cpu,
+                "diverged": len(res.diverged())}
+
+    t0 = time.perf_counter()
+    simulate(ref.subset(slice(0, 1)), duration_s=0.002, engine="numba")  # compile or load the cache
+    compile_s = time.perf_counter() - t0
+    fast = rate("numba", float(args.seconds))
+    ref_run = rate("numpy", np_seconds)
+    return {
+        "kind": "sim",
+        "drones": n,
+        "numba": fast,
+        "numpy": ref_run,
+        "drone_steps_per_s": fast["drone_steps_per_s"],
+        "numpy_drone_steps_per_s": ref_run["drone_steps_per_s"],
+        "speedup": fast["drone_steps_per_s"] / ref_run["drone_steps_per_s"],
+        "numba_compile_or_cache_load_s": compile_s,
+        "threads": _threads(),
+        "load_average_1min": os.getloadavg()[0],
+        "cpus": os.cpu_count(),
+        "machine": platform.machine(),
+    }
+
+
+def _threads() -> int:
+    import numba
+
+    return int(numba.get_num_threads())
+
+
+def _format_sim(r: dict) -> str:
+    return "\n".join([
+        f"bench sim: {r['drones']} drones, full ISMC + rigid-body step at 1 kHz ({r['threads']} threads, "
+        f"{r['cpus']} CPUs)",
+        f"  numba  {r['drone_steps_per_s'] / 1e6:8.2f} M drone-steps/s  ({r['numba']['simulated_s']:g} s "
+        f"simulated in {r['numba']['wall_s']:.2f} s)",
+        f"  numpy  {r['numpy_drone_steps_per_s'] / 1e6:8.2f} M drone-steps/s  ({r['numpy']['simulated_s']:g} s "
+        f"simulated in {r['numpy']['wall_s']:.2f} s)",
+        f"  speedup {r['speedup']:.1f}x; numba {r['numba']['drone_steps_per_cpu_s'] / 1e6:.2f} M per CPU-second "
+        f"(load average {r['load_average_1min']:.1f})",
+    ])
+
+
+#: name -> (help, add its arguments, run(args) -> dict, format(dict) -> str)
+BENCH_KINDS: dict[str, tuple[str, Callable, Callable, Callable]] = {
+    "sim": ("flight engines: numba kernel vs numpy reference, drone-steps per second",
+            _sim_args, _bench_sim, _format_sim),
+}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``bench`` command with one sub-command per kind of ``BENCH_KINDS``."""
+    p = sub.add_parser("bench", help="measure the speed of a pipeline stage (" + ", ".join(BENCH_KINDS) + ")")
+    kinds = p.add_subparsers(dest="kind", metavar="KIND")
+    kinds.required = True
+    for name, (help_text, add_args, run, fmt) in BENCH_KINDS.items():
+        k = kinds.add_parser(name, help=help_text)
+        k.add_argument("--drones", type=int, default=2000, help="number of drones (default 2000)")
+        k.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
+        add_args(k)
+        k.set_defaults(func=_make_runner(run, fmt))
+
+
+def _make_runner(run: Callable, fmt: Callable) -> Callable[[argparse.Namespace], int]:
+    def runner(args: argparse.Namespace) -> int:
+        result = run(args)
+        if args.json:
+            print_json(result)
+        else:
+            print(fmt(result))
+        return EXIT_OK
+
+    return runner

@@ -1,0 +1,120 @@
+"""``swarmshow export SHOW --format FORMAT -o OUT``: write a show in a format flight tools load."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+from app.cli._common import EXIT_OK, CliError, load_show_arg, progress_bar
+
+#: Shows with at least this many drones draw a progress bar (smaller ones finish in a blink).
+_PROGRESS_MIN_DRONES = 200
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``export`` command."""
+    from app.exports import EXPORT_FORMATS
+
+    p = sub.add_parser(
+        "export",
+        help="export the show: show JSON, Skybrush CSV / .skyc, Crazyswarm, QGroundControl, sampled waypoints",
+    )
+    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("--format", "-f", required=True, metavar="FORMAT",
+                   help=f"one of: {', '.join(EXPORT_FORMATS)}")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output file ('-' for stdout; an existing directory receives the suggested file name)")
+    p.add_argument("--fps", type=float, default=None, help="samples per second of sampled formats "
+                   "(skybrush-csv default 4, waypoints-csv default 10)")
+    p.add_argument("--origin", default=None, metavar="LAT,LON,ALT",
+                   help="WGS84 latitude, longitude (degrees) and altitude (m) of the show origin (qgc-plan, qgc-wpl)")
+    p.add_argument("--heading", type=float, default=0.0, metavar="DEG",
+                   help="bearing of the show's +y axis, degrees clockwise from true north (default 0)")
+    p.add_argument("--source", choices=("planned", "simulated"), default="planned",
+                   help="planned trajectory (default) or the simulated flight (sampled formats)")
+    p.set_defaults(func=_export)
+
+
+def parse_origin(text: str) -> tuple[float, float, float]:
+    """``"LAT,LON,ALT"`` -> floats; a malformed value is a :class:`CliError`."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise CliError(f"--origin must be LAT,LON,ALT, got {text!r}")
+    try:
+        lat, lon, alt = (float(x) for x in parts)
+    except ValueError as exc:
+        raise CliError(f"--origin must be three numbers LAT,LON,ALT, got {text!r}") from exc
+    return lat, lon, alt
+
+
+def _export(args: argparse.Namespace) -> int:
+    from app.exports import EXPORT_FORMATS, ExportError, export_show
+
+    if args.format not in EXPORT_FORMATS:
+        raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
+    origin = parse_origin(args.origin) if args.origin is not None else None
+    target = _target_dir_check(args.output)
+    show = load_show_arg(args.show)
+    try:
+        with progress_bar(f"export {args.format}", enabled=show.drones >= _PROGRESS_MIN_DRONES) as update:
+            result = export_show(
+                show,
+                args.format,
+                fps=args.fps,
+                origin=origin,
+                heading_deg=args.heading,
+                source=args.source,
+                progress=update,
+            )
+    except ExportError as exc:
+        raise CliError(str(exc)) from exc
+    for warning in result.warnings:
+        print(f"swarmshow: warning: {warning}", file=sys.stderr)
+    if target is None:
+        sys.stdout.buffer.write(result.content)
+        sys.stdout.buffer.flush()
+        return EXIT_OK
+    path = target / result.filename if target.is_dir() else target
+    write_atomically(path, result.content)
+    print(f"wrote {path} ({len(result.content)} bytes)", file=sys.stderr)
+    return EXIT_OK
+
+
+def _target_dir_check(output: str) -> Path | None:
+    """Validate ``-o`` before doing any work: ``None`` for stdout, else the path."""
+    if output == "-":
+        return None
+    path = Path(output)
+    if path.is_dir():
+        return path
+    parent = path.parent
+    if not parent.is_dir():
+        raise CliError(f"{output}: directory {str(parent)!r} does not exist")
+    if path.exists() and not path.is_file():
+        raise CliError(f"{output}: exists and is not a regular file")
+    return path
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same directory and a rename.
+
+    A reader never sees a half-written file, and an interrupted export leaves
+    any previous file untouched.
+    """
+    fd, tmp = tempfile.mkstemp(prefix=".swarmshow-", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from exc
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

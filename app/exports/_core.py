@@ -1,0 +1,294 @@
+"""Export options, results, the format registry and :func:`export_show`.
+
+Every format is a function ``export(ctx: ExportContext) -> ExportResult``
+registered in :data:`EXPORT_FORMATS` by a lazy ``"module:function"`` string, so
+that importing :mod:`app.exports` stays cheap and a new format is one entry::
+
+    "viser-html": "app.viewer:viser_html_exporter",
+
+The context hands the exporter the show, the validated options, and the plan
+and simulated flight, both computed on first use (the ``show`` format needs
+neither; only ``--source simulated`` needs the flight).
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from formations import ShowFile
+    from sim import ShowPlan
+
+ProgressFn = Callable[[float], None]
+Source = Literal["planned", "simulated"]
+
+#: Format name -> ``"module:function"`` of its exporter (imported on first use).
+EXPORT_FORMATS: dict[str, str] = {
+    "show": "app.exports._show_json:export_show_json",
+    "skybrush-csv": "app.exports._skybrush_csv:export_skybrush_csv",
+    "skyc": "app.exports._skyc:export_skyc",
+    "crazyswarm": "app.exports._crazyswarm:export_crazyswarm",
+    "qgc-plan": "app.exports._qgc:export_qgc_plan",
+    "qgc-wpl": "app.exports._qgc:export_qgc_wpl",
+    "waypoints-csv": "app.exports._waypoints_csv:export_waypoints_csv",
+    "viser-html": "app.viewer:viser_html_exporter",
+}
+
+#: Highest sampling rate accepted, frames per second (a flight controller rarely wants more).
+MAX_FPS = 1000.0
+#: Most (drone, time) samples one sampled export may hold; beyond it the archive would be gigabytes.
+MAX_SAMPLES = 200_000_000
+
+
+class ExportError(ValueError):
+    """An export cannot be made as asked (bad option, unknown format, unplannable show).
+
+    The message is one line meant for the user; the API maps it to HTTP 422 and
+    the command line to exit code 2.
+    """
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """Options shared by the formats (each format reads the ones it needs).
+
+    Attributes:
+        fps: sampling rate of the sampled formats, frames per second; ``None``
+            means the format's default (4 for ``skybrush-csv``, 10 for
+            ``waypoints-csv``).
+        origin: ``(latitude_deg, longitude_deg, altitude_m)`` of the show's
+            local origin (x = y = z = 0) on WGS84; needed by ``qgc-plan`` and
+            ``qgc-wpl``.
+        heading_deg: compass bearing of the show's +y axis, degrees clockwise
+            from true north (0: +y points north, +x east).
+        source: ``"planned"`` (the exact plan) or ``"simulated"`` (the flown
+            trajectory of the flight simulation; sampled formats only).
+    """
+
+    fps: float | None = None
+    origin: tuple[float, float, float] | None = None
+    heading_deg: float = 0.0
+    source: Source = "planned"
+
+    def __post_init__(self) -> None:
+        if self.fps is not None:
+            fps = _number(self.fps, "fps")
+            if not 0 < fps <= MAX_FPS:
+                raise ExportError(f"fps must be in (0, {MAX_FPS:g}], got {self.fps!r}")
+            object.__setattr__(self, "fps", fps)
+        if self.origin is not None:
+            try:
+                lat, lon, alt = (float(v) for v in self.origin)
+            except (TypeError, ValueError) as exc:
+                raise ExportError(f"origin must be (latitude, longitude, altitude), got {self.origin!r}") from exc
+            if not all(math.isfinite(v) for v in (lat, lon, alt)):
+                raise ExportError(f"origin must be finite, got {self.origin!r}")
+            if not -90.0 <= lat <= 90.0:
+                raise ExportError(f"origin latitude must be in [-90, 90] degrees, got {lat}")
+            if not -180.0 <= lon <= 180.0:
+                raise ExportError(f"origin longitude must be in [-180, 180] degrees, got {lon}")
+            if not -1_000.0 <= alt <= 100_000.0:
+                raise ExportError(f"origin altitude must be in [-1000, 100000] m, got {alt}")
+            object.__setattr__(self, "origin", (lat, lon, alt))
+        heading = _number(self.heading_deg, "heading_deg")
+        object.__setattr__(self, "heading_deg", heading % 360.0)
+        if self.source not in ("planned", "simulated"):
+            raise ExportError(f"source must be 'planned' or 'simulated', got {self.source!r}")
+
+    def fps_or(self, default: float) -> float:
+        """``fps`` if given, else ``default`` (frames per second)."""
+        return float(self.fps) if self.fps is not None else float(default)
+
+
+def _number(value: Any, name: str) -> float:
+    if isinstance(value, bool):
+        raise ExportError(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ExportError(f"{name} must be a number, got {value!r}") from exc
+    if not math.isfinite(x):
+        raise ExportError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """One exported file.
+
+    Attributes:
+        filename: suggested file name (sanitised: letters, digits, ``._+-``).
+        media_type: MIME type of ``content``.
+        content: the file's bytes.
+        warnings: one-line notes for the user (for example a drone needing more
+            trajectory pieces than a Crazyflie holds).
+    """
+
+    filename: str
+    media_type: str
+    content: bytes = field(repr=False)
+    warnings: list[str] = field(default_factory=list)
+
+
+class ExportContext:
+    """What an exporter gets: the show, the options, and the plan / flight on demand."""
+
+    def __init__(
+        self,
+        show: ShowFile,
+        options: ExportOptions,
+        *,
+        fmt: str,
+        plan: ShowPlan | None = None,
+        flight: Any = None,
+        drone_names: list[str] | None = None,
+        progress: ProgressFn | None = None,
+    ) -> None:
+        self.show = show
+        self.options = options
+        self.fmt = fmt
+        self._plan = plan
+        self._flight = flight
+        self._drone_names = drone_names
+        self._names_cache: list[str] | None = None
+        self._progress = progress
+        self.warnings: list[str] = []
+
+    @property
+    def plan(self) -> ShowPlan:
+        """The show's plan (planned on first use; a show that cannot be planned raises :class:`ExportError`)."""
+        if self._plan is None:
+            from sim import PlanError, plan_show
+
+            try:
+                self._plan = plan_show(self.show, progress=lambda f: self.progress(0.1 * f))
+            except PlanError as exc:
+                raise ExportError(f"the show cannot be planned: {exc}") from exc
+        return self._plan
+
+    @property
+    def flight(self) -> Any:
+        """The simulated flight (``sim.flight.FlightResult``), flown on first use."""
+        if self._flight is None:
+            try:
+                from sim.flight import fly_show
+            except ImportError as exc:
+                raise ExportError("--source simulated needs the flight simulation (sim.flight), not available") from exc
+            params = inspect.signature(fly_show).parameters
+            kwargs: dict[str, Any] = {}
+            if "progress" in params and self._progress is not None:
+                kwargs["progress"] = lambda f: self.progress(0.8 * f)
+            if "output_hz" in params:
+                # Record at least as often as the export samples, so interpolation adds nothing visible.
+                kwargs["output_hz"] = min(max(self.options.fps_or(25.0), 25.0), MAX_FPS)
+            self._flight = fly_show(self.plan, **kwargs)
+        return self._flight
+
+    @property
+    def drone_names(self) -> list[str]:
+        """Archive-safe, unique per-drone names (``drone_001`` ... unless names were given)."""
+        from app.exports._archive import drone_file_stems
+
+        if self._names_cache is None:
+            self._names_cache = drone_file_stems(self.show.drones, self._drone_names)
+        return self._names_cache
+
+    def progress(self, fraction: float) -> None:
+        """Report the fraction done in [0, 1] (no-op without a callback)."""
+        if self._progress is not None:
+            self._progress(min(max(float(fraction), 0.0), 1.0))
+
+    def warn(self, message: str) -> None:
+        """Record a one-line warning for the result."""
+        self.warnings.append(message)
+
+
+def _load_exporter(fmt: str) -> Callable[[ExportContext], ExportResult]:
+    target = EXPORT_FORMATS.get(fmt)
+    if target is None:
+        raise ExportError(f"unknown export format {fmt!r}; one of: {', '.join(EXPORT_FORMATS)}")
+    module_name, _, func_name = target.partition(":")
+    return getattr(importlib.import_module(module_name), func_name)
+
+
+def export_show(
+    show: ShowFile,
+    fmt: str,
+    *,
+    fps: float | None = None,
+    origin: tuple[float, float, float] | None = None,
+    heading_deg: float = 0.0,
+    source: Source = "planned",
+    plan: ShowPlan | None = None,
+    flight: Any = None,
+    drone_names: list[str] | None = None,
+    progress: ProgressFn | None = None,
+) -> ExportResult:
+    """Export a show in one of :data:`EXPORT_FORMATS`.
+
+    Args:
+        show: a validated show file.
+        fmt: format name, a key of :data:`EXPORT_FORMATS`.
+        fps: sampling rate of sampled formats, frames per second (``None``: the format's default).
+        origin: ``(latitude_deg, longitude_deg, altitude_m)`` of the local origin (QGroundControl formats).
+        heading_deg: bearing of the show's +y axis, degrees clockwise from true north.
+        source: ``"planned"`` or ``"simulated"`` (sampled formats only).
+        plan: the show's plan if already computed (else planned here).
+        flight: the simulated flight if already computed (else flown here when needed).
+        drone_names: optional per-drone names (sanitised for use as file names).
+        progress: optional callback receiving the fraction done in [0, 1].
+
+    Returns:
+        The exported file.
+
+    Raises:
+        ExportError: unknown format, bad option, or a show that cannot be planned.
+    """
+    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source)
+    return export_plan(
+        show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
+    )
+
+
+def export_plan(
+    show: ShowFile,
+    fmt: str,
+    *,
+    options: ExportOptions | None = None,
+    plan: ShowPlan | None = None,
+    flight: Any = None,
+    drone_names: list[str] | None = None,
+    progress: ProgressFn | None = None,
+) -> ExportResult:
+    """Like :func:`export_show` with the options as one :class:`ExportOptions`."""
+    exporter = _load_exporter(fmt)
+    options = options if options is not None else ExportOptions()
+    if drone_names is not None and len(drone_names) != show.drones:
+        raise ExportError(f"drone_names has {len(drone_names)} names for {show.drones} drones")
+    if plan is not None and plan.drone_count != show.drones:
+        raise ExportError(f"the plan has {plan.drone_count} drones, the show {show.drones}")
+    ctx = ExportContext(
+        show, options, fmt=fmt, plan=plan, flight=flight, drone_names=drone_names, progress=progress
+    )
+    result = exporter(ctx)
+    ctx.progress(1.0)
+    if ctx.warnings:
+        result = ExportResult(
+            filename=result.filename,
+            media_type=result.media_type,
+            content=result.content,
+            warnings=[*result.warnings, *(w for w in ctx.warnings if w not in result.warnings)],
+        )
+    return result
+
+
+def require_planned(ctx: ExportContext) -> None:
+    """Refuse ``source="simulated"`` in a format that exports the exact plan."""
+    if ctx.options.source != "planned":
+        raise ExportError(f"format {ctx.fmt!r} exports the exact plan; --source simulated is only for "
+                          "skybrush-csv and waypoints-csv")

@@ -1,0 +1,463 @@
+"""Background jobs on a bounded worker-process pool, with progress, cancellation and a result cache.
+
+* **Pool.** A :class:`~concurrent.futures.ProcessPoolExecutor` (``spawn`` start
+  method: forking a process that runs threads and an event loop is unsafe) with a
+  fixed number of workers; CPU-heavy work never runs in the server process, whose
+  GIL the event loop and the viewer thread need.
+* **Progress.** Workers put ``(job_id, "running" | "progress", fraction)`` on one
+  queue owned by a :mod:`multiprocessing` manager; a relay thread in the server
+  applies them to the jobs. Every change bumps ``Job.version``, which is what the
+  server-sent event stream watches.
+* **Cancellation.** Each job has a manager ``Event``. A queued job is removed from
+  the pool's queue; a running one sees the event at its next progress report and
+  raises :class:`app.tasks.TaskCancelled`. The job reads ``cancelled`` at once
+  either way, and the late result, if any, is dropped.
+* **Cache.** Results are keyed by (kind, show content hash, options, version): in memory
+  (LRU) in front of the store's ``results`` table, so an unchanged show is not
+  recomputed, not even after a restart. An identical job already queued or running
+  is shared instead of started twice.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import json
+import logging
+import multiprocessing
+import secrets
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import AsyncIterator, Callable
+from concurrent.futures import CancelledError, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+from app import tasks
+from app.store import ShowStore
+from app.version import __version__
+
+log = logging.getLogger("swarmshow.jobs")
+
+
+class JobState(StrEnum):
+    """Life cycle of a job: queued -> running -> done | failed | cancelled."""
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    DONE = "done"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+
+TERMINAL = frozenset({JobState.DONE, JobState.FAILED, JobState.CANCELLED})
+
+
+class JobNotFound(LookupError):
+    """No job has this id (or it finished long ago and was forgotten)."""
+
+
+class JobsBusy(RuntimeError):
+    """Too many jobs are queued or running; try again later."""
+
+
+class JobFinished(RuntimeError):
+    """The job already finished; it cannot be cancelled."""
+
+    def __init__(self, job: Job) -> None:
+        super().__init__(f"job {job.id} already finished ({job.state})")
+        self.job = job
+
+
+@dataclass
+class Job:
+    """One background job; mutated only under the manager's lock."""
+
+    id: str
+    kind: str
+    content_hash: str
+    options: dict[str, Any]
+    show_id: str | None = None
+    show_revision: int | None = None
+    state: JobState = JobState.QUEUED
+    progress: float = 0.0
+    result: Any = None
+    error: dict[str, Any] | None = None
+    cached: bool = False
+    created_at: float = field(default_factory=time.time)
+    started_at: float | None = None
+    finished_at: float | None = None
+    version: int = 0
+    cache_key: str = ""
+    future: Future | None = field(default=None, repr=False)
+    cancel_event: Any = field(default=None, repr=False)
+
+    @property
+    def terminal(self) -> bool:
+        """True once the job is done, failed or cancelled."""
+        return self.state in TERMINAL
+
+    def snapshot(self, *, with_result: bool = True) -> dict[str, Any]:
+        """A JSON-safe copy of the job (see ``app.server._models.JobOut``)."""
+        return {
+            "id": self.id,
+            "kind": self.kind,
+            "state": self.state.value,
+            "progress": round(self.progress, 4),
+            "show_id": self.show_id,
+            "show_revision": self.show_revision,
+            "content_hash": self.content_hash,
+            "options": self.options,
+            "cached": self.cached,
+            "created_at": _iso(self.created_at),
+            "started_at": _iso(self.started_at),
+            "finished_at": _iso(self.finished_at),
+            "result": self.result if with_result else None,
+            "error": self.error,
+        }
+
+
+def _iso(t: float | None) -> str | None:
+    if t is None:
+        return None
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(t)) + f".{int((t % 1) * 1e6):06d}Z"
+
+
+def cache_key(kind: str, content_hash: str, options: dict[str, Any]) -> str:
+    """Key of a result: kind, show content hash, and a digest of the options and the swarmshow
+    version (results cached on disk by an older planner are not served after an upgrade)."""
+    salted = {"options": options, "version": __version__}
+    opts = hashlib.sha256(json.dumps(salted, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+    return f"{kind}:{content_hash}:{opts}"
+
+
+class JobManager:
+    """The worker pool, the jobs and the result cache of one server."""
+
+    def __init__(
+        self,
+        *,
+        store: ShowStore,
+        workers: int = 2,
+        max_jobs_kept: int = 1000,
+        max_pending: int = 64,
+        max_cached: int = 500,
+    ) -> None:
+        self.store = store
+        self.workers = workers
+        self.max_jobs_kept = max_jobs_kept
+        self.max_pending = max_pending
+        self.max_cached = max_cached
+        self._lock = threading.Lock()
+        self._jobs: OrderedDict[str, Job] = OrderedDict()
+        self._inflight: dict[str, str] = {}
+        self._memo: OrderedDict[str, Any] = OrderedDict()
+        self._ctx = multiprocessing.get_context("spawn")
+        self._manager: Any = None
+        self._events: Any = None
+        self._pool: ProcessPoolExecutor | None = None
+        self._relay: threading.Thread | None = None
+        self._closed = False
+
+    # -- life cycle -------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the manager process, the pool (warming every worker up) and the relay thread."""
+        self._manager = self._ctx.Manager()
+        self._events = self._manager.Queue()
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx)
+        for _ in range(self.workers):
+            self._pool.submit(tasks.warm_up)
+        self._relay = threading.Thread(target=self._relay_loop, name="swarmshow-job-relay", daemon=True)
+        self._relay.start()
+
+    def close(self) -> None:
+        """Cancel every unfinished job and stop the pool, the relay thread and the manager."""
+        if self._closed:
+            return
+        self._closed = True
+        with self._lock:
+            unfinished = [j for j in self._jobs.values() if not j.terminal]
+        for job in unfinished:
+            self._cancel_job(job, reason="server shutting down")
+        pool = self._pool
+        if pool is not None:
+            processes = list(getattr(pool, "_processes", {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            # A worker deep in a long step (a big check) reports no progress; give it a moment, then stop it.
+            deadline = time.monotonic() + 3.0
+            for p in processes:
+                p.join(max(0.0, deadline - time.monotonic()))
+                if p.is_alive():
+                    p.terminate()
+        if self._events is not None:
+            try:
+                self._events.put(None)
+            except (OSError, EOFError):
+                pass
+        if self._relay is not None:
+            self._relay.join(timeout=2.0)
+        if self._manager is not None:
+            self._manager.shutdown()
+
+    def _submit(self, fn: Callable[..., Any], *args: Any) -> Future:
+        if self._closed or self._pool is None:
+            raise RuntimeError("the job manager is not running")
+        try:
+            return self._pool.submit(fn, *args)
+        except BrokenProcessPool:
+            # A worker died (killed, out of memory): replace the pool rather than fail forever.
+            log.warning("worker pool broken; starting a new one")
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx)
+            return self._pool.submit(fn, *args)
+
+    def _relay_loop(self) -> None:
+        while True:
+            try:
+                item = self._events.get(timeout=0.5)
+            except (OSError, EOFError, BrokenPipeError):
+                return  # the manager is gone: shutting down
+            except Exception:  # queue.Empty (re-raised by the proxy under its own name)
+                if self._closed:
+                    return
+                continue
+            if item is None:
+                return
+            job_id, what, value = item
+            with self._lock:
+                job = self._jobs.get(job_id)
+                if job is None or job.terminal:
+                    continue
+                if what == "running" and job.state == JobState.QUEUED:
+                    job.state, job.started_at = JobState.RUNNING, time.time()
+                elif what == "progress":
+                    job.progress = max(job.progress, min(float(value), 1.0))
+                    if job.state == JobState.QUEUED:
+                        job.state, job.started_at = JobState.RUNNING, time.time()
+                job.version += 1
+
+    # -- synchronous tasks (awaited by a request) -------------------------------------------
+
+    async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """Run ``fn(*args)`` in a worker and await its result (a client that leaves cancels a queued task)."""
+        return await asyncio.wrap_future(self._submit(fn, *args))
+
+    async def run_cached(
+        self, kind: str, content_hash: str, options: dict[str, Any], fn: Callable[..., Any], *args: Any
+    ) -> tuple[Any, bool]:
+        """Like :meth:`run`, through the result cache; returns ``(result, was_cached)``."""
+        key = cache_key(kind, content_hash, options)
+        hit = self.cached_result(key)  # a memory lookup or one indexed read: no thread needed
+        if hit is not None:
+            return hit, True
+        result = await self.run(fn, *args)
+        await asyncio.to_thread(self._remember, key, kind, content_hash, result)
+        return result, False
+
+    def cached_result(self, key: str) -> Any:
+        """A cached result (memory, then the store), or None."""
+        with self._lock:
+            if key in self._memo:
+                self._memo.move_to_end(key)
+                return self._memo[key]
+        text = self.store.get_result(key)
+        if text is None:
+            return None
+        value = json.loads(text)
+        self._memo_put(key, value)
+        return value
+
+    def _remember(self, key: str, kind: str, content_hash: str, result: Any) -> None:
+        self._memo_put(key, result)
+        try:
+            self.store.put_result(
+                key, kind=kind, content_hash=content_hash, text=json.dumps(result, allow_nan=False),
+                keep=self.max_cached,
+            )
+        except (ValueError, TypeError) as exc:
+            log.warning("result of %s not cached on disk: %s", key, exc)
+
+    def _memo_put(self, key: str, value: Any) -> None:
+        with self._lock:
+            self._memo[key] = value
+            self._memo.move_to_end(key)
+            while len(self._memo) > self.max_cached:
+                self._memo.popitem(last=False)
+
+    # -- background jobs --------------------------------------------------------------------
+
+    def submit(
+        self,
+        kind: str,
+        fn: Callable[..., Any],
+        *,
+        show_text: str,
+        content_hash: str,
+        options: dict[str, Any],
+        show_id: str | None = None,
+        show_revision: int | None = None,
+    ) -> Job:
+        """Start a job ``fn(show_text, options, job_id, progress_queue, cancel_event)``.
+
+        A result in the cache gives a job that is already done (``cached``); an
+        identical job still queued or running is returned instead of a new one.
+
+        Raises:
+            JobsBusy: ``max_pending`` jobs are already queued or running.
+        """
+        key = cache_key(kind, content_hash, options)
+        with self._lock:
+            same = self._jobs.get(self._inflight.get(key, ""))
+            if same is not None and not same.terminal:
+                return same
+        job = Job(
+            id=secrets.token_hex(8), kind=kind, content_hash=content_hash, options=options,
+            show_id=show_id, show_revision=show_revision, cache_key=key,
+        )
+        hit = self.cached_result(key)
+        if hit is not None:
+            now = time.time()
+            job.state, job.progress, job.result, job.cached = JobState.DONE, 1.0, hit, True
+            job.started_at = job.finished_at = now
+            self._add(job)
+            return job
+        with self._lock:
+            pending = sum(1 for j in self._jobs.values() if not j.terminal)
+        if pending >= self.max_pending:
+            raise JobsBusy(f"{pending} jobs are queued or running; try again when some have finished")
+        job.cancel_event = self._manager.Event()
+        self._add(job, inflight=True)
+        try:
+            job.future = self._submit(fn, show_text, options, job.id, self._events, job.cancel_event)
+        except Exception as exc:
+            self._finish(job, JobState.FAILED, error={"status": 500, "message": f"could not start: {exc}"})
+            return job
+        job.future.add_done_callback(lambda fut, job_id=job.id: self._on_done(job_id, fut))
+        return job
+
+    def _add(self, job: Job, *, inflight: bool = False) -> None:
+        with self._lock:
+            self._jobs[job.id] = job
+            if inflight:
+                self._inflight[job.cache_key] = job.id
+            excess = len(self._jobs) - self.max_jobs_kept
+            if excess > 0:
+                for old_id in [k for k, j in self._jobs.items() if j.terminal][:excess]:
+                    del self._jobs[old_id]
+
+    def _on_done(self, job_id: str, fut: Future) -> None:
+        """Runs in the pool's management thread when a job's task ends."""
+        with self._lock:
+            job = self._jobs.get(job_id)
+        if job is None:
+            return
+        try:
+            result = fut.result()
+        except CancelledError:
+            self._finish(job, JobState.CANCELLED, error={"status": 499, "message": "cancelled before it started"})
+            return
+        except tasks.TaskCancelled:
+            self._finish(job, JobState.CANCELLED, error={"status": 499, "message": "cancelled"})
+            return
+        except tasks.TaskFailure as exc:
+            self._finish(job, JobState.FAILED, error={"status": exc.status, "message": str(exc), "detail": exc.detail})
+            return
+        except BrokenProcessPool:
+            self._finish(job, JobState.FAILED, error={
+                "status": 500, "message": "the worker process died (killed or out of memory)"})
+            return
+        except Exception as exc:
+            log.exception("job %s (%s) failed", job.id, job.kind)
+            self._finish(job, JobState.FAILED, error={"status": 500, "message": f"{type(exc).__name__}: {exc}"})
+            return
+        try:
+            self._remember(job.cache_key, job.kind, job.content_hash, result)
+        except Exception:
+            log.exception("could not cache the result of job %s", job.id)
+        self._finish(job, JobState.DONE, result=result)
+
+    def _finish(self, job: Job, state: JobState, *, result: Any = None, error: dict[str, Any] | None = None) -> None:
+        with self._lock:
+            if self._inflight.get(job.cache_key) == job.id:
+                del self._inflight[job.cache_key]
+            if job.terminal:
+                return  # cancelled meanwhile: the late result or error is dropped
+            job.state, job.result, job.error = state, result, error
+            if state == JobState.DONE:
+                job.progress = 1.0
+            job.finished_at = time.time()
+            job.started_at = job.started_at or job.finished_at
+            job.version += 1
+            job.future, job.cancel_event = None, None
+
+    def get(self, job_id: str) -> Job:
+        """The job. Raises :class:`JobNotFound`."""
+        with self._lock:
+            job = self._jobs.get(job_id)
+        if job is None:
+            raise JobNotFound(job_id)
+        return job
+
+    def list(self) -> list[Job]:
+        """Every remembered job, oldest first."""
+        with self._lock:
+            return list(self._jobs.values())
+
+    def cancel(self, job_id: str) -> Job:
+        """Cancel a queued or running job (a cancelled one is returned as is).
+
+        Raises:
+            JobNotFound: no such job.
+            JobFinished: the job is already done or failed.
+        """
+        job = self.get(job_id)
+        if job.state in (JobState.DONE, JobState.FAILED):
+            raise JobFinished(job)
+        self._cancel_job(job, reason="cancelled")
+        return job
+
+    def _cancel_job(self, job: Job, *, reason: str) -> None:
+        event, fut = job.cancel_event, job.future
+        if event is not None:
+            try:
+                event.set()
+            except (OSError, EOFError):
+                pass
+        if fut is not None:
+            fut.cancel()  # succeeds only while the task waits in the pool's queue
+        self._finish(job, JobState.CANCELLED, error={"status": 499, "message": reason})
+
+    def pending(self) -> int:
+        """Jobs queued or running."""
+        with self._lock:
+            return sum(1 for j in self._jobs.values() if not j.terminal)
+
+    async def watch(
+        self, job_id: str, *, poll_s: float = 0.1, heartbeat_s: float | None = None
+    ) -> AsyncIterator[dict[str, Any] | None]:
+        """Yield a snapshot of the job whenever it changes, ending after a terminal state.
+
+        With ``heartbeat_s``, ``None`` is yielded after that long without a change
+        (so that a stream can send a keep-alive).
+
+        Raises:
+            JobNotFound: no such job.
+        """
+        last, quiet_since = -1, time.monotonic()
+        while True:
+            job = self.get(job_id)
+            with self._lock:
+                version, terminal = job.version, job.terminal
+                snap = job.snapshot(with_result=terminal) if version != last else None
+            if snap is not None:
+                last, quiet_since = version, time.monotonic()
+                yield snap
+            elif heartbeat_s is not None and time.monotonic() - quiet_since >= heartbeat_s:
+                quiet_since = time.monotonic()
+                yield None
+            if terminal:
+                return
+            await asyncio.sleep(poll_s)

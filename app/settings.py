@@ -1,0 +1,50 @@
+"""Server settings, read from ``SWARMSHOW_*`` environment variables (pydantic-settings)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+#: Largest show file accepted over HTTP, bytes (DESIGN: 20 MB).
+MAX_SHOW_BYTES = 20 * 1024 * 1024
+#: Largest image accepted, pixels (DESIGN: 40 megapixels). Checked from the header.
+MAX_IMAGE_PIXELS = 40_000_000
+#: Largest image upload, bytes (a 40 MP PNG compresses far below this).
+MAX_IMAGE_BYTES = 50 * 1024 * 1024
+#: Largest SVG upload, bytes (DESIGN: 5 MB).
+MAX_SVG_BYTES = 5 * 1024 * 1024
+#: Largest body of any other request (JSON formation parameters, updates), bytes.
+MAX_OTHER_BYTES = MAX_SHOW_BYTES
+
+
+def _default_workers() -> int:
+    # Two workers keep one CPU free for the event loop and the viewer thread on small machines.
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+class AppSettings(BaseSettings):
+    """Settings of the web server. Every field can be set as ``SWARMSHOW_<FIELD>``."""
+
+    model_config = SettingsConfigDict(env_prefix="SWARMSHOW_", extra="ignore")
+
+    data_dir: Path = Field(Path("data"), description="Directory of the SQLite store (created if missing).")
+    host: str = Field("127.0.0.1", description="Address to listen on (loopback unless asked otherwise).")
+    port: int = Field(8000, ge=0, le=65535, description="TCP port to listen on.")
+    workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Worker processes.")
+    max_jobs_kept: int = Field(1000, ge=10, description="Finished jobs remembered in memory (oldest dropped).")
+    max_pending_jobs: int = Field(64, ge=1, description="Queued or running jobs accepted before 503.")
+    max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
+    max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
+    max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")
+    max_svg_bytes: int = Field(MAX_SVG_BYTES, ge=1024, description="Largest SVG upload, bytes.")
+    static_dir: Path | None = Field(
+        None, description="Directory served at / (default: the bundled editor, if present)."
+    )
+
+    @property
+    def db_path(self) -> Path:
+        """The SQLite database file inside ``data_dir``."""
+        return self.data_dir / "swarmshow.sqlite3"

@@ -1,0 +1,336 @@
+"""The show store: SQLite (standard library) in the data directory.
+
+Durability: WAL journal with ``synchronous=FULL``, so a commit that returned is
+on disk even after a power cut. Every change is one transaction, and shows are
+validated before any write, so a failed request never leaves half a change.
+Updates are revision-checked (optimistic concurrency): a writer that read
+revision r may only replace revision r; anything else is a
+:class:`RevisionConflict`, never a silent overwrite.
+
+The schema is versioned (table ``schema_version``); :data:`MIGRATIONS` lists the
+steps from an empty file to the current version and each runs once, in its own
+transaction. A database written by a newer swarmshow is refused, not altered.
+"""
+
+from __future__ import annotations
+
+import secrets
+import sqlite3
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from formations import ShowFile
+
+#: Schema steps; entry k brings the database from version k to k + 1.
+MIGRATIONS: tuple[str, ...] = (
+    # 1: shows, with the fields the list view needs kept beside the JSON.
+    """
+    CREATE TABLE shows (
+        id TEXT PRIMARY KEY,
+        name TEXT NOT NULL,
+        revision INTEGER NOT NULL CHECK (revision >= 1),
+        json TEXT NOT NULL,
+        content_hash TEXT NOT NULL,
+        drones INTEGER NOT NULL,
+        formations INTEGER NOT NULL,
+        created_at TEXT NOT NULL,
+        updated_at TEXT NOT NULL
+    );
+    CREATE INDEX shows_by_updated ON shows (updated_at DESC, id);
+    CREATE INDEX shows_by_hash ON shows (content_hash);
+    """,
+    # 2: results cached by show content hash, so an unchanged show is not recomputed after a restart.
+    """
+    CREATE TABLE results (
+        key TEXT PRIMARY KEY,
+        kind TEXT NOT NULL,
+        content_hash TEXT NOT NULL,
+        json TEXT NOT NULL,
+        created_at TEXT NOT NULL
+    );
+    CREATE INDEX results_by_created ON results (created_at);
+    """,
+)
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+class StoreError(Exception):
+    """The store cannot be opened or used (for example a database from a newer version)."""
+
+
+class ShowNotFound(StoreError):
+    """No show has this id."""
+
+    def __init__(self, show_id: str) -> None:
+        super().__init__(f"no show with id {show_id!r}")
+        self.show_id = show_id
+
+
+class RevisionConflict(StoreError):
+    """The caller's revision is not the stored one; ``current_revision`` is."""
+
+    def __init__(self, show_id: str, *, expected: int, current: int) -> None:
+        super().__init__(
+            f"show {show_id!r} is at revision {current}, not {expected}: it was changed meanwhile; "
+            "reload it and apply your change again"
+        )
+        self.show_id = show_id
+        self.expected = expected
+        self.current_revision = current
+
+
+@dataclass(frozen=True)
+class ShowRecord:
+    """One stored show. ``json`` is the show file text (None in list results)."""
+
+    id: str
+    name: str
+    revision: int
+    content_hash: str
+    drones: int
+    formations: int
+    created_at: str
+    updated_at: str
+    json: str | None = None
+
+
+@dataclass(frozen=True)
+class ShowData:
+    """What the store keeps of a validated show: its JSON text and the listed fields.
+
+    Lets a show validated in another process be stored without parsing it again.
+    """
+
+    text: str
+    content_hash: str
+    name: str
+    drones: int
+    formations: int
+
+    @classmethod
+    def of(cls, show: ShowFile | ShowData) -> ShowData:
+        """The data of a validated show (returned as is if it already is one)."""
+        if isinstance(show, ShowData):
+            return show
+        from formations import dump_show
+
+        return cls(text=dump_show(show, indent=None), content_hash=show.content_hash(), name=show.name,
+                   drones=show.drones, formations=len(show.formations))
+
+
+def _now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def new_show_id() -> str:
+    """A random, URL-safe show id (16 hex digits)."""
+    return secrets.token_hex(8)
+
+
+_COLUMNS = "id, name, revision, content_hash, drones, formations, created_at, updated_at"
+
+
+class ShowStore:
+    """Shows and cached results in one SQLite file; safe to share between threads.
+
+    Two connections, each serialised by its own lock: one writes (SQLite allows one
+    writer at a time anyway; a durable commit is one fsync), the other reads, so a
+    read never waits for a commit's fsync (WAL readers see the last commit).
+    """
+
+    def __init__(self, path: Path | str) -> None:
+        self.path = Path(path)
+        memory = str(path) == ":memory:"
+        if not memory:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._read_lock = threading.Lock()
+        try:
+            self._db = self._connect(path)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._migrate()
+            self._rdb = self._db if memory else self._connect(path)
+            if memory:
+                self._read_lock = self._lock
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"{self.path}: cannot open the show store: {exc}") from exc
+
+    @staticmethod
+    def _connect(path: Path | str) -> sqlite3.Connection:
+        db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False, timeout=30.0)
+        db.execute("PRAGMA busy_timeout=30000")
+        db.execute("PRAGMA synchronous=FULL")
+        return db
+
+    # -- plumbing ---------------------------------------------------------------------------
+
+    @contextmanager
+    def _tx(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction: committed on success, rolled back on any exception."""
+        with self._lock:
+            # IMMEDIATE takes the write lock up front, so a read-check-write never races another process.
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._db
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
+
+    @contextmanager
+    def _read(self) -> Iterator[sqlite3.Connection]:
+        with self._read_lock:
+            yield self._rdb
+
+    def _migrate(self) -> None:
+        with self._lock:
+            self._db.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)")
+            row = self._db.execute("SELECT version FROM schema_version").fetchone()
+            version = 0 if row is None else int(row[0])
+            if row is None:
+                self._db.execute("INSERT INTO schema_version (version) VALUES (0)")
+        if version > SCHEMA_VERSION:
+            raise StoreError(
+                f"{self.path}: schema version {version} is newer than this swarmshow's ({SCHEMA_VERSION}); "
+                "upgrade swarmshow"
+            )
+        for target in range(version + 1, SCHEMA_VERSION + 1):
+            self._apply_migration(target)
+
+    def _apply_migration(self, target: int) -> None:
+        with self._tx() as db:
+            for statement in MIGRATIONS[target - 1].split(";"):
+                if statement.strip():
+                    db.execute(statement)
+            db.execute("UPDATE schema_version SET version = ?", (target,))
+
+    @property
+    def schema_version(self) -> int:
+        """The schema version of the open database."""
+        with self._read() as db:
+            return int(db.execute("SELECT version FROM schema_version").fetchone()[0])
+
+    def close(self) -> None:
+        """Close the connection (the WAL is checkpointed by SQLite)."""
+        with self._lock:
+            if self._rdb is not self._db:
+                with self._read_lock:
+                    self._rdb.close()
+            self._db.close()
+
+    # -- shows ------------------------------------------------------------------------------
+
+    def create(self, show: ShowFile | ShowData, *, show_id: str | None = None) -> ShowRecord:
+        """Store a validated show as revision 1 and return its record (with JSON)."""
+        data, now = ShowData.of(show), _now()
+        text = data.text
+        record = ShowRecord(
+            id=show_id or new_show_id(), name=data.name, revision=1, content_hash=data.content_hash,
+            drones=data.drones, formations=data.formations, created_at=now, updated_at=now, json=text,
+        )
+        with self._tx() as db:
+            db.execute(
+                f"INSERT INTO shows ({_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (record.id, record.name, 1, record.content_hash, record.drones, record.formations, now, now, text),
+            )
+        return record
+
+    def get(self, show_id: str) -> ShowRecord:
+        """The show with its JSON. Raises :class:`ShowNotFound`."""
+        with self._read() as db:
+            row = db.execute(f"SELECT {_COLUMNS}, json FROM shows WHERE id = ?", (show_id,)).fetchone()
+        if row is None:
+            raise ShowNotFound(show_id)
+        return ShowRecord(*row)
+
+    def list(self, *, limit: int = 50, offset: int = 0) -> tuple[list[ShowRecord], int]:
+        """A page of shows, most recently updated first, and the total count."""
+        with self._read() as db:
+            db.execute("BEGIN")  # one snapshot for the page and the count
+            try:
+                rows = db.execute(
+                    f"SELECT {_COLUMNS} FROM shows ORDER BY updated_at DESC, id LIMIT ? OFFSET ?", (limit, offset)
+                ).fetchall()
+                total = int(db.execute("SELECT COUNT(*) FROM shows").fetchone()[0])
+            finally:
+                db.execute("COMMIT")
+        return [ShowRecord(*r) for r in rows], total
+
+    def find_by_hash(self, content_hash: str) -> ShowRecord | None:
+        """The oldest show with exactly this content, or None."""
+        with self._read() as db:
+            row = db.execute(
+                f"SELECT {_COLUMNS} FROM shows WHERE content_hash = ? ORDER BY created_at LIMIT 1", (content_hash,)
+            ).fetchone()
+        return None if row is None else ShowRecord(*row)
+
+    def update(self, show_id: str, show: ShowFile | ShowData, *, expected_revision: int) -> ShowRecord:
+        """Replace revision ``expected_revision`` of a show; returns the new record.
+
+        Saving identical content keeps the revision (a repeated save is not a change).
+
+        Raises:
+            ShowNotFound: no such show.
+            RevisionConflict: the stored revision is not ``expected_revision``.
+        """
+        data = ShowData.of(show)
+        text, content_hash = data.text, data.content_hash
+        with self._tx() as db:
+            row = db.execute("SELECT revision, content_hash FROM shows WHERE id = ?", (show_id,)).fetchone()
+            if row is None:
+                raise ShowNotFound(show_id)
+            current, stored_hash = int(row[0]), row[1]
+            if current != expected_revision:
+                raise RevisionConflict(show_id, expected=expected_revision, current=current)
+            if stored_hash != content_hash:
+                db.execute(
+                    "UPDATE shows SET name = ?, revision = ?, json = ?, content_hash = ?, drones = ?, "
+                    "formations = ?, updated_at = ? WHERE id = ? AND revision = ?",
+                    (data.name, current + 1, text, content_hash, data.drones, data.formations, _now(),
+                     show_id, current),
+                )
+            row = db.execute(f"SELECT {_COLUMNS}, json FROM shows WHERE id = ?", (show_id,)).fetchone()
+        return ShowRecord(*row)
+
+    def delete(self, show_id: str, *, expected_revision: int | None = None) -> None:
+        """Delete a show (only revision ``expected_revision`` if given).
+
+        Raises:
+            ShowNotFound: no such show.
+            RevisionConflict: ``expected_revision`` is given and stale.
+        """
+        with self._tx() as db:
+            row = db.execute("SELECT revision FROM shows WHERE id = ?", (show_id,)).fetchone()
+            if row is None:
+                raise ShowNotFound(show_id)
+            if expected_revision is not None and int(row[0]) != expected_revision:
+                raise RevisionConflict(show_id, expected=expected_revision, current=int(row[0]))
+            db.execute("DELETE FROM shows WHERE id = ?", (show_id,))
+
+    # -- cached results ---------------------------------------------------------------------
+
+    def get_result(self, key: str) -> str | None:
+        """A cached result's JSON text, or None."""
+        with self._read() as db:
+            row = db.execute("SELECT json FROM results WHERE key = ?", (key,)).fetchone()
+        return None if row is None else row[0]
+
+    def put_result(self, key: str, *, kind: str, content_hash: str, text: str, keep: int = 500) -> None:
+        """Cache a result, keeping only the ``keep`` most recent."""
+        with self._tx() as db:
+            db.execute(
+                "INSERT OR REPLACE INTO results (key, kind, content_hash, json, created_at) VALUES (?, ?, ?, ?, ?)",
+                (key, kind, content_hash, text, _now()),
+            )
+            db.execute(
+                "DELETE FROM results WHERE key IN "
+                "(SELECT key FROM results ORDER BY created_at DESC LIMIT -1 OFFSET ?)",
+                (keep,),
+            )

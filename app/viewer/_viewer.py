@@ -1,0 +1,655 @@
+"""The live 3D viewer: a loopback viser server, its scene, GUI and a 30 Hz playback thread.
+
+One :class:`Viewer` serves every connected browser the same state (scene and
+GUI are server-wide in viser), so loading a show or pressing play is seen by
+all of them. The app relays browsers to it through its own port (see
+:mod:`app.viewer._relay`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import threading
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import viser
+
+from app.viewer._closest import closest_pair
+from app.viewer._tracks import (
+    Frame,
+    Source,
+    Track,
+    framing_camera,
+    make_track,
+    show_bounds,
+)
+from sim import ShowPlan
+
+#: Playback pacing, frames per second.
+FRAME_RATE_HZ = 30.0
+#: Trails are recomputed at this lower rate (they are N·M segments, the heaviest message).
+TRAIL_RATE_HZ = 10.0
+#: Trail length: this many past samples, ``TRAIL_STEP_S`` apart.
+TRAIL_SAMPLES = 6
+TRAIL_STEP_S = 0.25
+#: Above this many drones trails start switched off (N·M segments at 10 Hz is megabytes a second).
+TRAILS_DEFAULT_MAX_DRONES = 3000
+SPEEDS = ("0.25x", "0.5x", "1x", "2x", "4x", "8x")
+#: A dark LED is drawn at this grey level so that an unlit drone stays visible on the night sky.
+DARK_LED_FLOOR = 0.2
+NO_SHOW = "(no show loaded)"
+#: Shows kept in the registry (a simulated flight can be hundreds of MB); the oldest go first.
+MAX_SHOWS = 8
+
+CatalogFn = Callable[[], Mapping[str, str]]
+LoadFn = Callable[[str], None]
+
+
+@dataclass
+class _Entry:
+    """A show in the viewer's registry."""
+
+    name: str
+    plan: ShowPlan
+    flight: Any = None
+
+
+class Viewer:
+    """A viser server on loopback showing one show at a time to all browsers.
+
+    Args:
+        host: interface to bind; loopback by default (browsers reach it through the app's relay).
+        port: TCP port; 0 picks a free one (see :attr:`port`).
+        frame_rate_hz: playback pacing, frames per second.
+        start_thread: start the playback thread (tests drive :meth:`step` by hand instead).
+    """
+
+    def __init__(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        frame_rate_hz: float = FRAME_RATE_HZ,
+        start_thread: bool = True,
+    ) -> None:
+        # viser prints a banner to stdout even when not verbose; the app logs elsewhere.
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        # The share button is hidden, but a client could still ask for a share
+        # URL, which opens a public tunnel: refuse, the app's port is the only way in.
+        self.server.request_share_url = lambda *args, **kwargs: None  # type: ignore[method-assign]
+        self.frame_rate_hz = float(frame_rate_hz)
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._shows: dict[str, _Entry] = {}
+        self._current: str | None = None
+        self._source: Source = "planned"
+        self._track: Track | None = None
+        self._time_s = 0.0
+        self._playing = False
+        self._speed = 1.0
+        self._loop = True
+        self._dirty = False
+        self._last_trail_s = -np.inf
+        self._pair_hint_m: float | None = None
+        self._next_target: int | None = None
+        self._hold_starts_s = np.zeros(0)
+        self._hold_knots = np.zeros(0, dtype=np.intp)
+        self._catalog: CatalogFn | None = None
+        self._catalog_load: LoadFn | None = None
+        self._catalog_keys: dict[str, str] = {}
+        # Set while Python writes a GUI value, so that the write's own
+        # synchronous on_update callback is not mistaken for a user's input.
+        self._programmatic = 0
+        self._busy: tuple[str, float | None] | None = None
+        self._notifications: dict[int, Any] = {}
+        self.frames_rendered = 0
+        self.last_frame: Frame | None = None
+        self.last_pair: tuple[int, int, float] = (-1, -1, float("inf"))
+
+        self._setup_scene()
+        self._setup_gui()
+        self.server.on_client_connect(self._on_connect)
+        self.server.on_client_disconnect(lambda c: self._notifications.pop(c.client_id, None))
+        self._pair_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-closest-pair")
+        self._thread: threading.Thread | None = None
+        if start_thread:
+            self._thread = threading.Thread(target=self._run, name="viewer-playback", daemon=True)
+            self._thread.start()
+
+    # ----------------------------------------------------------------- lifecycle
+
+    @property
+    def host(self) -> str:
+        """Interface the viser server listens on."""
+        return self.server.get_host()
+
+    @property
+    def port(self) -> int:
+        """TCP port the viser server listens on."""
+        return self.server.get_port()
+
+    def stop(self) -> None:
+        """Stop the playback thread and the viser server (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self._pair_pool.shutdown(wait=True)
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server.stop()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # ----------------------------------------------------------------- scene / gui
+
+    def _setup_scene(self) -> None:
+        scene = self.server.scene
+        scene.set_up_direction("+z")
+        self.server.gui.configure_theme(dark_mode=True, show_share_button=False, control_width="medium")
+        self.server.initial_camera.far = 5000.0
+        # Metre grid: 5 m cells, 50 m sections, resized to the show on load.
+        self._grid = scene.add_grid(
+            "/ground", width=200.0, height=200.0, plane="xy", cell_size=5.0, section_size=50.0,
+            cell_color=(60, 60, 70), section_color=(110, 110, 125), shadow_opacity=0.0,
+        )
+        empty = np.zeros((1, 3), dtype=np.float32)
+        self._homes = scene.add_point_cloud(
+            "/home_grid", empty, (90, 90, 100), point_size=0.6, point_shape="square", precision="float32",
+            visible=False,
+        )
+        self._targets = scene.add_point_cloud(
+            "/next_targets", empty, (255, 255, 255), point_size=0.5, point_shape="diamond",
+            precision="float32", visible=False,
+        )
+        self._drones = scene.add_point_cloud(
+            "/drones", empty, (255, 255, 255), point_size=1.5, point_shape="circle", precision="float32",
+            visible=False,
+        )
+        seg = np.zeros((1, 2, 3), dtype=np.float32)
+        self._trails = scene.add_line_segments(
+            "/trails", seg, (255, 255, 255), thickness=1.5, thickness_units="screen", visible=False
+        )
+        self._pair_line = scene.add_line_segments(
+            "/closest_pair/line", seg, (255, 60, 60), thickness=3.0, thickness_units="screen", visible=False
+        )
+        self._pair_label = scene.add_label(
+            "/closest_pair/label", "", anchor="bottom-center", visible=False
+        )
+
+    def _setup_gui(self) -> None:
+        gui = self.server.gui
+        gui.set_panel_label("swarmshow playback")
+        self._show_dd = gui.add_dropdown("Show", (NO_SHOW,), initial_value=NO_SHOW)
+        self._source_dd = gui.add_dropdown("Source", ("planned", "simulated"), initial_value="planned",
+                                           disabled=True, hint="The simulated flight needs a simulation run")
+        self._play = gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY, disabled=True)
+        self._slider = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.05, initial_value=0.0, disabled=True)
+        self._speed_dd = gui.add_dropdown("Speed", SPEEDS, initial_value="1x")
+        self._loop_cb = gui.add_checkbox("Loop", initial_value=True)
+        with gui.add_folder("Display"):
+            self._targets_cb = gui.add_checkbox("Next formation targets", initial_value=True)
+            self._trails_cb = gui.add_checkbox("Trails", initial_value=True)
+            self._pair_cb = gui.add_checkbox("Closest pair", initial_value=True)
+            self._homes_cb = gui.add_checkbox("Home grid", initial_value=True)
+        self._readout = gui.add_markdown(
+            "No show loaded: pick one under **Show**, or send one from the editor "
+            "(`POST /api/shows/{id}/playback`)."
+        )
+        self._progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+        self._busy_md = gui.add_markdown("", visible=False)
+
+        self._show_dd.on_update(self._user(self._on_show_selected))
+        self._source_dd.on_update(self._user(lambda ev: self.set_source(ev.target.value)))
+        self._play.on_click(lambda _ev: self.toggle_play())
+        self._slider.on_update(self._user(lambda ev: self.seek(float(ev.target.value))))
+        self._speed_dd.on_update(lambda ev: self._set_speed_label(ev.target.value))
+        self._loop_cb.on_update(lambda ev: setattr(self, "_loop", bool(ev.target.value)))
+        for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb):
+            cb.on_update(lambda _ev: self._invalidate())
+
+    def _user(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        """Wrap a GUI callback to run only for a browser's input, not for Python's own writes."""
+
+        def callback(event: Any) -> None:
+            # viser calls on_update synchronously when Python assigns .value
+            # (with client None); without this guard the playback thread's
+            # slider updates would seek, re-render and set the slider again.
+            if self._programmatic or event.client is None:
+                return
+            fn(event)
+
+        return callback
+
+    def _set_gui(self, handle: Any, attr: str, value: Any) -> None:
+        """Assign a GUI property from Python without triggering the user callbacks."""
+        with self._lock:
+            self._programmatic += 1
+            try:
+                setattr(handle, attr, value)
+            finally:
+                self._programmatic -= 1
+
+    # ----------------------------------------------------------------- registry
+
+    @property
+    def shows(self) -> list[str]:
+        """Names of the loaded shows, in load order."""
+        with self._lock:
+            return list(self._shows)
+
+    @property
+    def current(self) -> str | None:
+        """Name of the show on screen."""
+        return self._current
+
+    @property
+    def source(self) -> Source:
+        """``"planned"`` or ``"simulated"``."""
+        return self._source
+
+    @property
+    def time_s(self) -> float:
+        """Playback time, seconds."""
+        return self._time_s
+
+    @property
+    def playing(self) -> bool:
+        """Whether playback is running."""
+        return self._playing
+
+    @property
+    def speed(self) -> float:
+        """Playback speed factor."""
+        return self._speed
+
+    def set_catalog(self, list_fn: CatalogFn, load_fn: LoadFn) -> None:
+        """Let the show selector offer shows that are not loaded yet.
+
+        Args:
+            list_fn: returns ``{key: label}`` of the shows that could be loaded.
+            load_fn: loads the show ``key`` (it plans and then calls :meth:`load`);
+                called from a worker thread when a browser picks that show.
+        """
+        self._catalog, self._catalog_load = list_fn, load_fn
+        self._refresh_show_options()
+
+    def _refresh_show_options(self) -> None:
+        with self._lock:
+            labels = list(self._shows)
+            self._catalog_keys = {}
+            if self._catalog is not None:
+                try:
+                    catalog = dict(self._catalog())
+                except Exception:  # a failing catalog must not take the viewer down
+                    catalog = {}
+                for key, label in catalog.items():
+                    if label not in self._shows:
+                        self._catalog_keys[label] = key
+                        labels.append(label)
+            # Until a show is loaded the selector says so, with the stored shows below it.
+            options = labels if self._current is not None else [NO_SHOW, *labels]
+            self._set_gui(self._show_dd, "options", options)
+            self._set_gui(self._show_dd, "value", self._current or NO_SHOW)
+
+    def _on_show_selected(self, event: Any) -> None:
+        label = str(event.target.value)
+        with self._lock:
+            if label in self._shows:
+                self._activate(label, self._source if self._shows[label].flight is not None else "planned")
+                return
+            key = self._catalog_keys.get(label)
+        if key is not None and self._catalog_load is not None:
+            load = self._catalog_load
+            threading.Thread(target=load, args=(key,), name="viewer-catalog-load", daemon=True).start()
+
+    # ----------------------------------------------------------------- loading
+
+    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None) -> None:
+        """Load (or replace) a show and put it on screen for every connected browser.
+
+        Args:
+            plan: the show's plan.
+            name: registry name shown in the selector (loading the same name replaces it).
+            flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
+            source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
+        """
+        if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
+            raise ValueError("the flight and the plan have different drone counts")
+        with self._lock:
+            self._shows.pop(name, None)
+            self._shows[name] = _Entry(name, plan, flight)
+            while len(self._shows) > MAX_SHOWS:
+                del self._shows[next(iter(self._shows))]
+            self._activate(name, source or ("simulated" if flight is not None else "planned"))
+            self._refresh_show_options()
+
+    def _activate(self, name: str, source: Source) -> None:
+        with self._lock:
+            entry = self._shows[name]
+            self._track = make_track(entry.plan, entry.flight, source)
+            self._current, self._source = name, source
+            self._time_s = 0.0
+            self._playing = False
+            self._pair_hint_m = None
+            self._last_trail_s = -np.inf
+            self._next_target = None
+            plan = entry.plan
+            holds = [seg for _, seg in plan.formation_segments()]
+            self._hold_starts_s = np.array([s.start_s for s in holds])
+            self._hold_knots = np.array([s.index for s in holds], dtype=np.intp)
+
+            n = plan.drone_count
+            spacing = float(plan.settings.min_distance_m)
+            lo, hi = show_bounds(plan, entry.flight)
+            with self.server.atomic():
+                # Ground grid sized to the show's footprint, in whole 50 m sections.
+                span = float(np.max(hi[:2] - lo[:2])) + 40.0
+                size = 50.0 * np.ceil(span / 50.0)
+                self._grid.width = self._grid.height = size
+                self._grid.position = (float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2), 0.0)
+                homes = plan.knot_positions_m[0]
+                self._homes.points = homes.astype(np.float32)
+                self._homes.point_size = 0.25 * spacing
+                self._drones.point_size = float(np.clip(0.45 * spacing, 0.5, 2.5))
+                self._targets.point_size = float(np.clip(0.25 * spacing, 0.3, 1.5))
+                self._set_gui(self._trails_cb, "value", n <= TRAILS_DEFAULT_MAX_DRONES)
+                self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
+                self._set_gui(self._slider, "value", 0.0)
+                self._set_gui(self._slider, "disabled", False)
+                self._set_gui(self._play, "disabled", False)
+                self._set_gui(self._play, "label", "Play")
+                self._set_gui(self._play, "icon", viser.Icon.PLAYER_PLAY)
+                self._set_gui(self._source_dd, "disabled", entry.flight is None)
+                self._set_gui(self._source_dd, "value", source)
+                self._set_gui(self._show_dd, "value", name)
+                position, look_at = framing_camera(lo, hi, fov_rad=self.server.initial_camera.fov)
+                self.server.initial_camera.position = tuple(position)
+                self.server.initial_camera.look_at = tuple(look_at)
+                for client in self.server.get_clients().values():
+                    client.camera.position = tuple(position)
+                    client.camera.look_at = tuple(look_at)
+            self.render()
+
+    def set_source(self, source: Source) -> None:
+        """Switch between the plan and the simulated flight of the current show, keeping the time."""
+        with self._lock:
+            if self._current is None:
+                return
+            entry = self._shows[self._current]
+            if source == "simulated" and entry.flight is None:
+                self._set_gui(self._source_dd, "value", self._source)
+                return
+            t = self._time_s
+            self._track = make_track(entry.plan, entry.flight, source)
+            self._source = source
+            self._set_gui(self._source_dd, "value", source)
+            self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
+            self._time_s = min(t, self._track.duration_s)
+            self._pair_hint_m = None
+            self._invalidate()
+
+    # ----------------------------------------------------------------- transport
+
+    def play(self) -> None:
+        """Start playback (from the start if at the end)."""
+        with self._lock:
+            if self._track is None:
+                return
+            if self._time_s >= self._track.duration_s:
+                self._time_s = 0.0
+            self._playing = True
+            self._set_gui(self._play, "label", "Pause")
+            self._set_gui(self._play, "icon", viser.Icon.PLAYER_PAUSE)
+
+    def pause(self) -> None:
+        """Pause playback."""
+        with self._lock:
+            self._playing = False
+            self._set_gui(self._play, "label", "Play")
+            self._set_gui(self._play, "icon", viser.Icon.PLAYER_PLAY)
+            self._invalidate()
+
+    def toggle_play(self) -> None:
+        """Play if paused, pause if playing."""
+        if self._playing:
+            self.pause()
+        else:
+            self.play()
+
+    def seek(self, time_s: float) -> None:
+        """Jump to ``time_s`` (seconds, clamped); the next tick renders it."""
+        with self._lock:
+            if self._track is None:
+                return
+            self._time_s = float(np.clip(time_s, 0.0, self._track.duration_s))
+            self._pair_hint_m = None
+            self._invalidate()
+
+    def set_speed(self, speed: float) -> None:
+        """Playback speed factor (0.25 to 8)."""
+        self._speed = float(np.clip(speed, 0.25, 8.0))
+        self._set_gui(self._speed_dd, "value", min(SPEEDS, key=lambda s: abs(float(s[:-1]) - self._speed)))
+
+    def _set_speed_label(self, label: str) -> None:
+        self._speed = float(label.rstrip("x"))
+
+    def _invalidate(self) -> None:
+        self._dirty = True
+        self._last_trail_s = -np.inf
+
+    # ----------------------------------------------------------------- busy
+
+    def set_busy(self, message: str | None, fraction: float | None = None) -> None:
+        """Show (or with ``message=None`` clear) a progress bar and a notification in every browser.
+
+        Args:
+            message: what is being done, for example ``"Planning Demo"``; None when done.
+            fraction: progress in [0, 1], or None for an indeterminate (animated) bar.
+        """
+        with self._lock:
+            self._busy = None if message is None else (message, fraction)
+            if message is None:
+                self._set_gui(self._progress, "visible", False)
+                self._set_gui(self._busy_md, "visible", False)
+                for handle in self._notifications.values():
+                    if not handle._impl.removed:
+                        handle.remove()
+                self._notifications.clear()
+                return
+            value = 100.0 * float(np.clip(fraction, 0.0, 1.0)) if fraction is not None else 100.0
+            self._set_gui(self._progress, "value", value)
+            self._set_gui(self._progress, "animated", fraction is None)
+            self._set_gui(self._progress, "visible", True)
+            text = message if fraction is None else f"{message}: {value:.0f} %"
+            self._set_gui(self._busy_md, "content", text)
+            self._set_gui(self._busy_md, "visible", True)
+            for client in self.server.get_clients().values():
+                self._notify(client, text)
+
+    def _notify(self, client: Any, text: str) -> None:
+        handle = self._notifications.get(client.client_id)
+        if handle is None or handle._impl.removed:
+            self._notifications[client.client_id] = client.add_notification(
+                "swarmshow", text, loading=True, with_close_button=False
+            )
+        else:
+            handle.body = text
+
+    def _on_connect(self, client: Any) -> None:
+        with self._lock:
+            if self._busy is not None:
+                self._notify(client, self._busy[0])
+        self._refresh_show_options()
+
+    # ----------------------------------------------------------------- frames
+
+    def _next_targets_knot(self, t: float) -> int | None:
+        """Knot index of the next formation's targets at time t (landing homes after the last)."""
+        if self._track is None or self._current is None:
+            return None
+        k = int(np.searchsorted(self._hold_starts_s, t, side="right"))
+        if k < len(self._hold_knots):
+            return int(self._hold_knots[k])
+        return len(self._shows[self._current].plan.knot_times_s) - 1
+
+    def _formation_text(self, t: float) -> str:
+        plan = self._shows[self._current].plan if self._current else None
+        if plan is None:
+            return ""
+        seg = plan.segments[int(plan.segment_index(t))]
+        return {
+            "takeoff": "takeoff",
+            "transition": f"→ {seg.label}",
+            "hold": seg.label,
+            "landing": "landing",
+        }[seg.kind]
+
+    def render(self, *, frame_dt_s: float | None = None) -> Frame | None:
+        """Push the frame at the current time to every browser and return it.
+
+        Args:
+            frame_dt_s: show time elapsed since the previous frame, seconds
+                (bounds how far the closest distance can have moved, to speed its search).
+        """
+        with self._lock:
+            track = self._track
+            if track is None:
+                return None
+            t = self._time_s
+            frame = track.frame(t)
+            colors = np.clip(DARK_LED_FLOOR + (1.0 - DARK_LED_FLOOR) * frame.colors_rgb, 0.0, 1.0)
+            show_pair = bool(self._pair_cb.value) and track.drone_count >= 2
+            pending = None
+            if show_pair:
+                hint = None
+                if self._pair_hint_m is not None and frame_dt_s is not None:
+                    # Two drones at most max speed apart close by 2·v·dt; 1 % slack for rounding.
+                    hint = self._pair_hint_m * 1.01 + 2.0 * frame.max_speed_mps * abs(frame_dt_s) + 1e-3
+                # The search releases the GIL: run it beside the drone update below.
+                pending = self._pair_pool.submit(closest_pair, frame.positions_m, hint_m=hint)
+
+            with self.server.atomic():
+                self._drones.points = frame.positions_m.astype(np.float32)
+                self._drones.colors = (colors * 255.0).astype(np.uint8)
+                self._drones.visible = True
+                self._homes.visible = bool(self._homes_cb.value)
+                self._update_targets(t)
+                self._update_trails(track, t, frame)
+                if pending is not None:
+                    i, j, d = pending.result()
+                    self._pair_hint_m = d
+                    self.last_pair = (i, j, d)
+                    ends = frame.positions_m[[i, j]]
+                    self._pair_line.points = ends[None].astype(np.float32)
+                    self._pair_label.text = f"{d:.2f} m"
+                    self._pair_label.position = tuple(ends.mean(axis=0) + [0.0, 0.0, 1.0])
+                self._pair_line.visible = show_pair
+                self._pair_label.visible = show_pair
+                pair_text = (
+                    f"{self.last_pair[2]:.2f} m (#{self.last_pair[0]}–#{self.last_pair[1]})" if show_pair else "–"
+                )
+                self._readout.content = (
+                    f"**Time** {t:6.1f} / {track.duration_s:.1f} s · {self._source}  \n"
+                    f"**Formation** {self._formation_text(t)}  \n"
+                    f"**Min distance** {pair_text}  \n"
+                    f"**Max speed** {frame.max_speed_mps:.2f} m/s · {track.drone_count} drones"
+                )
+                self._set_gui(self._slider, "value", round(t / 0.05) * 0.05)
+            self.last_frame = frame
+            self.frames_rendered += 1
+            self._dirty = False
+            return frame
+
+    def _update_targets(self, t: float) -> None:
+        show = bool(self._targets_cb.value)
+        self._targets.visible = show
+        if not show or self._current is None:
+            return
+        knot = self._next_targets_knot(t)
+        if knot == self._next_target or knot is None:
+            return
+        plan = self._shows[self._current].plan
+        pts = plan.knot_positions_m[knot]
+        col = plan.knot_colors_rgb[knot]
+        self._targets.points = pts.astype(np.float32)
+        self._targets.colors = (np.clip(0.35 + 0.65 * col, 0, 1) * 255).astype(np.uint8)
+        self._next_target = knot
+
+    def _update_trails(self, track: Track, t: float, frame: Frame) -> None:
+        show = bool(self._trails_cb.value)
+        self._trails.visible = show
+        if not show:
+            return
+        # Lower rate than the drones: trails are the heaviest message by far.
+        if abs(t - self._last_trail_s) < self._speed / TRAIL_RATE_HZ and np.isfinite(self._last_trail_s):
+            return
+        self._last_trail_s = t
+        times = t - TRAIL_STEP_S * np.arange(TRAIL_SAMPLES + 1)
+        pos = track.positions(times)  # (M+1, N, 3), newest first
+        seg = np.stack([pos[:-1], pos[1:]], axis=2)  # (M, N, 2, 3)
+        seg = seg.transpose(1, 0, 2, 3).reshape(-1, 2, 3)
+        # Older pieces fade towards the background.
+        fade = np.linspace(0.8, 0.15, TRAIL_SAMPLES)
+        base = np.clip(DARK_LED_FLOOR + (1 - DARK_LED_FLOOR) * frame.colors_rgb, 0, 1)
+        col = base[:, None, None, :] * fade[None, :, None, None]
+        col = np.broadcast_to(col, (track.drone_count, TRAIL_SAMPLES, 2, 3)).reshape(-1, 2, 3)
+        self._trails.points = seg.astype(np.float32)
+        self._trails.colors = (col * 255).astype(np.uint8)
+
+    # ----------------------------------------------------------------- thread
+
+    def step(self, wall_dt_s: float) -> Frame | None:
+        """Advance playback by ``wall_dt_s`` seconds of wall time and render if anything changed."""
+        with self._lock:
+            if self._track is None:
+                return None
+            dt = 0.0
+            if self._playing:
+                dt = wall_dt_s * self._speed
+                t = self._time_s + dt
+                if t >= self._track.duration_s:
+                    if self._loop:
+                        t = 0.0
+                        self._pair_hint_m = None
+                        dt = 0.0
+                    else:
+                        t = self._track.duration_s
+                        self.pause()
+                self._time_s = t
+            elif not self._dirty:
+                return None
+            return self.render(frame_dt_s=dt if self._playing else None)
+
+    def _run(self) -> None:
+        period = 1.0 / self.frame_rate_hz
+        last = time.perf_counter()
+        deadline = last
+        while not self._stop.is_set():
+            deadline += period
+            now = time.perf_counter()
+            try:
+                self.step(now - last)
+            except Exception as exc:  # keep the thread alive; report in the GUI
+                self._readout.content = f"**Playback error** {exc!r}"
+            last = now
+            delay = deadline - time.perf_counter()
+            if delay < -period:
+                # Fell behind (a slow frame): resynchronise instead of bursting.
+                deadline = time.perf_counter()
+            elif delay > 0:
+                self._stop.wait(delay)
+
+
+__all__ = ["FRAME_RATE_HZ", "Viewer"]

@@ -1,0 +1,77 @@
+"""Flight-simulation benchmarks (issue 4): ``make bench`` or ``pytest -m slow benchmarks/bench_sim.py``.
+
+Figures: drone-steps per second (one drone advanced by one 1 ms step with the full ISMC
+controllers and the rigid-body dynamics) of the numba kernel and of the numpy reference
+in the same run, and the wall time of a whole 1000-drone show flight.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pytest
+
+from app.cli._bench import BENCH_KINDS
+
+pytestmark = pytest.mark.slow
+
+#: Target of issue 4 on the 2-core reference machine.
+TARGET_DRONE_STEPS_PER_S = 20e6
+
+
+@pytest.mark.parametrize("n", [2000, 10000])
+def test_bench_sim_engines(n: int, record_result) -> None:
+    """numba vs numpy drone-steps/s at n drones (numba 5 simulated s, numpy 0.2 s)."""
+    run = BENCH_KINDS["sim"][2]
+    fig = run(argparse.Namespace(drones=n, seconds=5.0, numpy_seconds=0.2))
+    fig["target_drone_steps_per_s"] = TARGET_DRONE_STEPS_PER_S
+    fig["ratio_to_target"] = fig["drone_steps_per_s"] / TARGET_DRONE_STEPS_PER_S
+    record_result(fig)
+    assert fig["numba"]["diverged"] == 0 and fig["numpy"]["diverged"] == 0
+    assert fig["speedup"] > 5.0
+
+
+def test_bench_fly_show_1000_drones(record_result) -> None:
+    """Plan and fly a 1000-drone show (two spheres) at 1 kHz, 25 Hz output."""
+    from formations import parse_show
+    from sim import plan_show
+    from sim.flight import fly_show
+
+    def sphere(n: int, radius_m: float, center: tuple[float, float, float]) -> list[list[float]]:
+        i = np.arange(n) + 0.5
+        phi, theta = np.arccos(1 - 2 * i / n), np.pi * (1 + 5**0.5) * i
+        pts = np.c_[np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)] * radius_m + center
+        return np.round(pts, 6).tolist()
+
+    show = parse_show({
+        "format": "swarmshow/1", "name": "bench", "drones": 1000,
+        "home": {"grid": {"rows": 25, "cols": 40, "spacing_m": 4.5}},
+        "settings": {"max_speed_z_mps": 5.0},
+        "formations": [
+            {"name": "big sphere", "hold_s": 10.0, "points": sphere(1000, 60.0, (0.0, 0.0, 80.0)),
+             "color": "#ff0000"},
+            {"name": "small sphere", "hold_s": 10.0, "points": sphere(1000, 45.0, (20.0, 0.0, 70.0)),
+             "color": "#00ff00"},
+        ],
+    })
+    plan = plan_show(show)
+    start = time.perf_counter()
+    res = fly_show(plan)
+    wall = time.perf_counter() - start
+    s = res.summary()
+    fig = {
+        "drones": 1000,
+        "show_duration_s": plan.duration_s,
+        "fly_wall_s": wall,
+        "drone_steps_per_s": s["drone_steps_per_s"],
+        "tracking_max_m": s["tracking_max_m"],
+        "flown_min_distance_m": s["flown_min_distance_m"],
+        "diverged": len(res.diverged),
+        "frames": int(res.times_s.size),
+        "positions_mb": res.positions_m.nbytes / 1e6,
+        "seconds_per_show_minute": wall / (plan.duration_s / 60.0),
+    }
+    record_result(fig)
+    assert fig["diverged"] == 0 and np.isfinite(fig["flown_min_distance_m"])

@@ -1,0 +1,308 @@
+// Fetch wrapper for the swarmshow REST API: JSON in and out, errors as ApiError with
+// per-field messages taken from FastAPI's 422 `detail` (its `path`, or `loc` turned into a path).
+
+const TOKEN_KEY = "swarmshow.token";
+
+/** An HTTP error from the API, with the problems it names. */
+export class ApiError extends Error {
+  /**
+   * @param {number} status HTTP status (0 for a network failure).
+   * @param {string} message one line for the user.
+   * @param {{path: string, msg: string}[]} problems field problems (path "" = not tied to a field).
+   * @param {any} body the parsed response body, if any.
+   */
+  constructor(status, message, problems = [], body = null) {
+    super(message);
+    this.name = "ApiError";
+    this.status = status;
+    this.problems = problems;
+    this.body = body;
+  }
+}
+
+/**
+ * ['body', 'show', 'formations', 2, 'points'] -> 'formations[2].points' (request wrappers dropped).
+ * @param {Array<string|number>} loc
+ * @returns {string}
+ */
+export function locToPath(loc) {
+  const parts = [...loc];
+  while (parts.length && ["body", "query", "path", "show"].includes(parts[0])) parts.shift();
+  let out = "";
+  for (const p of parts) {
+    if (typeof p === "number" || /^\d+$/.test(String(p))) out += `[${p}]`;
+    else out += out ? `.${p}` : String(p);
+  }
+  return out;
+}
+
+/**
+ * The field problems of an error body: `{detail: [...]}`, `{detail: "..."}` or `{detail: {...}}`.
+ * @param {any} body
+ * @returns {{path: string, msg: string, max_n?: number}[]}
+ */
+export function problemsOf(body) {
+  const detail = body && typeof body === "object" ? body.detail ?? body.errors ?? body : body;
+  const list = Array.isArray(detail) ? detail : detail && typeof detail === "object" && Array.isArray(detail.errors) ? detail.errors : null;
+  if (list) {
+    return list.map((d) => {
+      if (typeof d === "string") return { path: "", msg: d };
+      let path = typeof d.path === "string" ? d.path.replace(/^show\./, "") : locToPath(d.loc || []);
+      return { ...d, path, msg: String(d.msg ?? d.message ?? "invalid") };
+    });
+  }
+  if (typeof detail === "string") return [{ path: "", msg: detail }];
+  if (detail && typeof detail === "object" && (detail.message || detail.msg)) return [{ path: "", msg: String(detail.message || detail.msg) }];
+  return [];
+}
+
+function messageFor(status, problems, statusText) {
+  if (problems.length) {
+    const p = problems[0];
+    const head = p.path ? `${p.path}: ${p.msg}` : p.msg;
+    return problems.length > 1 ? `${head} (and ${problems.length - 1} more)` : head;
+  }
+  if (status === 413) return "the upload is too large";
+  if (status === 404) return "not found";
+  return `${status} ${statusText || "error"}`.trim();
+}
+
+let tokenPrompt = null;
+
+/**
+ * Set the function asked for a token when the server answers 401 (returns a Promise of the token or null).
+ * @param {() => Promise<string|null>} fn
+ */
+export function setTokenPrompt(fn) {
+  tokenPrompt = fn;
+}
+
+function authHeaders() {
+  const t = sessionStorage.getItem(TOKEN_KEY);
+  return t ? { Authorization: `Bearer ${t}` } : {};
+}
+
+/**
+ * One API request. JSON bodies via `json`, anything else (FormData, Blob) via `body`.
+ * @param {string} method
+ * @param {string} url same-origin path, e.g. "/api/shows"
+ * @param {{json?: any, body?: BodyInit, headers?: Record<string,string>, raw?: boolean, signal?: AbortSignal}} [opts]
+ * @returns {Promise<any>} parsed JSON (or the Response itself with `raw`)
+ * @throws {ApiError}
+ */
+export async function request(method, url, opts = {}, retried = false) {
+  const headers = { Accept: "application/json", ...authHeaders(), ...(opts.headers || {}) };
+  let body = opts.body;
+  if (opts.json !== undefined) {
+    headers["Content-Type"] = "application/json";
+    body = JSON.stringify(opts.json);
+  }
+  let res;
+  try {
+    res = await fetch(url, { method, headers, body, signal: opts.signal, credentials: "same-origin" });
+  } catch (err) {
+    if (err && err.name === "AbortError") throw err;
+    throw new ApiError(0, "cannot reach the server (is it running?)");
+  }
+  if (res.status === 401 && !retried && tokenPrompt) {
+    const token = await tokenPrompt();
+    if (token) {
+      sessionStorage.setItem(TOKEN_KEY, token);
+      return request(method, url, opts, true);
+    }
+  }
+  if (!res.ok) {
+    let parsed = null;
+    try {
+      parsed = await res.json();
+    } catch {
+      parsed = null;
+    }
+    const problems = problemsOf(parsed);
+    throw new ApiError(res.status, messageFor(res.status, problems, res.statusText), problems, parsed);
+  }
+  if (opts.raw) return res;
+  if (res.status === 204) return null;
+  const type = res.headers.get("content-type") || "";
+  return type.includes("json") ? res.json() : res.text();
+}
+
+/**
+ * A stored show as the editor uses it: id, name, revision and the show document.
+ * Accepts the record shapes `{id, revision, show}` and `{id, revision, ...showFields}`.
+ * @param {any} r
+ * @returns {{id: string, name: string, revision: number, show: any, updated_at?: string}}
+ */
+export function normalizeRecord(r) {
+  let show = r.show ?? r.data ?? r.document ?? null;
+  if (!show && r.json) show = typeof r.json === "string" ? JSON.parse(r.json) : r.json;
+  if (!show && r.format) {
+    const { id: _id, revision: _rev, created_at: _c, updated_at: _u, content_hash: _h, ...rest } = r;
+    show = rest;
+  }
+  return { id: r.id, name: r.name ?? show?.name ?? "", revision: r.revision, show, updated_at: r.updated_at };
+}
+
+/** @returns {Promise<any[]>} stored show summaries (id, name, drones, formations, updated_at, revision). */
+export async function listShows() {
+  const out = [];
+  for (let offset = 0; offset < 10000; ) {
+    const page = await request("GET", `/api/shows?limit=200&offset=${offset}`);
+    const items = Array.isArray(page) ? page : page.items ?? page.shows ?? [];
+    out.push(...items);
+    const total = Array.isArray(page) ? items.length : page.total ?? items.length;
+    offset += items.length;
+    if (!items.length || offset >= total) break;
+  }
+  return out;
+}
+
+/** @param {string} id @returns {Promise<ReturnType<typeof normalizeRecord>>} */
+export async function getShow(id) {
+  return normalizeRecord(await request("GET", `/api/shows/${encodeURIComponent(id)}`));
+}
+
+/** @param {any} show a swarmshow/1 document @returns {Promise<ReturnType<typeof normalizeRecord>>} */
+export async function createShow(show) {
+  const rec = normalizeRecord(await request("POST", "/api/shows", { json: show }));
+  return rec.show ? rec : { ...rec, show };
+}
+
+/**
+ * Replace a show; `revision` is the one the edit is based on (a stale one gets 409).
+ * @param {string} id
+ * @param {any} show
+ * @param {number} revision
+ * @returns {Promise<ReturnType<typeof normalizeRecord>>}
+ */
+export async function updateShow(id, show, revision) {
+  const res = await request("PUT", `/api/shows/${encodeURIComponent(id)}`, {
+    json: { revision, show },
+    headers: { "If-Match": `"${revision}"` },
+  });
+  const rec = normalizeRecord(res);
+  return rec.show ? rec : { ...rec, show };
+}
+
+/** @param {string} id */
+export function deleteShow(id) {
+  return request("DELETE", `/api/shows/${encodeURIComponent(id)}`);
+}
+
+/** @param {string} id @returns {Promise<any>} the check result (a job result or the report itself). */
+export function checkShow(id) {
+  return request("POST", `/api/shows/${encodeURIComponent(id)}/check`, { json: {} });
+}
+
+/** @param {string} id @param {object} [options] @returns {Promise<any>} the job (202). */
+export function simulateShow(id, options = {}) {
+  return request("POST", `/api/shows/${encodeURIComponent(id)}/simulate`, { json: options });
+}
+
+/** @param {string} jobId */
+export function getJob(jobId) {
+  return request("GET", `/api/jobs/${encodeURIComponent(jobId)}`);
+}
+
+/** @param {string} jobId */
+export function cancelJob(jobId) {
+  return request("DELETE", `/api/jobs/${encodeURIComponent(jobId)}`);
+}
+
+/** @param {string} jobId @returns {string} the server-sent events URL of a job. */
+export function jobEventsUrl(jobId) {
+  return `/api/jobs/${encodeURIComponent(jobId)}/events`;
+}
+
+/**
+ * Build formation points on the server.
+ * @param {"shape"|"text"|"image"|"svg"} source
+ * @param {object} params JSON parameters (n, plane, center_m, ...)
+ * @param {File|Blob} [file] the upload for image and svg
+ * @returns {Promise<{points: number[][], colors: string[], min_spacing_m: number|null}>}
+ */
+export function buildFormation(source, params, file) {
+  if (file) {
+    const fd = new FormData();
+    fd.append("file", file);
+    for (const [k, v] of Object.entries(params)) {
+      if (v !== undefined && v !== null) fd.append(k, typeof v === "object" ? JSON.stringify(v) : String(v));
+    }
+    return request("POST", `/api/formations/${source}`, { body: fd });
+  }
+  return request("POST", `/api/formations/${source}`, { json: params });
+}
+
+/** @param {string} id @param {"planned"|"simulated"} [source] */
+export function loadPlayback(id, source = "planned") {
+  return request("POST", `/api/shows/${encodeURIComponent(id)}/playback`, { json: { source } });
+}
+
+/**
+ * Download an export.
+ * @param {string} id
+ * @param {string} format
+ * @param {Record<string, string|number>} [options] query options (origin, heading_deg, fps, source)
+ * @returns {Promise<{blob: Blob, filename: string, warnings: string[]}>}
+ */
+export async function exportShow(id, format, options = {}) {
+  const query = new URLSearchParams();
+  for (const [k, v] of Object.entries(options)) if (v !== "" && v != null) query.set(k, String(v));
+  const qs = query.toString() ? `?${query}` : "";
+  const res = await request("GET", `/api/shows/${encodeURIComponent(id)}/export/${encodeURIComponent(format)}${qs}`, {
+    raw: true,
+    headers: { Accept: "*/*" },
+  });
+  const blob = await res.blob();
+  const cd = res.headers.get("content-disposition") || "";
+  const m = /filename\*=UTF-8''([^;]+)/i.exec(cd) || /filename="?([^";]+)"?/i.exec(cd);
+  const filename = m ? decodeURIComponent(m[1]) : `show.${format}`;
+  let warnings = [];
+  try {
+    warnings = JSON.parse(res.headers.get("x-swarmshow-warnings") || "[]");
+  } catch {
+    warnings = [];
+  }
+  return { blob, filename, warnings };
+}
+
+/** Formats named by DESIGN.md, used when the OpenAPI schema does not list them. */
+export const DEFAULT_EXPORT_FORMATS = [
+  "show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html",
+];
+
+/**
+ * Export formats the server offers: the enum of the format path parameter in its OpenAPI schema,
+ * else the list the server gives when asked for an unknown format, else DESIGN.md's list.
+ * @returns {Promise<string[]>}
+ */
+export async function exportFormats() {
+  try {
+    const spec = await request("GET", "/api/openapi.json");
+    for (const [path, item] of Object.entries(spec.paths || {})) {
+      const m = /\/export\/\{([^}]+)\}$/.exec(path);
+      if (!m || !item.get) continue;
+      const p = (item.get.parameters || []).find((q) => q.name === m[1]);
+      let schema = p && p.schema;
+      if (schema && schema.$ref) schema = resolveRef(spec, schema.$ref);
+      const en = schema && (schema.enum || (schema.anyOf || []).flatMap((s) => s.enum || []));
+      if (en && en.length) return en;
+    }
+  } catch {
+    // try the next source
+  }
+  try {
+    await request("GET", "/api/shows/-/export/-");
+  } catch (err) {
+    const m = /one of: ([\w\s,.-]+)$/.exec(err.message || "");
+    if (m) {
+      const list = m[1].split(",").map((s) => s.trim()).filter(Boolean);
+      if (list.length) return list;
+    }
+  }
+  return DEFAULT_EXPORT_FORMATS;
+}
+
+function resolveRef(spec, ref) {
+  return ref.replace(/^#\//, "").split("/").reduce((o, k) => (o ? o[k] : undefined), spec);
+}

@@ -1,0 +1,413 @@
+// The formation canvas: front (x-z) or top (x-y) view of the current formation, a metre grid,
+// zoom about the cursor, pan, hit testing. Editing gestures live in tools.js.
+
+import { VIEW_AXES } from "./geometry.js";
+import { formationColors } from "./state.js";
+
+const NICE_STEPS = [0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000];
+
+/** Draws the current formation and maps between screen pixels and metres. */
+export class CanvasView {
+  /**
+   * @param {HTMLCanvasElement} canvas
+   * @param {import("./state.js").EditorState} state
+   */
+  constructor(canvas, state) {
+    this.canvas = canvas;
+    this.ctx = canvas.getContext("2d");
+    this.state = state;
+    /** @type {"front"|"top"} */
+    this.view = "front";
+    this.scale = 6; // pixels per metre
+    this.center = [0, 40]; // metres at the canvas centre (u, v)
+    this.depth = 0; // metres along the hidden axis for new points
+    /** @type {Set<number>} indices closer than the minimum distance */
+    this.close = new Set();
+    /** @type {Set<number>} points flagged by a check violation */
+    this.flagged = new Set();
+    /** Transient drawing from tools: a stroke being drawn, a selection box. */
+    this.overlay = { strokes: [], box: null };
+    this.onCursor = null;
+    this._queued = false;
+    this._pan = null;
+    this._spaceDown = false;
+
+    new ResizeObserver(() => this._resize()).observe(canvas);
+    canvas.addEventListener("wheel", (e) => this._wheel(e), { passive: false });
+    canvas.addEventListener("pointerdown", (e) => this._maybePan(e), true);
+    canvas.addEventListener("pointermove", (e) => {
+      if (this._pan) this._panMove(e);
+      if (this.onCursor) this.onCursor(this.toWorldUV(e.offsetX, e.offsetY));
+    });
+    canvas.addEventListener("pointerup", (e) => this._panEnd(e), true);
+    window.addEventListener("keydown", (e) => {
+      if (e.code === "Space" && document.activeElement === canvas) { this._spaceDown = true; e.preventDefault(); }
+    });
+    window.addEventListener("keyup", (e) => { if (e.code === "Space") this._spaceDown = false; });
+    this._resize();
+  }
+
+  /** @returns {[number, number, number]} [horizontal, vertical, depth] axis indices of the view. */
+  get axes() {
+    return VIEW_AXES[this.view];
+  }
+
+  /**
+   * Switch between the front and top view.
+   * @param {"front"|"top"} view
+   */
+  setView(view) {
+    if (!VIEW_AXES[view] || view === this.view) return;
+    this.view = view;
+    this.fit();
+  }
+
+  _resize() {
+    const dpr = window.devicePixelRatio || 1;
+    const r = this.canvas.getBoundingClientRect();
+    this.width = Math.max(1, r.width);
+    this.height = Math.max(1, r.height);
+    this.canvas.width = Math.round(this.width * dpr);
+    this.canvas.height = Math.round(this.height * dpr);
+    this.ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    this.redraw();
+  }
+
+  /**
+   * Screen pixel (CSS px from the canvas' top left) -> view coordinates in metres.
+   * @param {number} sx @param {number} sy
+   * @returns {[number, number]}
+   */
+  toWorldUV(sx, sy) {
+    return [this.center[0] + (sx - this.width / 2) / this.scale, this.center[1] - (sy - this.height / 2) / this.scale];
+  }
+
+  /**
+   * View coordinates (metres) -> screen pixels.
+   * @param {number} u @param {number} v
+   * @returns {[number, number]}
+   */
+  toScreen(u, v) {
+    return [this.width / 2 + (u - this.center[0]) * this.scale, this.height / 2 - (v - this.center[1]) * this.scale];
+  }
+
+  /**
+   * A 3-D point for view coordinates, at the canvas depth.
+   * @param {number} u @param {number} v
+   * @returns {number[]}
+   */
+  pointAt(u, v) {
+    const [a, b, d] = this.axes;
+    const p = [0, 0, 0];
+    p[a] = u;
+    p[b] = v;
+    p[d] = this.depth;
+    return p;
+  }
+
+  /**
+   * Zoom by a factor keeping the world point under (sx, sy) fixed.
+   * @param {number} factor @param {number} [sx] @param {number} [sy]
+   */
+  zoom(factor, sx = this.width / 2, sy = this.height / 2) {
+    const [u, v] = this.toWorldUV(sx, sy);
+    this.scale = Math.min(400, Math.max(0.05, this.scale * factor));
+    this.center = [u - (sx - this.width / 2) / this.scale, v + (sy - this.height / 2) / this.scale];
+    this.redraw();
+  }
+
+  /** Zoom and pan so the current formation (and the ground) fill the canvas. */
+  fit() {
+    const f = this.state.formation;
+    const [a, b] = this.axes;
+    let lo = [Infinity, Infinity];
+    let hi = [-Infinity, -Infinity];
+    for (const p of f ? f.points : []) {
+      lo = [Math.min(lo[0], p[a]), Math.min(lo[1], p[b])];
+      hi = [Math.max(hi[0], p[a]), Math.max(hi[1], p[b])];
+    }
+    if (!Number.isFinite(lo[0])) { lo = [-30, 0]; hi = [30, 60]; }
+    if (this.view === "front") lo[1] = Math.min(lo[1], 0);
+    const w = Math.max(hi[0] - lo[0], 10);
+    const h = Math.max(hi[1] - lo[1], 10);
+    this.scale = Math.max(0.05, Math.min((this.width * 0.85) / w, (this.height * 0.85) / h));
+    this.center = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2];
+    this.redraw();
+  }
+
+  _wheel(e) {
+    e.preventDefault();
+    const factor = Math.exp(-e.deltaY * (e.deltaMode === 1 ? 0.05 : 0.0015));
+    this.zoom(factor, e.offsetX, e.offsetY);
+  }
+
+  /**
+   * Start panning from a pointer event (used by the pan tool too).
+   * @param {PointerEvent} e
+   */
+  startPan(e) {
+    this._pan = { x: e.offsetX, y: e.offsetY, center: this.center.slice(), id: e.pointerId };
+    this.canvas.setPointerCapture(e.pointerId);
+    this.canvas.classList.add("panning");
+  }
+
+  _maybePan(e) {
+    if (e.button === 1 || (e.button === 0 && this._spaceDown)) {
+      e.stopImmediatePropagation();
+      e.preventDefault();
+      this.startPan(e);
+    }
+  }
+
+  _panMove(e) {
+    const p = this._pan;
+    this.center = [p.center[0] - (e.offsetX - p.x) / this.scale, p.center[1] + (e.offsetY - p.y) / this.scale];
+    this.redraw();
+  }
+
+  _panEnd(e) {
+    if (!this._pan) return;
+    this._pan = null;
+    this.canvas.classList.remove("panning");
+    if (this.canvas.hasPointerCapture(e.pointerId)) this.canvas.releasePointerCapture(e.pointerId);
+    e.stopImmediatePropagation();
+  }
+
+  /** @returns {boolean} a pan gesture is in progress. */
+  get panning() {
+    return this._pan !== null;
+  }
+
+  /**
+   * Index of the point nearest to a screen position within `radius` pixels, or -1.
+   * @param {number} sx @param {number} sy @param {number} [radius]
+   */
+  hitTest(sx, sy, radius = 8) {
+    const f = this.state.formation;
+    if (!f) return -1;
+    const [a, b] = this.axes;
+    let best = -1;
+    let bd = radius * radius;
+    for (let i = 0; i < f.points.length; i++) {
+      const [x, y] = this.toScreen(f.points[i][a], f.points[i][b]);
+      const d = (x - sx) ** 2 + (y - sy) ** 2;
+      if (d <= bd) { bd = d; best = i; }
+    }
+    return best;
+  }
+
+  /**
+   * Indices of the points inside a screen rectangle.
+   * @param {number} x0 @param {number} y0 @param {number} x1 @param {number} y1
+   * @returns {number[]}
+   */
+  pointsInRect(x0, y0, x1, y1) {
+    const f = this.state.formation;
+    if (!f) return [];
+    const [a, b] = this.axes;
+    const [u0, v1] = this.toWorldUV(Math.min(x0, x1), Math.min(y0, y1));
+    const [u1, v0] = this.toWorldUV(Math.max(x0, x1), Math.max(y0, y1));
+    const out = [];
+    f.points.forEach((p, i) => {
+      if (p[a] >= u0 && p[a] <= u1 && p[b] >= v0 && p[b] <= v1) out.push(i);
+    });
+    return out;
+  }
+
+  /** Redraw on the next animation frame. */
+  redraw() {
+    if (this._queued) return;
+    this._queued = true;
+    requestAnimationFrame(() => {
+      this._queued = false;
+      this._draw();
+    });
+  }
+
+  _gridStep() {
+    const target = 60 / this.scale; // about 60 px between lines
+    return NICE_STEPS.find((s) => s >= target) ?? NICE_STEPS[NICE_STEPS.length - 1];
+  }
+
+  _draw() {
+    const { ctx, width: w, height: h } = this;
+    ctx.clearRect(0, 0, w, h);
+    ctx.fillStyle = "#0a0f1a";
+    ctx.fillRect(0, 0, w, h);
+    this._drawGrid();
+    const show = this.state.show;
+    if (!show) return;
+    this._drawLimits(show);
+    this._drawHome(show);
+    const prev = show.formations[this.state.current - 1];
+    if (prev) this._drawPoints(prev, { ghost: true });
+    const f = this.state.formation;
+    if (f) this._drawPoints(f, {});
+    this._drawOverlay();
+  }
+
+  _drawGrid() {
+    const { ctx, width: w, height: h } = this;
+    const step = this._gridStep();
+    const [u0, v1] = this.toWorldUV(0, 0);
+    const [u1, v0] = this.toWorldUV(w, h);
+    ctx.lineWidth = 1;
+    ctx.font = "10px system-ui, sans-serif";
+    ctx.fillStyle = "#5d6b8c";
+    for (let u = Math.ceil(u0 / step) * step; u <= u1; u += step) {
+      const [x] = this.toScreen(u, 0);
+      ctx.strokeStyle = Math.abs(u) < 1e-9 ? "#3b4a73" : "#182036";
+      ctx.beginPath();
+      ctx.moveTo(Math.round(x) + 0.5, 0);
+      ctx.lineTo(Math.round(x) + 0.5, h);
+      ctx.stroke();
+      ctx.fillText(`${+u.toFixed(2)} m`, x + 3, h - 4);
+    }
+    for (let v = Math.ceil(v0 / step) * step; v <= v1; v += step) {
+      const [, y] = this.toScreen(0, v);
+      ctx.strokeStyle = Math.abs(v) < 1e-9 ? "#3b4a73" : "#182036";
+      ctx.beginPath();
+      ctx.moveTo(0, Math.round(y) + 0.5);
+      ctx.lineTo(w, Math.round(y) + 0.5);
+      ctx.stroke();
+      ctx.fillText(`${+v.toFixed(2)} m`, 3, y - 3);
+    }
+    const names = this.view === "front" ? ["x (east)", "z (up)"] : ["x (east)", "y (north)"];
+    ctx.fillStyle = "#8d99b5";
+    ctx.fillText(`${names[0]} →   ${names[1]} ↑   grid ${step} m`, w - 230, 14);
+  }
+
+  _drawLimits(show) {
+    if (this.view !== "front") return;
+    const { ctx, width: w } = this;
+    const [, yg] = this.toScreen(0, 0);
+    ctx.fillStyle = "rgba(60, 90, 60, 0.18)";
+    ctx.fillRect(0, yg, w, this.height - yg);
+    ctx.strokeStyle = "#3f6d4a";
+    ctx.beginPath();
+    ctx.moveTo(0, yg);
+    ctx.lineTo(w, yg);
+    ctx.stroke();
+    const [, ya] = this.toScreen(0, show.settings.max_altitude_m);
+    ctx.setLineDash([6, 4]);
+    ctx.strokeStyle = "#7a3b48";
+    ctx.beginPath();
+    ctx.moveTo(0, ya);
+    ctx.lineTo(w, ya);
+    ctx.stroke();
+    ctx.setLineDash([]);
+    ctx.fillStyle = "#b86b78";
+    ctx.fillText(`max altitude ${show.settings.max_altitude_m} m`, 40, ya - 4);
+  }
+
+  _drawHome(show) {
+    const g = show.home && show.home.grid;
+    let pts = [];
+    if (g) {
+      const c = g.center_m || [0, 0];
+      for (let r = 0; r < g.rows && pts.length < show.drones; r++) {
+        for (let k = 0; k < g.cols && pts.length < show.drones; k++) {
+          pts.push([(k - (g.cols - 1) / 2) * g.spacing_m + c[0], (r - (g.rows - 1) / 2) * g.spacing_m + c[1], 0]);
+        }
+      }
+    } else if (show.home && show.home.points) pts = show.home.points;
+    const [a, b] = this.axes;
+    this.ctx.fillStyle = "#3a4a6b";
+    for (const p of pts) {
+      const [x, y] = this.toScreen(p[a], p[b]);
+      this.ctx.fillRect(x - 1.5, y - 1.5, 3, 3);
+    }
+  }
+
+  _drawPoints(f, { ghost }) {
+    const { ctx } = this;
+    const [a, b] = this.axes;
+    const spacing = this.state.show.settings.min_distance_m;
+    const r = Math.max(2, Math.min(7, spacing * this.scale * 0.22));
+    const colors = formationColors(f);
+    const sel = this.state.selection;
+    // Draw far points first so nearer ones (smaller depth toward the viewer) stay on top.
+    const order = f.points.map((_, i) => i);
+    if (!ghost && this.view === "front") order.sort((i, j) => f.points[j][1] - f.points[i][1]);
+    for (const i of order) {
+      const p = f.points[i];
+      const [x, y] = this.toScreen(p[a], p[b]);
+      if (x < -10 || y < -10 || x > this.width + 10 || y > this.height + 10) continue;
+      if (ghost) {
+        ctx.strokeStyle = "rgba(140, 150, 180, 0.25)";
+        ctx.beginPath();
+        ctx.arc(x, y, r, 0, 2 * Math.PI);
+        ctx.stroke();
+        continue;
+      }
+      ctx.fillStyle = colors[i];
+      ctx.beginPath();
+      ctx.arc(x, y, r, 0, 2 * Math.PI);
+      ctx.fill();
+      if (this.close.has(i) || this.flagged.has(i)) {
+        ctx.strokeStyle = "#ff3b5c";
+        ctx.lineWidth = 2;
+        ctx.beginPath();
+        ctx.arc(x, y, r + 3, 0, 2 * Math.PI);
+        ctx.stroke();
+      }
+      if (sel.has(i)) {
+        ctx.strokeStyle = "#ffd166";
+        ctx.lineWidth = 2;
+        ctx.strokeRect(x - r - 2, y - r - 2, 2 * r + 4, 2 * r + 4);
+      }
+      ctx.lineWidth = 1;
+    }
+    if (!ghost && this.close.size) {
+      // Spacing radius around close points: how far apart they must be.
+      ctx.strokeStyle = "rgba(255, 59, 92, 0.35)";
+      ctx.setLineDash([3, 3]);
+      for (const i of this.close) {
+        const p = f.points[i];
+        if (!p) continue;
+        const [x, y] = this.toScreen(p[a], p[b]);
+        ctx.beginPath();
+        ctx.arc(x, y, (spacing / 2) * this.scale, 0, 2 * Math.PI);
+        ctx.stroke();
+      }
+      ctx.setLineDash([]);
+    }
+  }
+
+  _drawOverlay() {
+    const { ctx } = this;
+    const { strokes, box, preview } = this.overlay;
+    ctx.strokeStyle = "#4dd6ff";
+    ctx.lineWidth = 2;
+    for (const s of strokes) {
+      if (s.length < 2) continue;
+      ctx.beginPath();
+      s.forEach(([u, v], k) => {
+        const [x, y] = this.toScreen(u, v);
+        if (k) ctx.lineTo(x, y);
+        else ctx.moveTo(x, y);
+      });
+      ctx.stroke();
+    }
+    ctx.lineWidth = 1;
+    if (preview) {
+      preview.uv.forEach(([u, v], i) => {
+        const [x, y] = this.toScreen(u, v);
+        ctx.fillStyle = preview.close.has(i) ? "#ff3b5c" : "#e6ebf5";
+        ctx.beginPath();
+        ctx.arc(x, y, preview.close.has(i) ? 3.5 : 2.5, 0, 2 * Math.PI);
+        ctx.fill();
+      });
+    }
+    if (box) {
+      ctx.strokeStyle = "#ffd166";
+      ctx.fillStyle = "rgba(255, 209, 102, 0.08)";
+      ctx.setLineDash([4, 3]);
+      const x = Math.min(box.x0, box.x1);
+      const y = Math.min(box.y0, box.y1);
+      ctx.fillRect(x, y, Math.abs(box.x1 - box.x0), Math.abs(box.y1 - box.y0));
+      ctx.strokeRect(x, y, Math.abs(box.x1 - box.x0), Math.abs(box.y1 - box.y0));
+      ctx.setLineDash([]);
+    }
+  }
+}

@@ -1,0 +1,104 @@
+// The export menu: every format the backend offers, downloaded through
+// GET /api/shows/{id}/export/{format}; errors appear next to the menu.
+
+import * as api from "./api.js";
+import { toast } from "./dialogs.js";
+import { downloadBlob } from "./shows.js";
+
+/** Human names of the known formats. */
+export const FORMAT_LABELS = {
+  show: "Show file (.json)",
+  "skybrush-csv": "Skybrush CSV (.zip)",
+  skyc: "Skybrush Live (.skyc)",
+  crazyswarm: "Crazyswarm polynomials (.zip)",
+  "qgc-plan": "QGroundControl .plan (.zip)",
+  "qgc-wpl": "QGC WPL 110 (.zip)",
+  "waypoints-csv": "Waypoints CSV (.zip)",
+  "viser-html": "3D playback (.html)",
+};
+
+/** The export select and button. */
+export class ExportMenu {
+  /**
+   * @param {import("./state.js").EditorState} state
+   * @param {import("./persist.js").Persistence} persist
+   */
+  constructor(state, persist) {
+    this.state = state;
+    this.persist = persist;
+    this.select = /** @type {HTMLSelectElement} */ (document.getElementById("export-format"));
+    this.button = /** @type {HTMLButtonElement} */ (document.getElementById("btn-export"));
+    this.button.addEventListener("click", () => this.run());
+    this.select.addEventListener("change", () => { document.getElementById("export-error").textContent = ""; });
+    this.fields = {
+      origin: /** @type {HTMLInputElement} */ (document.getElementById("exp-origin")),
+      heading_deg: /** @type {HTMLInputElement} */ (document.getElementById("exp-heading")),
+      fps: /** @type {HTMLInputElement} */ (document.getElementById("exp-fps")),
+      source: /** @type {HTMLSelectElement} */ (document.getElementById("exp-source")),
+    };
+    for (const [key, el] of Object.entries(this.fields)) {
+      const saved = localStorage.getItem(`swarmshow.export.${key}`);
+      if (saved !== null) el.value = saved;
+      el.addEventListener("change", () => {
+        localStorage.setItem(`swarmshow.export.${key}`, el.value);
+        if (key === "origin") document.querySelector('[data-error-for="origin"]').textContent = "";
+      });
+    }
+  }
+
+  /** @returns {Record<string, string>} the export options as query parameters (blank ones left out). */
+  options() {
+    const out = {};
+    for (const [key, el] of Object.entries(this.fields)) {
+      const v = el.value.trim().replace(/\s+/g, "");
+      if (v !== "" && !(key === "heading_deg" && Number(v) === 0) && !(key === "source" && v === "planned")) out[key] = v;
+    }
+    return out;
+  }
+
+  /** Ask the server which formats it offers and fill the menu. */
+  async load() {
+    const formats = await api.exportFormats();
+    this.select.replaceChildren();
+    for (const f of formats) {
+      const o = document.createElement("option");
+      o.value = f;
+      o.textContent = FORMAT_LABELS[f] || f;
+      this.select.append(o);
+    }
+  }
+
+  /** Save if needed, then download the chosen format. */
+  async run() {
+    const st = this.state;
+    if (!st.meta) return;
+    const el = document.getElementById("export-error");
+    el.textContent = "";
+    const format = this.select.value;
+    this.button.disabled = true;
+    this.button.setAttribute("aria-busy", "true");
+    const old = this.button.textContent;
+    this.button.textContent = "Exporting…";
+    try {
+      if (!(await this.persist.ensureSaved())) {
+        el.textContent = "Not exported: the show could not be saved.";
+        return;
+      }
+      const { blob, filename, warnings } = await api.exportShow(st.meta.id, format, this.options());
+      downloadBlob(blob, filename);
+      toast(warnings.length ? `Downloaded ${filename} (${warnings.join("; ")})` : `Downloaded ${filename}`, { ms: warnings.length ? 8000 : 2500 });
+    } catch (err) {
+      el.textContent = `${FORMAT_LABELS[format] || format}: ${err.message}`;
+      if (/origin/i.test(err.message)) {
+        const details = /** @type {HTMLDetailsElement} */ (document.getElementById("export-options"));
+        details.open = true;
+        document.querySelector('[data-error-for="origin"]').textContent = err.message;
+        this.fields.origin.focus();
+      }
+    } finally {
+      this.button.textContent = old;
+      this.button.disabled = false;
+      this.button.removeAttribute("aria-busy");
+    }
+  }
+}

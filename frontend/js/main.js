@@ -1,0 +1,319 @@
+// The editor's entry point: builds the parts and wires them to the page.
+
+import * as api from "./api.js";
+import { CanvasView } from "./canvas.js";
+import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
+import { askText, toast } from "./dialogs.js";
+import { clearShowErrors, formationProblems, setError } from "./errors.js";
+import { ExportMenu } from "./exportmenu.js";
+import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
+import { Persistence } from "./persist.js";
+import { Preview } from "./preview.js";
+import { ReportPanel } from "./report.js";
+import { SettingsForm } from "./settings.js";
+import { installShortcuts, renderHelp } from "./shortcuts.js";
+import { ShowsDialog } from "./shows.js";
+import { SimulatePanel } from "./simulate.js";
+import { Sources } from "./sources.js";
+import { closePairs } from "./spacing.js";
+import { EditorState } from "./state.js";
+import { Timeline } from "./timeline.js";
+import { TOOLS, Tools } from "./tools.js";
+
+const $ = (id) => document.getElementById(id);
+
+const state = new EditorState();
+const view = new CanvasView(/** @type {HTMLCanvasElement} */ ($("canvas")), state);
+const timeline = new Timeline(/** @type {HTMLOListElement} */ ($("timeline-list")), state);
+timeline.problems = formationProblems;
+timeline.onTransition = async (k) => {
+  const f = state.show.formations[k];
+  const min = timeline.minDurations[k];
+  const text = await askText(
+    `Transition into "${f.name}"`,
+    `Duration in seconds${min != null ? ` (at least ${min.toFixed(1)})` : ""}; blank: as fast as the limits allow`,
+    f.transition_s != null ? String(f.transition_s) : "",
+    { allowBlank: true },
+  );
+  if (text === null) return;
+  const v = Number(text);
+  if (text === "") timeline.setTransition(k, null);
+  else if (v > 0 && Number.isFinite(v)) timeline.setTransition(k, v);
+  else toast("The duration must be a positive number of seconds", { error: true });
+};
+
+function status(msg, error = false) {
+  const el = $("save-status");
+  el.textContent = msg;
+  el.classList.toggle("error", error);
+  el.title = msg;
+}
+
+const persist = new Persistence(state, { status, rendered: () => timeline.render() });
+const tools = new Tools(view, state, {
+  color: () => /** @type {HTMLInputElement} */ ($("color-pick")).value,
+  onError: (msg) => status(msg, true),
+});
+const settingsForm = new SettingsForm(/** @type {HTMLFormElement} */ ($("form-settings")), state);
+new Sources(state, view);
+const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
+const simulate = new SimulatePanel(state, persist);
+const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()));
+const exportMenu = new ExportMenu(state, persist);
+const shows = new ShowsDialog(state, persist, opened);
+
+// ---- page state ------------------------------------------------------------------------------
+
+function opened(rec) {
+  clearShowErrors();
+  history.replaceState(null, "", rec ? `?show=${encodeURIComponent(rec.id)}` : location.pathname);
+  refreshChrome();
+  requestAnimationFrame(() => view.fit());
+  if (rec) status(`Opened "${rec.name}" · revision ${rec.revision}`);
+  else status("");
+  if (preview.isOpen && rec) preview.load();
+}
+persist.addEventListener("opened", (e) => {
+  history.replaceState(null, "", `?show=${encodeURIComponent(e.detail.id)}`);
+  refreshChrome();
+  requestAnimationFrame(() => view.fit());
+});
+
+function refreshChrome() {
+  const has = !!state.show;
+  $("show-title").textContent = has ? state.show.name : "No show open";
+  document.title = has ? `${state.dirty ? "• " : ""}${state.show.name} · swarmshow` : "swarmshow editor";
+  $("dirty-indicator").hidden = !state.dirty;
+  $("btn-save").disabled = !has;
+  for (const id of ["btn-check", "btn-simulate", "btn-preview", "btn-export", "export-format"]) $(id).disabled = !has;
+  const undo = /** @type {HTMLButtonElement} */ ($("btn-undo"));
+  const redo = /** @type {HTMLButtonElement} */ ($("btn-redo"));
+  undo.disabled = !state.undoStack.length;
+  redo.disabled = !state.redoStack.length;
+  const u = state.undoStack[state.undoStack.length - 1];
+  const r = state.redoStack[state.redoStack.length - 1];
+  undo.title = u ? `Undo ${u.label} (Ctrl+Z)` : "Undo (Ctrl+Z)";
+  redo.title = r ? `Redo ${r.label} (Ctrl+Shift+Z)` : "Redo (Ctrl+Shift+Z)";
+  undo.setAttribute("aria-label", u ? `Undo ${u.label}` : "Undo");
+  redo.setAttribute("aria-label", r ? `Redo ${r.label}` : "Redo");
+  $("empty-hint").hidden = has;
+  updateStatusbar();
+}
+
+let spacingQueued = false;
+function updateSpacing() {
+  if (spacingQueued) return;
+  spacingQueued = true;
+  requestAnimationFrame(() => {
+    spacingQueued = false;
+    const f = state.formation;
+    const r = f ? closePairs(f.points, state.show.settings.min_distance_m) : { close: new Set(), pairs: [] };
+    view.close = r.close;
+    const el = $("st-spacing");
+    if (!f) el.textContent = "";
+    else if (r.pairs.length) {
+      el.textContent = `${r.close.size} points closer than ${state.show.settings.min_distance_m} m (closest ${r.minDistance.toFixed(2)} m): Repair spacing`;
+      el.className = "bad";
+    } else {
+      el.textContent = `spacing ≥ ${state.show.settings.min_distance_m} m ✓`;
+      el.className = "";
+    }
+    view.redraw();
+  });
+}
+
+function updateStatusbar() {
+  const f = state.formation;
+  const pts = $("st-points");
+  if (!f) {
+    pts.textContent = "";
+    $("st-selection").textContent = "";
+    return;
+  }
+  const n = state.show.drones;
+  const m = f.points.length;
+  pts.textContent = `"${f.name}": ${m} points / ${n} drones${m < n ? ` (need ${n - m} more: Fit to N drones)` : m > n ? ` (${m - n} stay dark)` : ""}`;
+  pts.className = m < n ? "bad" : "";
+  $("st-selection").textContent = state.selection.size ? `${state.selection.size} selected` : "";
+}
+
+state.addEventListener("change", (e) => {
+  const kind = e.detail.kind;
+  if (kind !== "live") refreshChrome();
+  else updateStatusbar();
+  if (kind === "load" || kind === "current") view.flagged = new Set();
+  updateSpacing();
+  view.redraw();
+});
+
+view.onCursor = ([u, v]) => {
+  const names = view.view === "front" ? ["x", "z"] : ["x", "y"];
+  $("st-cursor").textContent = `${names[0]} ${u.toFixed(1)} m  ${names[1]} ${v.toFixed(1)} m`;
+};
+
+// ---- controls --------------------------------------------------------------------------------
+
+function setTool(tool) {
+  tools.setTool(tool);
+  for (const b of document.querySelectorAll(".tool")) b.setAttribute("aria-checked", String(b.dataset.tool === tool));
+}
+for (const b of document.querySelectorAll(".tool")) b.addEventListener("click", () => setTool(b.dataset.tool));
+setTool("select");
+
+const viewSelect = /** @type {HTMLSelectElement} */ ($("view-select"));
+viewSelect.addEventListener("change", () => {
+  view.setView(/** @type {"front"|"top"} */ (viewSelect.value));
+  // New points go at the formation's typical depth: its median y (front) or altitude (top).
+  const axis = view.axes[2];
+  const values = (state.formation ? state.formation.points : []).map((p) => p[axis]).sort((a, b) => a - b);
+  view.depth = values.length ? Math.round(values[Math.floor(values.length / 2)] * 10) / 10 : axis === 2 ? 40 : 0;
+  const depth = /** @type {HTMLInputElement} */ ($("depth-input"));
+  depth.value = String(view.depth);
+  depth.setAttribute("aria-label", `Depth of new points (${axis === 2 ? "altitude z" : "y"}), metres`);
+  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : "Depth y (m)";
+});
+$("btn-fit-view").addEventListener("click", () => view.fit());
+$("depth-input").addEventListener("change", (e) => { view.depth = Number(e.target.value) || 0; });
+
+$("btn-undo").addEventListener("click", () => state.undo());
+$("btn-redo").addEventListener("click", () => state.redo());
+$("btn-save").addEventListener("click", () => persist.save({ force: !state.dirty }));
+const autosave = /** @type {HTMLInputElement} */ ($("chk-autosave"));
+autosave.checked = persist.autosave;
+autosave.addEventListener("change", () => persist.setAutosave(autosave.checked));
+$("btn-shows").addEventListener("click", () => shows.open());
+$("btn-check").addEventListener("click", () => report.run());
+$("btn-simulate").addEventListener("click", () => simulate.run());
+$("btn-preview").addEventListener("click", () => preview.toggle());
+$("btn-add-formation").addEventListener("click", () => timeline.add());
+$("btn-dup-formation").addEventListener("click", () => timeline.duplicate());
+$("btn-del-formation").addEventListener("click", () => {
+  setError("formations", timeline.remove() === false && state.show ? "A show needs at least one formation." : "");
+});
+
+$("btn-apply-color").addEventListener("click", () => applyColor(state, /** @type {HTMLInputElement} */ ($("color-pick")).value));
+$("btn-gradient").addEventListener("click", () => applyGradient(state, $("grad-a").value, $("grad-b").value, $("grad-axis").value, view.view));
+$("color-image").addEventListener("change", async (e) => {
+  const input = /** @type {HTMLInputElement} */ (e.target);
+  const file = input.files && input.files[0];
+  input.value = "";
+  setError("colors", "");
+  if (!file || !state.formation) return;
+  try {
+    const n = await colorsFromImage(state, file, view.view);
+    toast(n ? `Coloured ${n} points from ${file.name}` : `${file.name} is transparent over these points`);
+  } catch (err) {
+    setError("colors", err.message);
+  }
+});
+
+// Help dialog and shortcuts.
+const helpDlg = /** @type {HTMLDialogElement} */ ($("dlg-help"));
+$("btn-help").addEventListener("click", () => helpDlg.showModal());
+$("btn-help-close").addEventListener("click", () => helpDlg.close());
+
+function nudge(e) {
+  const idx = [...state.selection];
+  if (!idx.length) return;
+  const step = e.shiftKey ? 5 : e.altKey ? 0.1 : 1;
+  const [a, b] = view.axes;
+  const d = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, step], ArrowDown: [0, -step] }[e.key];
+  state.edit(`Nudge ${idx.length} points`, () => {
+    const pts = state.formation.points;
+    for (const i of idx) {
+      pts[i][a] += d[0];
+      pts[i][b] += d[1];
+      pts[i] = roundPoints([pts[i]])[0];
+    }
+  });
+}
+
+const shortcuts = installShortcuts({
+  save: () => persist.save({ force: !state.dirty }),
+  undo: () => state.undo(),
+  redo: () => state.redo(),
+  shows: () => shows.open(),
+  check: () => state.show && report.run(),
+  exportNow: () => state.show && exportMenu.run(),
+  preview: () => state.show && preview.toggle(),
+  tool: setTool,
+  toggleView: () => {
+    viewSelect.value = view.view === "front" ? "top" : "front";
+    viewSelect.dispatchEvent(new Event("change"));
+  },
+  fit: () => view.fit(),
+  selectAll: () => state.formation && state.setSelection(state.formation.points.map((_, i) => i)),
+  escape: () => {
+    tools.cancel();
+    if (state.selection.size) state.setSelection([]);
+    view.flagged = new Set();
+    view.redraw();
+  },
+  deleteSelection: () => {
+    const idx = new Set(state.selection);
+    if (!idx.size || !state.formation) return;
+    state.edit(`Delete ${idx.size} point${idx.size > 1 ? "s" : ""}`, () => {
+      const f = state.formation;
+      f.points = f.points.filter((_, i) => !idx.has(i));
+      f.colors = f.colors.filter((_, i) => !idx.has(i));
+      state.selection = new Set();
+    });
+  },
+  addFormation: () => timeline.add(),
+  duplicate: () => timeline.duplicate(),
+  help: () => (helpDlg.open ? helpDlg.close() : helpDlg.showModal()),
+  keyed: (e) => {
+    if (!state.show) return;
+    if (e.key === "+" || e.key === "=") view.zoom(1.25);
+    else if (e.key === "-" || e.key === "_") view.zoom(0.8);
+    else if (e.altKey && (e.key === "ArrowLeft" || e.key === "ArrowRight")) {
+      timeline.move(state.current, state.current + (e.key === "ArrowLeft" ? -1 : 1));
+    } else if (e.key.startsWith("Arrow")) nudge(e);
+    else if (e.key === "PageUp") state.setCurrent(state.current - 1);
+    else if (e.key === "PageDown") state.setCurrent(state.current + 1);
+    else if (e.key === "[" || e.key === "]") {
+      const idx = targetIndices(state);
+      state.edit("Rotate 5°", () => {
+        rotateInView(state.formation.points, idx, e.key === "[" ? 5 : -5, view.view);
+        for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+      });
+    } else if (e.key === "<" || e.key === ">") {
+      const idx = targetIndices(state);
+      state.edit(e.key === ">" ? "Grow 10%" : "Shrink 10%", () => {
+        scaleAbout(state.formation.points, idx, e.key === ">" ? 1.1 : 1 / 1.1);
+        for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+      });
+    }
+  },
+});
+renderHelp(/** @type {HTMLTableElement} */ ($("help-table")), shortcuts);
+
+// Token prompt (servers bound beyond loopback ask for one).
+api.setTokenPrompt(() => new Promise((resolve) => {
+  const dlg = /** @type {HTMLDialogElement} */ ($("dlg-token"));
+  const form = $("form-token");
+  const onSubmit = (e) => {
+    e.preventDefault();
+    dlg.close();
+    resolve(/** @type {HTMLInputElement} */ ($("token-input")).value.trim() || null);
+  };
+  form.addEventListener("submit", onSubmit, { once: true });
+  dlg.addEventListener("cancel", () => resolve(null), { once: true });
+  dlg.showModal();
+}));
+
+// ---- start -----------------------------------------------------------------------------------
+
+async function start() {
+  refreshChrome();
+  exportMenu.load().catch(() => {});
+  const wanted = new URLSearchParams(location.search).get("show") || localStorage.getItem("swarmshow.last");
+  if (wanted) await shows.openShow(wanted).catch(() => {});
+  if (!state.show) {
+    localStorage.removeItem("swarmshow.last");
+    await shows.open();
+  }
+}
+
+window.swarmshow = { state, view, tools, persist, TOOLS };
+start();

@@ -1,0 +1,78 @@
+// "3D preview": the viser viewer (/viser/, same origin) beside or over the canvas, loaded with
+// the saved show through POST /api/shows/{id}/playback.
+
+import * as api from "./api.js";
+import { setError } from "./errors.js";
+
+/** The 3D preview pane. */
+export class Preview {
+  /**
+   * @param {import("./state.js").EditorState} state
+   * @param {import("./persist.js").Persistence} persist
+   * @param {() => void} onLayout called when the canvas size changes
+   */
+  constructor(state, persist, onLayout) {
+    this.state = state;
+    this.persist = persist;
+    this.onLayout = onLayout;
+    this.wrap = document.getElementById("preview-wrap");
+    this.frame = /** @type {HTMLIFrameElement} */ (document.getElementById("preview-frame"));
+    this.button = document.getElementById("btn-preview");
+    this.over = /** @type {HTMLInputElement} */ (document.getElementById("preview-over"));
+    this.over.checked = localStorage.getItem("swarmshow.previewOver") === "1";
+    this.over.addEventListener("change", () => {
+      localStorage.setItem("swarmshow.previewOver", this.over.checked ? "1" : "0");
+      this._layout();
+    });
+    document.getElementById("btn-preview-close").addEventListener("click", () => this.close());
+    document.getElementById("btn-preview-reload").addEventListener("click", () => this.load());
+  }
+
+  /** @returns {boolean} the preview is shown. */
+  get isOpen() {
+    return !this.wrap.hidden;
+  }
+
+  /** Show or hide the preview. */
+  toggle() {
+    if (this.isOpen) this.close();
+    else this.open();
+  }
+
+  /** Show the preview with the current show. */
+  async open() {
+    this.wrap.hidden = false;
+    this.button.setAttribute("aria-pressed", "true");
+    this._layout();
+    await this.load();
+  }
+
+  /** Hide the preview. */
+  close() {
+    this.wrap.hidden = true;
+    this.button.setAttribute("aria-pressed", "false");
+    this._layout();
+  }
+
+  _layout() {
+    this.wrap.classList.toggle("over", this.over.checked);
+    this.onLayout();
+  }
+
+  /** Save if needed, load the show into the viewer and (re)load the viewer page. */
+  async load() {
+    setError("preview", "");
+    const st = this.state;
+    if (st.meta) {
+      if (!(await this.persist.ensureSaved())) {
+        setError("preview", "The show could not be saved; the preview shows the last saved version.");
+      }
+      try {
+        await api.loadPlayback(st.meta.id, "planned");
+      } catch (err) {
+        setError("preview", `Cannot load the show into the 3D view: ${err.message}`);
+      }
+    }
+    if (!this.frame.src.endsWith("/viser/")) this.frame.src = "/viser/";
+  }
+}

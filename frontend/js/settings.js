@@ -1,0 +1,114 @@
+// The show settings form: name, drone count, home grid and the safety limits, bound to the
+// document (each change is one undo step).
+
+import { choose } from "./dialogs.js";
+import { fitToCount } from "./geometry.js";
+import { repairSpacing } from "./spacing.js";
+
+function getPath(obj, path) {
+  return path.split(".").reduce((o, k) => (o == null ? undefined : o[k]), obj);
+}
+
+function setPath(obj, path, value) {
+  const keys = path.split(".");
+  const last = keys.pop();
+  const target = keys.reduce((o, k) => (o[k] ??= {}), obj);
+  target[last] = value;
+}
+
+/**
+ * Fit every formation with fewer points than drones to the drone count (one undo step).
+ * @param {import("./state.js").EditorState} state
+ * @returns {number} how many formations changed
+ */
+export function fitAllFormations(state) {
+  const n = state.show.drones;
+  const short = state.show.formations.filter((f) => f.points.length < n).length;
+  if (!short) return 0;
+  state.edit(`Fit ${short} formation${short > 1 ? "s" : ""} to ${n} drones`, () => {
+    for (const f of state.show.formations) {
+      if (f.points.length >= n) continue;
+      const fit = fitToCount(f.points, f.colors, n);
+      const fixed = repairSpacing(fit.points, state.show.settings.min_distance_m);
+      f.points = fixed.points.map((p) => p.map((v) => Math.round(v * 1000) / 1000));
+      f.colors = fit.colors;
+    }
+    state.selection = new Set();
+  });
+  return short;
+}
+
+/** Binds the settings form to the open show. */
+export class SettingsForm {
+  /**
+   * @param {HTMLFormElement} form
+   * @param {import("./state.js").EditorState} state
+   */
+  constructor(form, state) {
+    this.form = form;
+    this.state = state;
+    this.inputs = [...form.querySelectorAll("[data-path]")];
+    form.addEventListener("submit", (e) => e.preventDefault());
+    for (const input of this.inputs) input.addEventListener("change", () => this._changed(input));
+    state.addEventListener("change", (e) => {
+      if (["load", "edit"].includes(e.detail.kind)) this.render();
+    });
+  }
+
+  /** Fill the form from the document. */
+  render() {
+    const show = this.state.show;
+    this.form.querySelector("fieldset")?.toggleAttribute("disabled", !show);
+    for (const input of this.inputs) {
+      const v = show ? getPath(show, input.dataset.path) : "";
+      input.value = v == null ? "" : String(v);
+      input.disabled = !show || (input.dataset.path.startsWith("home.grid") && !(show.home && show.home.grid));
+    }
+  }
+
+  async _changed(input) {
+    const st = this.state;
+    if (!st.show) return;
+    const path = input.dataset.path;
+    const old = getPath(st.show, path);
+    let value;
+    if (input.type === "number") {
+      value = Number(input.value);
+      if (input.value === "" || !Number.isFinite(value)) {
+        input.value = String(old);
+        return;
+      }
+      if (["drones", "home.grid.rows", "home.grid.cols"].includes(path)) value = Math.round(value);
+    } else {
+      value = input.value.trim();
+      if (!value) {
+        input.value = String(old);
+        return;
+      }
+    }
+    if (value === old) return;
+    input.classList.remove("has-error");
+    const label = input.getAttribute("aria-label") || path;
+    st.edit(`Change ${label.toLowerCase()}`, () => {
+      setPath(st.show, path, value);
+      if (path === "drones" && st.show.home.grid) {
+        const g = st.show.home.grid;
+        if (g.rows * g.cols < value) {
+          g.cols = Math.ceil(Math.sqrt(value));
+          g.rows = Math.ceil(value / g.cols);
+        }
+      }
+    });
+    if (path === "drones") {
+      const short = st.show.formations.filter((f) => f.points.length < value).length;
+      if (short) {
+        const { choice } = await choose({
+          title: "Fewer points than drones",
+          message: `${short} formation${short > 1 ? "s have" : " has"} fewer than ${value} points. Fit them to ${value} drones now?`,
+          buttons: [{ label: "Fit them", value: "fit", primary: true }, { label: "Later", value: "later" }],
+        });
+        if (choice === "fit") fitAllFormations(st);
+      }
+    }
+  }
+}

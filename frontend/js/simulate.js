@@ -1,0 +1,198 @@
+// "Simulate": start the flight simulation job, follow its progress (server-sent events, or
+// polling when events are unavailable), show the tracking and flown-separation summary.
+
+import * as api from "./api.js";
+
+function fmt(v, digits = 2, unit = "") {
+  return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
+}
+
+/** The simulation panel. */
+export class SimulatePanel {
+  /**
+   * @param {import("./state.js").EditorState} state
+   * @param {import("./persist.js").Persistence} persist
+   * @param {{onSelectDrones?: (drones: number[]) => void}} [hooks]
+   */
+  constructor(state, persist, hooks = {}) {
+    this.state = state;
+    this.persist = persist;
+    this.hooks = hooks;
+    this.job = null;
+    this.source = null;
+    this.pollTimer = 0;
+    this.bar = /** @type {HTMLProgressElement} */ (document.getElementById("sim-progress"));
+    this.percent = document.getElementById("sim-percent");
+    this.body = document.getElementById("sim-body");
+    this.cancelBtn = document.getElementById("btn-sim-cancel");
+    this.cancelBtn.addEventListener("click", () => this.cancel());
+    state.addEventListener("change", (e) => {
+      if (e.detail.kind === "load") this.reset();
+    });
+  }
+
+  /** Stop following the job and clear the panel. */
+  reset() {
+    this._stopFollowing();
+    this.job = null;
+    this._progress(0, "—");
+    this.cancelBtn.hidden = true;
+    this.body.innerHTML = '<p class="muted">Simulate flies every drone through the quadrotor model with ISMC control.</p>';
+  }
+
+  _progress(fraction, text) {
+    this.bar.value = fraction;
+    this.percent.textContent = text ?? `${Math.round(fraction * 100)}%`;
+  }
+
+  _message(cls, text) {
+    this.body.replaceChildren();
+    const p = document.createElement("p");
+    p.className = cls;
+    p.textContent = text;
+    this.body.append(p);
+  }
+
+  /** Save if needed, then start a simulation and follow it. */
+  async run() {
+    const st = this.state;
+    if (!st.meta) return;
+    this._stopFollowing();
+    const btn = document.getElementById("btn-simulate");
+    btn.disabled = true;
+    try {
+      if (!(await this.persist.ensureSaved())) {
+        this._message("report-bad", "Not simulated: the show could not be saved.");
+        return;
+      }
+      this._progress(0, "0%");
+      this._message("muted", "Starting…");
+      const options = {
+        controller: /** @type {HTMLSelectElement} */ (document.getElementById("sim-controller")).value,
+        disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
+      };
+      const job = await api.simulateShow(st.meta.id, options);
+      this.job = job;
+      this._update(job);
+      if (!["done", "failed", "cancelled"].includes(job.state)) this._follow(job.id);
+    } catch (err) {
+      this._message("report-bad", `Not simulated: ${err.message}`);
+      this._progress(0, "—");
+    } finally {
+      btn.disabled = !st.meta;
+    }
+  }
+
+  _follow(id) {
+    this.cancelBtn.hidden = false;
+    if (sessionStorage.getItem("swarmshow.token") || typeof EventSource === "undefined") {
+      this._poll(id);
+      return;
+    }
+    const es = new EventSource(api.jobEventsUrl(id));
+    this.source = es;
+    es.addEventListener("progress", (e) => this._update(JSON.parse(e.data)));
+    for (const kind of ["done", "failed", "cancelled"]) {
+      es.addEventListener(kind, (e) => {
+        es.close();
+        this.source = null;
+        this._update(JSON.parse(e.data));
+      });
+    }
+    es.onerror = () => {
+      // The stream broke before a final event: fall back to polling the job.
+      if (this.source !== es) return;
+      es.close();
+      this.source = null;
+      this._poll(id);
+    };
+  }
+
+  _poll(id) {
+    const tick = async () => {
+      try {
+        const job = await api.getJob(id);
+        this._update(job);
+        if (!["done", "failed", "cancelled"].includes(job.state)) this.pollTimer = setTimeout(tick, 700);
+      } catch (err) {
+        this._message("report-bad", `Lost track of the simulation: ${err.message}`);
+      }
+    };
+    tick();
+  }
+
+  _stopFollowing() {
+    if (this.source) this.source.close();
+    this.source = null;
+    clearTimeout(this.pollTimer);
+  }
+
+  async cancel() {
+    if (!this.job) return;
+    this._stopFollowing();
+    try {
+      const job = await api.cancelJob(this.job.id);
+      this._update(job);
+    } catch (err) {
+      this._message("report-bad", `Cannot cancel: ${err.message}`);
+    }
+  }
+
+  _update(job) {
+    this.job = { ...this.job, ...job };
+    const p = Number(job.progress) || 0;
+    if (job.state === "queued") this._progress(p, "queued");
+    else if (job.state === "running") {
+      this._progress(p);
+      this._message("muted", `Flying… ${Math.round(p * 100)}%`);
+    } else if (job.state === "done") {
+      this._progress(1, "100%");
+      this.cancelBtn.hidden = true;
+      this._summary(job.result || {}, job.cached);
+    } else if (job.state === "failed" || job.state === "cancelled") {
+      this.cancelBtn.hidden = true;
+      this._progress(p, job.state);
+      const why = job.error ? job.error.message || JSON.stringify(job.error.detail) : "";
+      this._message("report-bad", job.state === "cancelled" ? "Cancelled." : `Failed: ${why}`);
+    }
+  }
+
+  _summary(result, cached) {
+    const f = result.flight || result;
+    this.body.replaceChildren();
+    const ok = f.ok !== false;
+    const head = document.createElement("p");
+    head.className = ok ? "report-ok" : "report-bad";
+    head.textContent = ok ? "✓ Flown: separation kept, no divergence" : "✗ The flown show breaks a limit";
+    this.body.append(head);
+    const table = document.createElement("table");
+    table.setAttribute("aria-label", "Flight summary");
+    const row = (label, value, bad = false) => {
+      const tr = document.createElement("tr");
+      const a = document.createElement("td");
+      a.textContent = label;
+      const b = document.createElement("td");
+      b.textContent = value;
+      if (bad) b.className = "bad-value";
+      tr.append(a, b);
+      table.append(tr);
+    };
+    row("Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m"));
+    row("Tracking error (max)", fmt(f.tracking_max_m, 3, " m"));
+    const lim = f.min_distance_limit_m;
+    const flown = f.flown_min_distance_m;
+    row("Flown min separation", `${fmt(flown, 2, " m")}${lim != null ? ` (≥ ${fmt(lim, 1)})` : ""}`,
+      flown != null && lim != null && flown < lim - (f.flown_distance_tolerance_m || 0));
+    if (f.flown_min_distance_pair) row("Closest flown pair", `drones ${f.flown_min_distance_pair.join(" & ")} at ${fmt(f.flown_min_distance_time_s, 1, " s")}`);
+    row("Duration", fmt(f.duration_s, 1, " s"));
+    row("Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—");
+    if (f.wall_time_s != null) row("Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`);
+    this.body.append(table);
+    if (Array.isArray(f.diverged) && f.diverged.length) {
+      const p = document.createElement("p");
+      p.className = "report-bad";
+      p.textContent = `Diverged: ${f.diverged.slice(0, 10).map((d) => `drone ${d.drone} at ${fmt(d.time_s, 1)} s (${d.reason})`).join("; ")}`;
+      this.body.append(p);
+    }
+  }
+}

@@ -1,0 +1,232 @@
+// Formation sources and whole-formation operations: shape presets, text, image and SVG uploads
+// (through the formation endpoints), scale, rotate, fit to the drone count, spacing repair.
+
+import * as api from "./api.js";
+import { toast } from "./dialogs.js";
+import { setError } from "./errors.js";
+import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
+import { repairSpacing } from "./spacing.js";
+import { targetIndices } from "./colors.js";
+import { formatPoints, parsePoints } from "./pointstext.js";
+
+const PLANE_OF_VIEW = { front: "xz", top: "xy" };
+
+/** The one kind-specific parameter offered for a shape preset. */
+const SHAPE_PARAM = {
+  polygon: { key: "sides", label: "Sides", value: 6, integer: true, min: 3 },
+  star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
+  helix: { key: "turns", label: "Turns", value: 3, integer: false, min: 0.1 },
+};
+
+/** Wires the source forms and the transform buttons to the open show. */
+export class Sources {
+  /**
+   * @param {import("./state.js").EditorState} state
+   * @param {import("./canvas.js").CanvasView} view
+   */
+  constructor(state, view) {
+    this.state = state;
+    this.view = view;
+    const kindSelect = /** @type {HTMLSelectElement} */ (document.getElementById("shape-kind"));
+    const paramRow = document.getElementById("shape-param-row");
+    const paramInput = /** @type {HTMLInputElement} */ (document.getElementById("shape-param"));
+    const showParam = () => {
+      const spec = SHAPE_PARAM[kindSelect.value];
+      paramRow.hidden = !spec;
+      if (!spec) return;
+      document.getElementById("shape-param-label").textContent = spec.label;
+      paramInput.setAttribute("aria-label", spec.label);
+      paramInput.value = String(spec.value);
+      paramInput.step = spec.integer ? "1" : "any";
+      paramInput.min = String(spec.min);
+    };
+    kindSelect.addEventListener("change", showParam);
+    showParam();
+    this._form("form-shape", "shape", (fd) => {
+      const kind = String(fd.get("kind"));
+      const spec = SHAPE_PARAM[kind];
+      return {
+        kind,
+        params: spec ? { [spec.key]: spec.integer ? Math.round(Number(fd.get("param"))) : Number(fd.get("param")) } : {},
+        size_m: Number(fd.get("size_m")),
+        plane: String(fd.get("plane")),
+        center_m: this._center(Number(fd.get("z"))),
+        color: String(fd.get("color")),
+      };
+    });
+    this._form("form-text", "text", (fd) => ({
+      text: String(fd.get("text")),
+      height_m: Number(fd.get("height_m")),
+      plane: PLANE_OF_VIEW[this.view.view],
+      center_m: this._center(Number(fd.get("z"))),
+      color: String(fd.get("color")),
+    }));
+    this._form("form-upload", "upload", (fd) => ({
+      width_m: Number(fd.get("width_m")),
+      plane: PLANE_OF_VIEW[this.view.view],
+      center_m: this._center(Number(fd.get("z"))),
+    }));
+    const num = (id) => Number(/** @type {HTMLInputElement} */ (document.getElementById(id)).value);
+    document.getElementById("btn-scale").addEventListener("click", () => this.scale(num("scale-input") / 100));
+    document.getElementById("btn-rotate").addEventListener("click", () => this.rotate(num("rotate-input")));
+    document.getElementById("btn-fit-n").addEventListener("click", () => this.fitToN());
+    const pointsForm = document.getElementById("form-points");
+    const pointsText = /** @type {HTMLTextAreaElement} */ (document.getElementById("points-input"));
+    pointsForm.addEventListener("submit", (e) => {
+      e.preventDefault();
+      this.typedPoints(pointsText.value, false);
+    });
+    document.getElementById("btn-points-add").addEventListener("click", () => this.typedPoints(pointsText.value, true));
+    document.getElementById("btn-points-copy").addEventListener("click", () => {
+      const f = this.state.formation;
+      if (f) pointsText.value = formatPoints(f.points, f.colors);
+    });
+    document.getElementById("btn-repair").addEventListener("click", () => this.repair());
+  }
+
+  /** Centre of a new drawing: the middle of the canvas horizontally, at height z, at the canvas depth. */
+  _center(z) {
+    const [u] = this.view.toWorldUV(this.view.width / 2, this.view.height / 2);
+    const p = [0, 0, 0];
+    const [a, , d] = VIEW_AXES[this.view.view];
+    p[a] = Math.round(u);
+    p[d] = this.view.depth;
+    p[2] = z;
+    if (this.view.view === "top") p[1] = Math.round(this.view.toWorldUV(this.view.width / 2, this.view.height / 2)[1]);
+    return p;
+  }
+
+  _form(id, key, params) {
+    const form = /** @type {HTMLFormElement} */ (document.getElementById(id));
+    form.addEventListener("submit", async (e) => {
+      e.preventDefault();
+      setError(key, "");
+      const st = this.state;
+      if (!st.formation) return setError(key, "Open or create a show first.");
+      const fd = new FormData(form);
+      const body = { ...params(fd), n: st.show.drones, min_spacing_m: st.show.settings.min_distance_m };
+      let source = key;
+      let file;
+      if (key === "upload") {
+        file = /** @type {File} */ (fd.get("file"));
+        if (!file || !file.name) return setError(key, "Choose a PNG, JPEG or SVG file.");
+        source = /svg/i.test(file.type) || /\.svg$/i.test(file.name) ? "svg" : "image";
+      }
+      const button = form.querySelector("button[type=submit]");
+      button.disabled = true;
+      button.setAttribute("aria-busy", "true");
+      try {
+        const res = await api.buildFormation(source, body, file);
+        const label = key === "shape" ? `Shape: ${body.kind}` : key === "text" ? `Text "${body.text.slice(0, 20)}"` : `From ${file.name}`;
+        st.edit(label, () => {
+          st.formation.points = roundPoints(res.points);
+          st.formation.colors = res.colors;
+          st.selection = new Set();
+        });
+        this.view.fit();
+        toast(`${label}: ${res.points.length} points, nearest pair ${res.min_spacing_m != null ? res.min_spacing_m.toFixed(2) + " m" : "—"}`);
+      } catch (err) {
+        const p = err.problems && err.problems[0];
+        let msg = err.message;
+        if (p && p.max_n != null) msg = `${p.msg} (at most ${p.max_n} points fit at this size: make it bigger or use fewer drones)`;
+        setError(key, msg);
+      } finally {
+        button.disabled = false;
+        button.removeAttribute("aria-busy");
+      }
+    });
+  }
+
+  /**
+   * Replace the formation with typed points, or add them to it.
+   * @param {string} text see {@link parsePoints}
+   * @param {boolean} add
+   */
+  typedPoints(text, add) {
+    setError("points", "");
+    const st = this.state;
+    if (!st.formation) return;
+    let parsed;
+    try {
+      parsed = parsePoints(text, /** @type {HTMLInputElement} */ (document.getElementById("color-pick")).value);
+    } catch (err) {
+      setError("points", err.message);
+      return;
+    }
+    st.edit(add ? `Add ${parsed.points.length} typed points` : `${parsed.points.length} typed points`, () => {
+      const f = st.formation;
+      f.points = add ? [...f.points, ...parsed.points] : parsed.points;
+      f.colors = add ? [...f.colors, ...parsed.colors] : parsed.colors;
+      st.selection = new Set();
+    });
+  }
+
+  /**
+   * Scale the selection (or the formation) about its centre.
+   * @param {number} factor
+   */
+  scale(factor) {
+    setError("transform", "");
+    if (!(factor > 0)) return setError("transform", "Scale must be a positive percentage.");
+    const idx = targetIndices(this.state);
+    if (!idx.length) return;
+    this.state.edit(`Scale ${Math.round(factor * 100)}%`, () => {
+      const pts = this.state.formation.points;
+      scaleAbout(pts, idx, factor);
+      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+    });
+  }
+
+  /**
+   * Rotate the selection (or the formation) about its centre in the view's plane.
+   * @param {number} degrees counter-clockwise
+   */
+  rotate(degrees) {
+    setError("transform", "");
+    if (!Number.isFinite(degrees)) return setError("transform", "Enter an angle in degrees.");
+    const idx = targetIndices(this.state);
+    if (!idx.length) return;
+    this.state.edit(`Rotate ${degrees}°`, () => {
+      const pts = this.state.formation.points;
+      rotateInView(pts, idx, degrees, this.view.view);
+      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+    });
+  }
+
+  /** Resample the formation to exactly the drone count, then repair its spacing. */
+  fitToN() {
+    setError("transform", "");
+    const st = this.state;
+    const f = st.formation;
+    if (!f) return;
+    const n = st.show.drones;
+    if (!f.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
+    st.edit(`Fit to ${n} drones`, () => {
+      const fit = fitToCount(f.points, f.colors, n);
+      const fixed = repairSpacing(fit.points, st.show.settings.min_distance_m, { plane: VIEW_AXES[this.view.view].slice(0, 2) });
+      f.points = roundPoints(fixed.points);
+      f.colors = fit.colors;
+      st.selection = new Set();
+    });
+    toast(`${n} points`);
+  }
+
+  /** Push apart points closer than the minimum distance. */
+  repair() {
+    setError("transform", "");
+    const st = this.state;
+    const f = st.formation;
+    if (!f) return;
+    const d = st.show.settings.min_distance_m;
+    const res = repairSpacing(f.points, d, { plane: VIEW_AXES[this.view.view].slice(0, 2) });
+    if (!res.moved) {
+      toast("Spacing is fine: every pair is at least the minimum distance apart");
+      return;
+    }
+    st.edit("Repair spacing", () => {
+      f.points = roundPoints(res.points);
+    });
+    if (Number.isFinite(res.achieved)) setError("transform", `Some points are still ${res.achieved.toFixed(2)} m apart (< ${d} m): spread the drawing or use fewer drones.`);
+    else toast(`Moved ${res.moved} points apart`);
+  }
+}

@@ -1,0 +1,230 @@
+// The open show: the document, which formation and points are selected, undo/redo, dirty flag.
+// Undo keeps whole-document snapshots (mementos): simple and always consistent; the stack is bounded.
+
+const MAX_UNDO = 100;
+
+/** Skybrush's defaults (DESIGN.md). */
+export const DEFAULT_SETTINGS = Object.freeze({
+  min_distance_m: 3.0,
+  max_speed_xy_mps: 10.0,
+  max_speed_z_mps: 2.0,
+  max_accel_mps2: 4.0,
+  max_altitude_m: 150.0,
+  takeoff_altitude_m: 10.0,
+});
+
+/**
+ * Colours of a formation as one array of `#rrggbb` (expanding `color`).
+ * @param {{points: number[][], colors?: string[], color?: string}} f
+ * @returns {string[]}
+ */
+export function formationColors(f) {
+  if (Array.isArray(f.colors) && f.colors.length === f.points.length) return f.colors;
+  return f.points.map(() => f.color || "#ffffff");
+}
+
+/**
+ * A formation with one colour per point (`colors`), `color` dropped.
+ * @param {any} f
+ */
+export function withColors(f) {
+  const colors = formationColors(f).slice();
+  const { color: _c, ...rest } = f;
+  return { ...rest, colors };
+}
+
+function clone(obj) {
+  return structuredClone(obj);
+}
+
+/** The editor state. Listen with `store.addEventListener("change", ...)`; `detail.kind` says what changed. */
+export class EditorState extends EventTarget {
+  constructor() {
+    super();
+    /** @type {any|null} the swarmshow/1 document being edited */
+    this.show = null;
+    /** @type {{id: string, revision: number}|null} where it is stored */
+    this.meta = null;
+    this.current = 0;
+    /** @type {Set<number>} selected point indices of the current formation */
+    this.selection = new Set();
+    this.undoStack = [];
+    this.redoStack = [];
+    this.version = 0;
+    this.savedVersion = 0;
+    this._nextVersion = 1;
+    this._pending = null;
+  }
+
+  /** @returns {boolean} there are changes not yet saved. */
+  get dirty() {
+    return this.show !== null && this.version !== this.savedVersion;
+  }
+
+  /** @returns {any|null} the formation being edited. */
+  get formation() {
+    return this.show ? this.show.formations[this.current] ?? null : null;
+  }
+
+  _emit(kind) {
+    this.dispatchEvent(new CustomEvent("change", { detail: { kind } }));
+  }
+
+  /**
+   * Open a show (drops the undo history).
+   * @param {any} show
+   * @param {{id: string, revision: number}} meta
+   * @param {{keepCurrent?: boolean}} [opts] keep the formation index (reloading the same show)
+   */
+  load(show, meta, opts = {}) {
+    const s = clone(show);
+    s.settings = { ...DEFAULT_SETTINGS, ...(s.settings || {}) };
+    s.formations = s.formations.map(withColors);
+    this.show = s;
+    this.meta = meta ? { ...meta } : null;
+    this.current = opts.keepCurrent ? Math.min(this.current, s.formations.length - 1) : 0;
+    this.selection = new Set();
+    this.undoStack = [];
+    this.redoStack = [];
+    this.version = this._nextVersion++;
+    this.savedVersion = this.version;
+    this._emit("load");
+  }
+
+  /** Close the show. */
+  close() {
+    this.show = null;
+    this.meta = null;
+    this.selection = new Set();
+    this.undoStack = [];
+    this.redoStack = [];
+    this._emit("load");
+  }
+
+  /** Remember the document before a multi-step edit (e.g. a drag); finish it with {@link commit}. */
+  checkpoint() {
+    if (!this.show) return;
+    this._pending = { show: clone(this.show), current: this.current, selection: [...this.selection], version: this.version };
+  }
+
+  /** Forget a checkpoint without recording or restoring anything (the gesture changed nothing). */
+  discard() {
+    this._pending = null;
+  }
+
+  /** Drop a checkpoint and restore the document it remembered (e.g. Escape during a drag). */
+  rollback() {
+    if (!this._pending) return;
+    this._restore(this._pending);
+    this._pending = null;
+    this._emit("edit");
+  }
+
+  /**
+   * Record the edit since {@link checkpoint} as one undo step.
+   * @param {string} label what the edit did (shown in the undo button's title)
+   */
+  commit(label) {
+    if (!this._pending) return;
+    this._pending.label = label;
+    this.undoStack.push(this._pending);
+    if (this.undoStack.length > MAX_UNDO) this.undoStack.shift();
+    this.redoStack = [];
+    this._pending = null;
+    this.version = this._nextVersion++;
+    this._emit("edit");
+  }
+
+  /**
+   * One undoable edit: `fn` mutates `this.show` (and may change selection / current).
+   * If `fn` returns false, nothing is recorded.
+   * @param {string} label
+   * @param {() => (void|boolean)} fn
+   */
+  edit(label, fn) {
+    if (!this.show) return;
+    this.checkpoint();
+    let changed;
+    try {
+      changed = fn();
+    } catch (err) {
+      this.rollback();
+      throw err;
+    }
+    if (changed === false) {
+      this._pending = null;
+      return;
+    }
+    this.commit(label);
+  }
+
+  _snapshot() {
+    return { show: clone(this.show), current: this.current, selection: [...this.selection], version: this.version };
+  }
+
+  _restore(snap) {
+    this.show = clone(snap.show);
+    this.current = Math.min(snap.current, this.show.formations.length - 1);
+    this.selection = new Set(snap.selection);
+    this.version = snap.version;
+  }
+
+  /** @returns {boolean} whether there was something to undo. */
+  undo() {
+    const snap = this.undoStack.pop();
+    if (!snap) return false;
+    const now = this._snapshot();
+    now.label = snap.label;
+    this.redoStack.push(now);
+    this._restore(snap);
+    this._emit("edit");
+    return true;
+  }
+
+  /** @returns {boolean} whether there was something to redo. */
+  redo() {
+    const snap = this.redoStack.pop();
+    if (!snap) return false;
+    const now = this._snapshot();
+    now.label = snap.label;
+    this.undoStack.push(now);
+    this._restore(snap);
+    this._emit("edit");
+    return true;
+  }
+
+  /** Mark the current document as saved at `revision`. */
+  markSaved(revision) {
+    if (this.meta) this.meta.revision = revision;
+    this.savedVersion = this.version;
+    this._emit("saved");
+  }
+
+  /**
+   * Select a formation (not an undo step).
+   * @param {number} index
+   */
+  setCurrent(index) {
+    if (!this.show) return;
+    const k = Math.max(0, Math.min(index, this.show.formations.length - 1));
+    if (k !== this.current) {
+      this.current = k;
+      this.selection = new Set();
+    }
+    this._emit("current");
+  }
+
+  /**
+   * Replace the point selection (not an undo step).
+   * @param {Iterable<number>} indices
+   */
+  setSelection(indices) {
+    this.selection = new Set(indices);
+    this._emit("selection");
+  }
+
+  /** Tell listeners the document changed during a live (uncommitted) edit, e.g. a drag. */
+  touch() {
+    this._emit("live");
+  }
+}

@@ -1,0 +1,263 @@
+// The timeline: formations in order with hold times and names; add, duplicate, drag to reorder,
+// delete; the planned transition durations between them once the show has been checked.
+
+import { formationColors } from "./state.js";
+
+/**
+ * A valid starting formation: a near-square grid of `n` points facing the audience, spaced 1.5x
+ * the minimum distance, above the takeoff altitude; if it would rise above the ceiling, the grid
+ * is split into layers one behind the other (along y).
+ * @param {any} show
+ * @param {string} name
+ * @returns {{name: string, hold_s: number, points: number[][], colors: string[]}}
+ */
+export function gridFormation(show, name) {
+  const n = show.drones;
+  const st = show.settings;
+  const s = st.min_distance_m * 1.5;
+  const bottom = Math.min(Math.max(st.takeoff_altitude_m + 10, 20), st.max_altitude_m / 2);
+  const maxRows = Math.max(1, Math.floor((st.max_altitude_m - 5 - bottom) / s) + 1);
+  const cols = Math.ceil(Math.sqrt(n));
+  const rows = Math.min(Math.ceil(n / cols), maxRows);
+  const layers = Math.ceil(n / (rows * cols));
+  const points = [];
+  for (let i = 0; i < n; i++) {
+    const layer = Math.floor(i / (rows * cols));
+    const r = Math.floor((i % (rows * cols)) / cols);
+    const c = i % cols;
+    points.push([
+      +((c - (cols - 1) / 2) * s).toFixed(3),
+      +((layer - (layers - 1) / 2) * s).toFixed(3),
+      +(bottom + (rows - 1 - r) * s).toFixed(3),
+    ]);
+  }
+  return { name, hold_s: 5, points, colors: points.map(() => "#ffffff") };
+}
+
+function uniqueName(show, base) {
+  const names = new Set(show.formations.map((f) => f.name));
+  if (!names.has(base)) return base;
+  for (let k = 2; ; k++) if (!names.has(`${base} ${k}`)) return `${base} ${k}`;
+}
+
+/** Renders the formation list and turns its gestures into undoable edits. */
+export class Timeline {
+  /**
+   * @param {HTMLOListElement} list
+   * @param {import("./state.js").EditorState} state
+   */
+  constructor(list, state) {
+    this.list = list;
+    this.state = state;
+    /** @type {Array<number|null>} planned transition duration into each formation, seconds */
+    this.transitions = [];
+    /** @type {Map<number, string>} problems per formation index (from save or check) */
+    this.problems = new Map();
+    this._dragFrom = -1;
+    /** @type {((k: number) => void)|null} called when a transition is clicked */
+    this.onTransition = null;
+    /** @type {Array<number|null>} shortest admissible transition durations from the last check */
+    this.minDurations = [];
+    state.addEventListener("change", (e) => {
+      if (e.detail.kind !== "selection" && e.detail.kind !== "live") this.render();
+      if (e.detail.kind === "load") {
+        this.transitions = [];
+        this.minDurations = [];
+      }
+    });
+  }
+
+  /** Add a new grid formation after the current one. */
+  add() {
+    const st = this.state;
+    if (!st.show) return;
+    st.edit("Add formation", () => {
+      const f = gridFormation(st.show, uniqueName(st.show, `Formation ${st.show.formations.length + 1}`));
+      st.show.formations.splice(st.current + 1, 0, f);
+      st.current += 1;
+      st.selection = new Set();
+    });
+  }
+
+  /** Duplicate the current formation. */
+  duplicate() {
+    const st = this.state;
+    if (!st.formation) return;
+    st.edit("Duplicate formation", () => {
+      const copy = structuredClone(st.formation);
+      copy.name = uniqueName(st.show, `${copy.name} copy`);
+      st.show.formations.splice(st.current + 1, 0, copy);
+      st.current += 1;
+      st.selection = new Set();
+    });
+  }
+
+  /** Delete the current formation (a show keeps at least one). */
+  remove() {
+    const st = this.state;
+    if (!st.show || st.show.formations.length <= 1) return false;
+    st.edit(`Delete formation "${st.formation.name}"`, () => {
+      st.show.formations.splice(st.current, 1);
+      st.current = Math.min(st.current, st.show.formations.length - 1);
+      st.selection = new Set();
+    });
+    return true;
+  }
+
+  /**
+   * Move a formation to another place in the order.
+   * @param {number} from @param {number} to
+   */
+  move(from, to) {
+    const st = this.state;
+    const n = st.show ? st.show.formations.length : 0;
+    if (from === to || from < 0 || to < 0 || from >= n || to >= n) return;
+    st.edit("Reorder formations", () => {
+      const [f] = st.show.formations.splice(from, 1);
+      st.show.formations.splice(to, 0, f);
+      st.current = to;
+      st.selection = new Set();
+    });
+  }
+
+  /**
+   * Fix (or free) the duration of the transition into formation `k`.
+   * @param {number} k
+   * @param {number|null} seconds null: planned automatically (as fast as the limits allow)
+   */
+  setTransition(k, seconds) {
+    const st = this.state;
+    st.edit(seconds == null ? "Automatic transition" : `Transition ${seconds} s`, () => {
+      const f = st.show.formations[k];
+      if (seconds == null) delete f.transition_s;
+      else f.transition_s = seconds;
+    });
+  }
+
+  /** Rebuild the list. */
+  render() {
+    const st = this.state;
+    const list = this.list;
+    // Keep keyboard focus on the same control across the rebuild.
+    const active = list.contains(document.activeElement) ? document.activeElement.getAttribute("aria-label") : null;
+    list.replaceChildren();
+    if (!st.show) return;
+    const total = document.getElementById("timeline-total");
+    const holds = st.show.formations.reduce((a, f) => a + f.hold_s, 0);
+    const moves = this.transitions.filter((t) => t != null).reduce((a, b) => a + b, 0);
+    if (total) total.textContent = `${st.show.formations.length} formations · holds ${holds.toFixed(1)} s${moves ? ` · transitions ${moves.toFixed(1)} s` : ""}`;
+    st.show.formations.forEach((f, k) => {
+      const tr = document.createElement("li");
+      tr.className = "tl-transition";
+      const b = document.createElement("button");
+      b.type = "button";
+      const dur = this.transitions[k];
+      const fixed = f.transition_s != null;
+      b.classList.toggle("fixed", fixed);
+      b.textContent = fixed ? `→ ${f.transition_s} s fixed` : dur != null ? `→ ${dur.toFixed(1)} s` : "→";
+      b.title = (dur != null ? `Planned transition into "${f.name}": ${dur.toFixed(2)} s. ` : "Check the show to plan transitions. ") +
+        "Click to fix its duration.";
+      b.setAttribute("aria-label", `Transition into formation ${k + 1}${dur != null ? `: ${dur.toFixed(1)} s planned` : ""}${fixed ? `, fixed at ${f.transition_s} s` : ""}; set its duration`);
+      b.addEventListener("click", () => this.onTransition && this.onTransition(k));
+      tr.append(b);
+      list.append(tr);
+      list.append(this._card(f, k));
+    });
+    if (active) {
+      for (const el of list.querySelectorAll("[aria-label]")) {
+        if (el.getAttribute("aria-label") === active) {
+          /** @type {HTMLElement} */ (el).focus();
+          break;
+        }
+      }
+    }
+  }
+
+  _card(f, k) {
+    const st = this.state;
+    const li = document.createElement("li");
+    li.className = "tl-card";
+    li.draggable = true;
+    li.dataset.index = String(k);
+    li.setAttribute("aria-label", `Formation ${k + 1}: ${f.name}`);
+    if (k === st.current) li.setAttribute("aria-current", "true");
+    const problem = this.problems.get(k);
+    if (problem) li.classList.add("has-problem");
+
+    const name = document.createElement("input");
+    name.className = "tl-name";
+    name.value = f.name;
+    name.maxLength = 200;
+    name.setAttribute("aria-label", `Name of formation ${k + 1}`);
+    name.addEventListener("change", () => {
+      const v = name.value.trim();
+      if (!v) { name.value = f.name; return; }
+      st.edit("Rename formation", () => { st.show.formations[k].name = v; });
+    });
+
+    const meta = document.createElement("div");
+    meta.className = "tl-meta";
+    const holdLabel = document.createElement("label");
+    holdLabel.textContent = "hold";
+    const hold = document.createElement("input");
+    hold.type = "number";
+    hold.min = "0.1";
+    hold.step = "0.5";
+    hold.value = String(f.hold_s);
+    hold.setAttribute("aria-label", `Hold time of formation ${k + 1}, seconds`);
+    hold.addEventListener("change", () => {
+      const v = Number(hold.value);
+      if (!(v > 0)) { hold.value = String(f.hold_s); return; }
+      st.edit("Change hold time", () => { st.show.formations[k].hold_s = v; });
+    });
+    holdLabel.append(" ", hold, " s");
+    const count = document.createElement("span");
+    const n = f.points.length;
+    count.textContent = `${n} pts`;
+    if (n < st.show.drones) {
+      count.className = "bad-value";
+      count.title = `${st.show.drones - n} fewer points than drones: use "Fit to N drones"`;
+    }
+    meta.append(holdLabel, count);
+
+    const sw = document.createElement("div");
+    sw.className = "tl-swatches";
+    const cols = formationColors(f);
+    const stops = [0, 0.25, 0.5, 0.75, 1].map((t) => cols[Math.min(cols.length - 1, Math.floor(t * (cols.length - 1)))] || "#fff");
+    sw.style.background = `linear-gradient(90deg, ${stops.join(", ")})`;
+
+    li.append(name, meta, sw);
+    if (problem) {
+      const err = document.createElement("p");
+      err.className = "field-error";
+      err.setAttribute("role", "alert");
+      err.textContent = problem;
+      err.title = problem;
+      li.append(err);
+    }
+    li.addEventListener("click", (e) => {
+      if (e.target === li || e.target === sw || e.target === meta || e.target === count) st.setCurrent(k);
+    });
+    li.addEventListener("focusin", () => { if (st.current !== k) st.setCurrent(k); });
+    li.addEventListener("dragstart", (e) => {
+      this._dragFrom = k;
+      e.dataTransfer.effectAllowed = "move";
+      e.dataTransfer.setData("text/plain", String(k));
+    });
+    li.addEventListener("dragover", (e) => {
+      if (this._dragFrom < 0) return;
+      e.preventDefault();
+      li.classList.add("drag-over");
+    });
+    li.addEventListener("dragleave", () => li.classList.remove("drag-over"));
+    li.addEventListener("drop", (e) => {
+      e.preventDefault();
+      li.classList.remove("drag-over");
+      const from = this._dragFrom;
+      this._dragFrom = -1;
+      this.move(from, k);
+    });
+    li.addEventListener("dragend", () => { this._dragFrom = -1; });
+    return li;
+  }
+}

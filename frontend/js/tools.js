@@ -1,0 +1,220 @@
+// Canvas editing tools: select (click, box, move), freehand draw (resampled to the drone count),
+// place, erase, pan. Every finished gesture is one undo step.
+
+import { resamplePolylines, roundPoints } from "./geometry.js";
+import { closePairs } from "./spacing.js";
+
+/** Tool names, in the order of the tool buttons. */
+export const TOOLS = ["select", "draw", "place", "erase", "pan"];
+
+/** Pointer gestures on the canvas, turned into edits of the current formation. */
+export class Tools {
+  /**
+   * @param {import("./canvas.js").CanvasView} view
+   * @param {import("./state.js").EditorState} state
+   * @param {{color: () => string, onError: (msg: string) => void}} opts
+   */
+  constructor(view, state, opts) {
+    this.view = view;
+    this.state = state;
+    this.opts = opts;
+    this.tool = "select";
+    this._gesture = null;
+    /** Strokes of the current drawing (world u, v), so Shift+draw can add one more stroke. */
+    this.strokes = [];
+    this._strokesFor = -1;
+    const c = view.canvas;
+    c.addEventListener("pointerdown", (e) => this._down(e));
+    c.addEventListener("pointermove", (e) => this._move(e));
+    c.addEventListener("pointerup", (e) => this._up(e));
+    c.addEventListener("pointercancel", () => this.cancel());
+    state.addEventListener("change", (e) => {
+      if (e.detail.kind === "current" || e.detail.kind === "load") this.strokes = [];
+    });
+  }
+
+  /**
+   * Choose the active tool.
+   * @param {string} tool one of {@link TOOLS}
+   */
+  setTool(tool) {
+    if (!TOOLS.includes(tool)) return;
+    this.cancel();
+    this.tool = tool;
+    const c = this.view.canvas;
+    for (const t of TOOLS) c.classList.toggle(`tool-${t}`, t === tool);
+  }
+
+  /** Abandon the gesture in progress (Escape): a half-done move is undone. */
+  cancel() {
+    const g = this._gesture;
+    this._gesture = null;
+    if (g && g.kind === "move" && g.moved) this.state.rollback();
+    this.view.overlay = { strokes: [], box: null };
+    this.view.redraw();
+  }
+
+  _down(e) {
+    if (e.button !== 0 || this.view.panning || !this.state.formation) return;
+    const c = this.view.canvas;
+    c.focus();
+    const sx = e.offsetX;
+    const sy = e.offsetY;
+    const uv = this.view.toWorldUV(sx, sy);
+    if (this.tool === "pan") {
+      this.view.startPan(e);
+      return;
+    }
+    c.setPointerCapture(e.pointerId);
+    if (this.tool === "select") {
+      const hit = this.view.hitTest(sx, sy);
+      if (hit >= 0) {
+        const sel = new Set(this.state.selection);
+        if (e.shiftKey || e.ctrlKey || e.metaKey) {
+          if (sel.has(hit)) sel.delete(hit);
+          else sel.add(hit);
+          this.state.setSelection(sel);
+          if (!sel.has(hit)) return;
+        } else if (!sel.has(hit)) {
+          this.state.setSelection([hit]);
+        }
+        this.state.checkpoint();
+        const f = this.state.formation;
+        const idx = [...this.state.selection];
+        this._gesture = { kind: "move", start: uv, idx, orig: idx.map((i) => f.points[i].slice()), moved: false };
+      } else {
+        this._gesture = { kind: "box", x0: sx, y0: sy, add: e.shiftKey || e.ctrlKey || e.metaKey };
+      }
+    } else if (this.tool === "draw") {
+      if (this._strokesFor !== this.state.current || !e.shiftKey) this.strokes = [];
+      this._strokesFor = this.state.current;
+      this._gesture = { kind: "draw", stroke: [uv], sx, sy };
+      this.view.overlay = { strokes: [...this.strokes, this._gesture.stroke], box: null };
+    } else if (this.tool === "place") {
+      const p = roundPoints([this.view.pointAt(uv[0], uv[1])])[0];
+      const color = this.opts.color();
+      this.state.edit("Add point", () => {
+        const f = this.state.formation;
+        f.points.push(p);
+        f.colors.push(color);
+        this.state.selection = new Set([f.points.length - 1]);
+      });
+    } else if (this.tool === "erase") {
+      this.state.checkpoint();
+      this._gesture = { kind: "erase", removed: 0 };
+      this._eraseAt(sx, sy);
+    }
+    this.view.redraw();
+  }
+
+  _move(e) {
+    const g = this._gesture;
+    if (!g) return;
+    const sx = e.offsetX;
+    const sy = e.offsetY;
+    if (g.kind === "move") {
+      const uv = this.view.toWorldUV(sx, sy);
+      const [a, b] = this.view.axes;
+      const du = uv[0] - g.start[0];
+      const dv = uv[1] - g.start[1];
+      if (!g.moved && Math.hypot(du, dv) * this.view.scale < 3) return;
+      g.moved = true;
+      const f = this.state.formation;
+      g.idx.forEach((i, k) => {
+        f.points[i][a] = g.orig[k][a] + du;
+        f.points[i][b] = g.orig[k][b] + dv;
+      });
+      this.state.touch();
+    } else if (g.kind === "box") {
+      this.view.overlay = { strokes: [], box: { x0: g.x0, y0: g.y0, x1: sx, y1: sy } };
+    } else if (g.kind === "draw") {
+      const last = g.stroke[g.stroke.length - 1];
+      const uv = this.view.toWorldUV(sx, sy);
+      if (Math.hypot(uv[0] - last[0], uv[1] - last[1]) * this.view.scale >= 2) {
+        g.stroke.push(uv);
+        this.view.overlay.preview = this._preview(g.stroke);
+      }
+    } else if (g.kind === "erase") {
+      this._eraseAt(sx, sy);
+    }
+    this.view.redraw();
+  }
+
+  _up(e) {
+    const g = this._gesture;
+    this._gesture = null;
+    const c = this.view.canvas;
+    if (c.hasPointerCapture(e.pointerId)) c.releasePointerCapture(e.pointerId);
+    if (!g) return;
+    if (g.kind === "move") {
+      if (g.moved) {
+        const f = this.state.formation;
+        for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+        this.state.commit(g.idx.length === 1 ? "Move point" : `Move ${g.idx.length} points`);
+      } else {
+        this.state.discard();
+      }
+    } else if (g.kind === "box") {
+      const moved = Math.hypot(e.offsetX - g.x0, e.offsetY - g.y0) >= 3;
+      const inside = moved ? this.view.pointsInRect(g.x0, g.y0, e.offsetX, e.offsetY) : [];
+      const sel = g.add ? new Set([...this.state.selection, ...inside]) : new Set(inside);
+      this.state.setSelection(sel);
+    } else if (g.kind === "draw") {
+      this._finishStroke(g);
+    } else if (g.kind === "erase") {
+      if (g.removed) this.state.commit(`Delete ${g.removed} point${g.removed > 1 ? "s" : ""}`);
+      else this.state.discard();
+    }
+    this.view.overlay = { strokes: [], box: null };
+    this.view.redraw();
+  }
+
+  _eraseAt(sx, sy) {
+    const i = this.view.hitTest(sx, sy, 9);
+    if (i < 0) return;
+    const f = this.state.formation;
+    f.points.splice(i, 1);
+    f.colors.splice(i, 1);
+    this.state.selection = new Set();
+    this._gesture.removed += 1;
+    this.state.touch();
+  }
+
+  /** Where the drones would go if the stroke ended here, with the too-close ones flagged. */
+  _preview(stroke) {
+    const n = this.state.show.drones;
+    if (n > 5000) return null;
+    const uv = resamplePolylines(this._closedStrokes([...this.strokes, stroke]), n, 1e-9);
+    const { close } = closePairs(uv.map(([u, v]) => [u, v, 0]), this.state.show.settings.min_distance_m);
+    return { uv, close };
+  }
+
+  _closedStrokes(list) {
+    const closeTol = Math.max(this.state.show.settings.min_distance_m, 12 / this.view.scale);
+    // A stroke whose end comes back near its start is closed: snap the end onto the start.
+    return list.map((s) => {
+      const a = s[0];
+      const b = s[s.length - 1];
+      return s.length > 3 && Math.hypot(a[0] - b[0], a[1] - b[1]) <= closeTol ? [...s, a] : s;
+    });
+  }
+
+  _finishStroke(g) {
+    const stroke = g.stroke;
+    let len = 0;
+    for (let i = 1; i < stroke.length; i++) len += Math.hypot(stroke[i][0] - stroke[i - 1][0], stroke[i][1] - stroke[i - 1][1]);
+    if (len * this.view.scale < 6) return; // a click, not a stroke
+    this.strokes.push(stroke);
+    const n = this.state.show.drones;
+    const uv = resamplePolylines(this._closedStrokes(this.strokes), n, 1e-9);
+    const pts = roundPoints(uv.map(([u, v]) => this.view.pointAt(u, v)));
+    const color = this.opts.color();
+    const total = this.strokes.length;
+    this.state.edit(total > 1 ? `Draw stroke ${total}` : "Draw stroke", () => {
+      const f = this.state.formation;
+      f.points = pts;
+      f.colors = pts.map(() => color);
+      this.state.selection = new Set();
+    });
+  }
+}

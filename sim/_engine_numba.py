@@ -1,0 +1,423 @@
+"""The fast engine: one fused numba kernel, parallel over drones.
+
+The kernel computes exactly what :func:`sim._engine_numpy.numpy_step` computes (same
+controller, same mixer and saturation, same semi-implicit Euler step, same divergence
+rules), but with the loops the other way round: ``prange`` over drones, and for each
+drone a serial loop over the steps of the chunk with the whole state in registers.
+Drones are independent (disturbances depend on time only), so no synchronisation is
+needed inside a chunk; the driver (:func:`sim._engine_numpy.simulate`) calls the
+kernel once per chunk of steps, which bounds the memory of the reference and
+disturbance tables and gives progress granularity.
+
+``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
+run on a machine pays the compile time (about 10-20 s).
+
+The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
+both agree to 1e-9 over one simulated second (24 drones off their circles, with and
+without disturbances) and from arbitrary states for a few steps.
+
+Floating point: ``fastmath`` allows reassociation, FMA contraction, approximate
+functions and signed-zero freedom (about 15 % faster), but *not* ``nnan``/``ninf`` (the
+divergence checks need NaN and inf to behave) nor ``arcp`` (reciprocal instead of
+division: it changes the mixer's rounding so that the hover thrust no longer comes
+back as exactly m·g, and hover would drift by ~1e-7 m in a second). The kernel
+therefore holds hover bit-exactly, like the reference, and otherwise differs from it
+by rounding: libm's transcendental functions here, numpy's own SIMD versions there
+(asin, atan2 and pow differ by an ulp). That is invisible while errors are above the
+discrete chattering floor of the finite-time laws, but once an error sits at that
+floor (``sig(e, 1/2)`` has unbounded gain at 0, so the sampled loop chatters at about
+1e-9 rad/s) the closed loop amplifies an ulp by ~7 % per step: from there the two
+engines give equally valid trajectories that drift apart at the 1e-5 level inside
+the chatter, with the same tracking statistics. Two runs of the same engine are
+bit-identical.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from sim._engine_numpy import (
+    C_E2_0,
+    C_E4_0,
+    C_IATT,
+    C_IPOS,
+    C_LAST_THRUST,
+    C_SAPREV,
+    C_SPREV,
+    C_THC,
+    C_THC_DOT,
+    C_UD,
+    C_UDA,
+    DIVERGED_NONFINITE,
+    DIVERGED_RUNAWAY,
+    STAT_COUNT,
+    STAT_DTHRUST,
+    STAT_MAX,
+    STAT_SUMSQ,
+    TEL_SIZE,
+    RefChunk,
+    TrackingReference,
+)
+from sim._ismc import SWITCH_EPS
+
+__all__ = ["run_chunk_numba", "warm_up"]
+
+
+@nb.njit(inline="always", cache=True)
+def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
+    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (same branches as ``sim._ismc.sig``)."""
+    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    if not n > 0.0:
+        return 0.0
+    if r == 1.0:
+        return 1.0
+    if r == 0.5:
+        return 1.0 / math.sqrt(n)
+    # exp(log) is about twice as fast as libm pow here and equal to within a few ulp.
+    return math.exp((r - 1.0) * math.log(n))
+
+
+@nb.njit(inline="always", cache=True)
+def _unit_scale(x0: float, x1: float, x2: float) -> float:
+    """Factor ``1/max(||x||, SWITCH_EPS)``, 0 at x = 0 (``sim._ismc.unit``)."""
+    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    if not n > 0.0:
+        return 0.0
+    return 1.0 / max(n, SWITCH_EPS)
+
+
+@nb.njit(parallel=True, cache=True, error_model="numpy",
+         fastmath={"nsz", "afn", "contract", "reassoc"})
+def _kernel(
+    state, ctrl, stats, dstep, dreason, knots, seg, beta, offset, yaw, dist, step0, every,
+    frames, tel, use_tel, prm, plt, gn, drag, dt, limit,
+):
+    n = state.shape[0]
+    steps = seg.shape[0]
+    # Controller model (what the controller believes).
+    m = prm[0]
+    ix, iy, iz = prm[1], prm[2], prm[3]
+    g = prm[7]
+    # Plant (what flies) and its rotors.
+    pm = plt[0]
+    pix, piy, piz = plt[1], plt[2], plt[3]
+    arm, kf, km, pg, wmax2 = plt[4], plt[5], plt[6], plt[7], plt[8]
+    k1, k2, r1, r2, alpha = gn[0], gn[1], gn[2], gn[3], gn[4]
+    k3, k4, r3, r4, beta_g = gn[5], gn[6], gn[7], gn[8], gn[9]
+    wn, zeta = gn[10], gn[11]
+    # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
+    inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
+    inv_pix, inv_piy, inv_piz, inv_pm = 1.0 / pix, 1.0 / piy, 1.0 / piz, 1.0 / pm
+
+    for i in nb.prange(n):
+        px, py, pz = state[i, 0], state[i, 1], state[i, 2]
+        vx, vy, vz = state[i, 3], state[i, 4], state[i, 5]
+        ph, th, ps = state[i, 6], state[i, 7], state[i, 8]
+        wx, wy, wz = state[i, 9], state[i, 10], state[i, 11]
+        alive = dstep[i] < 0
+        # Controller state in locals for the whole chunk (stored back below): keeps it in
+        # registers instead of re-reading memory the compiler must assume aliased.
+        e200, e201, e202 = ctrl[i, C_E2_0], ctrl[i, C_E2_0 + 1], ctrl[i, C_E2_0 + 2]
+        ip0, ip1, ip2 = ctrl[i, C_IPOS], ctrl[i, C_IPOS + 1], ctrl[i, C_IPOS + 2]
+        ud0, ud1, ud2 = ctrl[i, C_UD], ctrl[i, C_UD + 1], ctrl[i, C_UD + 2]
+        sp0, sp1, sp2 = ctrl[i, C_SPREV], ctrl[i, C_SPREV + 1], ctrl[i, C_SPREV + 2]
+        e400, e401, e402 = ctrl[i, C_E4_0], ctrl[i, C_E4_0 + 1], ctrl[i, C_E4_0 + 2]
+        ia0, ia1, ia2 = ctrl[i, C_IATT], ctrl[i, C_IATT + 1], ctrl[i, C_IATT + 2]
+        uda0, uda1, uda2 = ctrl[i, C_UDA], ctrl[i, C_UDA + 1], ctrl[i, C_UDA + 2]
+        sap0, sap1, sap2 = ctrl[i, C_SAPREV], ctrl[i, C_SAPREV + 1], ctrl[i, C_SAPREV + 2]
+        thc0, thc1, thc2 = ctrl[i, C_THC], ctrl[i, C_THC + 1], ctrl[i, C_THC + 2]
+        thcd0, thcd1, thcd2 = ctrl[i, C_THC_DOT], ctrl[i, C_THC_DOT + 1], ctrl[i, C_THC_DOT + 2]
+        last_thrust = ctrl[i, C_LAST_THRUST]
+        ssum, smax = stats[i, STAT_SUMSQ], stats[i, STAT_MAX]
+        sdth, scount = stats[i, STAT_DTHRUST], stats[i, STAT_COUNT]
+        # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
+        next_rec = ((step0 + every - 1) // every) * every
+        for j in range(steps):
+            k = step0 + j
+            rec = k == next_rec
+            if rec:
+                next_rec += every
+                fr = k // every
+                frames[fr, i, 0] = px
+                frames[fr, i, 1] = py
+                frames[fr, i, 2] = pz
+            if not alive:
+                continue
+
+            # ---- reference
+            sk = seg[j]
+            k0x, k0y, k0z = knots[sk, i, 0], knots[sk, i, 1], knots[sk, i, 2]
+            dx = knots[sk + 1, i, 0] - k0x
+            dy = knots[sk + 1, i, 1] - k0y
+            dz = knots[sk + 1, i, 2] - k0z
+            b0, b1, b2 = beta[j, 0], beta[j, 1], beta[j, 2]
+            prx = k0x + b0 * dx + offset[j, 0]
+            pry = k0y + b0 * dy + offset[j, 1]
+            prz = k0z + b0 * dz + offset[j, 2]
+            vrx = b1 * dx + offset[j, 3]
+            vry = b1 * dy + offset[j, 4]
+            vrz = b1 * dz + offset[j, 5]
+            arx = b2 * dx + offset[j, 6]
+            ary = b2 * dy + offset[j, 7]
+            arz = b2 * dz + offset[j, 8]
+
+            e1x, e1y, e1z = px - prx, py - pry, pz - prz
+            err = math.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
+            if not err <= limit:  # NaN (a non-finite reference) or a runaway drone
+                dstep[i] = k
+                dreason[i] = DIVERGED_RUNAWAY if err > limit else DIVERGED_NONFINITE
+                alive = False
+                continue
+
+            # ---- position ISMC (spec 4)
+            e2x, e2y, e2z = vx - vrx, vy - vry, vz - vrz
+            fx, fy, fz = -arx, -ary, -arz - g
+            s1 = _sig_scale(e1x, e1y, e1z, r1)
+            s2 = _sig_scale(e2x, e2y, e2z, r2)
+            unx = -k1 * (e1x * s1) - k2 * (e2x * s2) - fx
+            uny = -k1 * (e1y * s1) - k2 * (e2y * s2) - fy
+            unz = -k1 * (e1z * s1) - k2 * (e2z * s2) - fz
+            sx = e2x - e200 - ip0
+            sy = e2y - e201 - ip1
+            sz = e2z - e202 - ip2
+            us = _unit_scale(sx, sy, sz)
+            qx = sx - sp0
+            qy = sy - sp1
+            qz = sz - sp2
+            uq = _unit_scale(qx, qy, qz)
+            wpx = -alpha * (sx * us + 0.5 * (qx * uq))
+            wpy = -alpha * (sy * us + 0.5 * (qy * uq))
+            wpz = -alpha * (sz * us + 0.5 * (qz * uq))
+            ux = unx + ud0
+            uy = uny + ud1
+            uz = unz + ud2
+
+            sph, cph = math.sin(ph), math.cos(ph)
+            sth, cth = math.sin(th), math.cos(th)
+            sps, cps = math.sin(ps), math.cos(ps)
+            zbx = cph * sth * cps + sph * sps
+            zby = cph * sth * sps - sph * cps
+            zbz = cph * cth
+            thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
+
+            # ---- attitude resolution (spec 5) and command filter
+            ysin, ycos = yaw[j, 1], yaw[j, 2]
+            un = math.sqrt(ux * ux + uy * uy + uz * uz)
+            ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
+            ratio = min(max(ratio, -1.0), 1.0)
+            rph = math.asin(ratio)
+            rth = math.atan2(ux * ycos + uy * ysin, uz)
+            rps = yaw[j, 0]
+            cx, cy, cz = thc0, thc1, thc2
+            cdx, cdy, cdz = thcd0, thcd1, thcd2
+            cddx = wn * wn * (rph - cx) - 2.0 * zeta * wn * cdx
+            cddy = wn * wn * (rth - cy) - 2.0 * zeta * wn * cdy
+            cddz = wn * wn * (rps - cz) - 2.0 * zeta * wn * cdz
+
+            # ---- attitude ISMC (spec 6)
+            # One division for every 1/cos θ term (W, Ẇ): divisions dominate the arithmetic.
+            icth = 1.0 / cth
+            tth = sth * icth
+            w01, w02 = sph * tth, cph * tth
+            w11, w12 = cph, -sph
+            w21, w22 = sph * icth, cph * icth
+            edx = wx + w01 * wy + w02 * wz
+            edy = w11 * wy + w12 * wz
+            edz = w21 * wy + w22 * wz
+            e3x, e3y, e3z = ph - cx, th - cy, ps - cz
+            e4x, e4y, e4z = edx - cdx, edy - cdy, edz - cdz
+            gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
+            gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
+            gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
+            # Ẇ Ω (see sim._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
+            sec2 = icth * icth
+            wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
+            wd1 = -sph * edx * wy - cph * edx * wz
+            wd2 = (w22 * edx + sph * sth * sec2 * edy) * wy + (
+                -w21 * edx + cph * sth * sec2 * edy
+            ) * wz
+            fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
+            fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
+            faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
+            s3 = _sig_scale(e3x, e3y, e3z, r3)
+            s4 = _sig_scale(e4x, e4y, e4z, r4)
+            unax = -k3 * (e3x * s3) - k4 * (e4x * s4) - fax
+            unay = -k3 * (e3y * s3) - k4 * (e4y * s4) - fay
+            unaz = -k3 * (e3z * s3) - k4 * (e4z * s4) - faz
+            sax = e4x - e400 - ia0
+            say = e4y - e401 - ia1
+            saz = e4z - e402 - ia2
+            usa = _unit_scale(sax, say, saz)
+            qax = sax - sap0
+            qay = say - sap1
+            qaz = saz - sap2
+            uqa = _unit_scale(qax, qay, qaz)
+            wax = -beta_g * (sax * usa + 0.5 * (qax * uqa))
+            way = -beta_g * (say * usa + 0.5 * (qay * uqa))
+            waz = -beta_g * (saz * usa + 0.5 * (qaz * uqa))
+            uax = unax + uda0
+            uay = unay + uda1
+            uaz = unaz + uda2
+            # τ = I W⁻¹ u_a
+            tcx = ix * (uax - sth * uaz)
+            tcy = iy * (cph * uay + sph * cth * uaz)
+            tcz = iz * (-sph * uay + cph * cth * uaz)
+
+            # ---- rotors ("+" mixer of sim._quadrotor), saturation, what acts
+            # Divisions kept here: the same rounding as the reference mixer is what makes the
+            # hover thrust come back as exactly m·g (hover is held bit-exactly).
+            base = thrust_cmd / (4.0 * kf)
+            roll = tcx / (2.0 * arm * kf)
+            pitch = tcy / (2.0 * arm * kf)
+            yw = tcz / (4.0 * km)
+            o1 = base - pitch + yw
+            o2 = base + roll - yw
+            o3 = base + pitch + yw
+            o4 = base - roll - yw
+            sat = (o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
+                   or o3 < 0.0 or o3 > wmax2 or o4 < 0.0 or o4 > wmax2)
+            o1 = min(max(o1, 0.0), wmax2)
+            o2 = min(max(o2, 0.0), wmax2)
+            o3 = min(max(o3, 0.0), wmax2)
+            o4 = min(max(o4, 0.0), wmax2)
+            thrust = kf * (o1 + o2 + o3 + o4)
+            tqx = arm * kf * (o2 - o4)
+            tqy = arm * kf * (o3 - o1)
+            tqz = km * (o1 - o2 + o3 - o4)
+
+            # ---- plant, semi-implicit Euler with the inputs held
+            tpm = thrust * inv_pm
+            ax = tpm * zbx + dist[j, 0] + drag * (dist[j, 3] - vx)
+            ay = tpm * zby + dist[j, 1] + drag * (dist[j, 4] - vy)
+            az = tpm * zbz + dist[j, 2] + drag * (dist[j, 5] - vz) - pg
+            d2x, d2y, d2z = dist[j, 6], dist[j, 7], dist[j, 8]
+            odx = (tqx - (wy * (wz * piz) - wz * (wy * piy))) * inv_pix + (d2x - sth * d2z)
+            ody = (tqy - (wz * (wx * pix) - wx * (wz * piz))) * inv_piy + (cph * d2y + sph * cth * d2z)
+            odz = (tqz - (wx * (wy * piy) - wy * (wx * pix))) * inv_piz + (-sph * d2y + cph * cth * d2z)
+            nvx, nvy, nvz = vx + dt * ax, vy + dt * ay, vz + dt * az
+            npx, npy, npz = px + dt * nvx, py + dt * nvy, pz + dt * nvz
+            nwx, nwy, nwz = wx + dt * odx, wy + dt * ody, wz + dt * odz
+            nph = ph + dt * (nwx + w01 * nwy + w02 * nwz)
+            nth = th + dt * (w11 * nwy + w12 * nwz)
+            nps = ps + dt * (w21 * nwy + w22 * nwz)
+
+            # ---- controller state candidates
+            ipx = ip0 + dt * (unx + fx)
+            ipy = ip1 + dt * (uny + fy)
+            ipz = ip2 + dt * (unz + fz)
+            iax = ia0 + dt * (unax + fax)
+            iay = ia1 + dt * (unay + fay)
+            iaz = ia2 + dt * (unaz + faz)
+            ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
+            ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
+            if sat:  # anti-windup: u_d frozen while a rotor is clipped
+                udx, udy, udz = ud0, ud1, ud2
+                uadx, uady, uadz = uda0, uda1, uda2
+            else:
+                udx = ud0 + dt * wpx
+                udy = ud1 + dt * wpy
+                udz = ud2 + dt * wpz
+                uadx = uda0 + dt * wax
+                uady = uda1 + dt * way
+                uadz = uda2 + dt * waz
+
+            if use_tel and rec:
+                fr = k // every
+                tel[fr, i, 0], tel[fr, i, 1], tel[fr, i, 2] = e1x, e1y, e1z
+                tel[fr, i, 3], tel[fr, i, 4], tel[fr, i, 5] = e3x, e3y, e3z
+                tel[fr, i, 6], tel[fr, i, 7], tel[fr, i, 8] = ph - rph, th - rth, ps - rps
+                tel[fr, i, 9], tel[fr, i, 10], tel[fr, i, 11], tel[fr, i, 12] = thrust, tqx, tqy, tqz
+                tel[fr, i, 13] = 1.0 if sat else 0.0
+
+            # A step that is not finite everywhere is not committed (the drone stops here).
+            # (Any NaN or inf makes the sum non-finite; independent partial sums keep the
+            # dependency chain short.)
+            check = (((npx + npy + npz) + (nvx + nvy + nvz)) + ((nph + nth + nps) + (nwx + nwy + nwz))
+                     + ((ipx + ipy + ipz) + (iax + iay + iaz)) + ((udx + udy + udz) + (uadx + uady + uadz))
+                     + ((ncx + ncy + ncz) + (ncdx + ncdy + ncdz)) + ((sx + sy + sz) + (sax + say + saz))
+                     + thrust)
+            if not math.isfinite(check):
+                dstep[i] = k
+                dreason[i] = DIVERGED_NONFINITE
+                alive = False
+                continue
+
+            ssum += err * err
+            smax = max(smax, err)
+            sdth = max(sdth, abs(thrust - last_thrust))
+            scount += 1.0
+
+            ip0, ip1, ip2 = ipx, ipy, ipz
+            ud0, ud1, ud2 = udx, udy, udz
+            sp0, sp1, sp2 = sx, sy, sz
+            ia0, ia1, ia2 = iax, iay, iaz
+            uda0, uda1, uda2 = uadx, uady, uadz
+            sap0, sap1, sap2 = sax, say, saz
+            thc0, thc1, thc2 = ncx, ncy, ncz
+            thcd0, thcd1, thcd2 = ncdx, ncdy, ncdz
+            last_thrust = thrust
+            px, py, pz, vx, vy, vz = npx, npy, npz, nvx, nvy, nvz
+            ph, th, ps, wx, wy, wz = nph, nth, nps, nwx, nwy, nwz
+
+        ctrl[i, C_IPOS], ctrl[i, C_IPOS + 1], ctrl[i, C_IPOS + 2] = ip0, ip1, ip2
+        ctrl[i, C_UD], ctrl[i, C_UD + 1], ctrl[i, C_UD + 2] = ud0, ud1, ud2
+        ctrl[i, C_SPREV], ctrl[i, C_SPREV + 1], ctrl[i, C_SPREV + 2] = sp0, sp1, sp2
+        ctrl[i, C_IATT], ctrl[i, C_IATT + 1], ctrl[i, C_IATT + 2] = ia0, ia1, ia2
+        ctrl[i, C_UDA], ctrl[i, C_UDA + 1], ctrl[i, C_UDA + 2] = uda0, uda1, uda2
+        ctrl[i, C_SAPREV], ctrl[i, C_SAPREV + 1], ctrl[i, C_SAPREV + 2] = sap0, sap1, sap2
+        ctrl[i, C_THC], ctrl[i, C_THC + 1], ctrl[i, C_THC + 2] = thc0, thc1, thc2
+        ctrl[i, C_THC_DOT], ctrl[i, C_THC_DOT + 1], ctrl[i, C_THC_DOT + 2] = thcd0, thcd1, thcd2
+        ctrl[i, C_LAST_THRUST] = last_thrust
+        stats[i, STAT_SUMSQ], stats[i, STAT_MAX] = ssum, smax
+        stats[i, STAT_DTHRUST], stats[i, STAT_COUNT] = sdth, scount
+        state[i, 0], state[i, 1], state[i, 2] = px, py, pz
+        state[i, 3], state[i, 4], state[i, 5] = vx, vy, vz
+        state[i, 6], state[i, 7], state[i, 8] = ph, th, ps
+        state[i, 9], state[i, 10], state[i, 11] = wx, wy, wz
+
+
+def run_chunk_numba(
+    state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
+    dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
+    step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
+    opts: dict,
+) -> None:
+    """Advance ``len(times)`` steps in place with the fused kernel (same contract as the numpy chunk).
+
+    Args:
+        state: ``(N, 12)`` plant states, updated in place.
+        ctrl: ``(N, CTRL_SIZE)`` controller states, updated in place.
+        stats: ``(N, STATS_SIZE)`` running statistics, updated in place.
+        dstep: ``(N,)`` divergence step (-1 while flying), updated in place.
+        dreason: ``(N,)`` divergence reason code, updated in place.
+        ref: The drones' reference (knots in m).
+        chunk: The shared reference tables at ``times``.
+        dist: ``(T, 9)`` disturbance signals at ``times``.
+        step0: Index of the first step of the chunk.
+        times: ``(T,)`` step times (s).
+        every: Frame decimation (steps per output frame).
+        frames: ``(F, N, 3)`` output positions (m), written at frame steps.
+        tel: ``(F, N, TEL_SIZE)`` telemetry or None.
+        opts: ``params``, ``plant``, ``gains``, ``disturbance``, ``dt_s``,
+            ``divergence_limit_m`` as in the numpy engine.
+    """
+    use_tel = tel is not None
+    tel_arr = tel if use_tel else np.zeros((0, 0, TEL_SIZE))
+    _kernel(
+        state, ctrl, stats, dstep, dreason, np.ascontiguousarray(ref.knots_m, dtype=np.float64),
+        chunk.segment, chunk.beta, chunk.offset, chunk.yaw, dist, int(step0), int(every),
+        frames, tel_arr, use_tel, opts["params"].as_vector(), opts["plant"].as_vector(),
+        opts["gains"].as_vector(), float(opts["disturbance"].drag_per_s), float(opts["dt_s"]),
+        float(opts["divergence_limit_m"]),
+    )
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the kernel for float64 frames on a tiny problem."""
+    from sim._engine_numpy import TrackingReference as _Ref
+    from sim._engine_numpy import simulate
+
+    simulate(_Ref.hover(np.zeros((1, 3))), duration_s=0.002, engine="numba", output_every=1)

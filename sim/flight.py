@@ -1,0 +1,62 @@
+"""Flight simulation: the quadrotor model, the ISMC and baseline controllers, the engines.
+
+Public names re-exported from the private modules (see each for the details)::
+
+    from sim.flight import fly_show
+    result = fly_show(plan, engine="numba", controller="ismc", disturbance="wind")
+    result.summary()
+"""
+
+from __future__ import annotations
+
+from sim._attitude import CommandFilter as CommandFilter
+from sim._attitude import resolve_attitude as resolve_attitude
+from sim._baseline import BaselineGains as BaselineGains
+from sim._disturbance import Disturbance as Disturbance
+from sim._disturbance import make_disturbance as make_disturbance
+from sim._engine_numpy import SimResult as SimResult
+from sim._engine_numpy import TrackingReference as TrackingReference
+from sim._engine_numpy import hover_state as hover_state
+from sim._engine_numpy import numpy_step as numpy_step
+from sim._engine_numpy import simulate as simulate
+from sim._flight import FLOWN_DISTANCE_TOLERANCE_M as FLOWN_DISTANCE_TOLERANCE_M
+from sim._flight import FlightResult as FlightResult
+from sim._flight import fly_show as fly_show
+from sim._flight import plan_reference as plan_reference
+from sim._ismc import AttitudeGains as AttitudeGains
+from sim._ismc import IsmcGains as IsmcGains
+from sim._ismc import PositionGains as PositionGains
+from sim._ismc import sig as sig
+from sim._ismc import unit as unit
+from sim._quadrotor import QuadrotorParams as QuadrotorParams
+from sim._scenario_paper import PaperRun as PaperRun
+from sim._scenario_paper import paper_report as paper_report
+from sim._scenario_paper import plot_paper as plot_paper
+from sim._scenario_paper import run_paper_scenario as run_paper_scenario
+
+__all__ = [
+    "FLOWN_DISTANCE_TOLERANCE_M",
+    "AttitudeGains",
+    "BaselineGains",
+    "CommandFilter",
+    "Disturbance",
+    "FlightResult",
+    "IsmcGains",
+    "PaperRun",
+    "PositionGains",
+    "QuadrotorParams",
+    "SimResult",
+    "TrackingReference",
+    "fly_show",
+    "hover_state",
+    "make_disturbance",
+    "numpy_step",
+    "paper_report",
+    "plan_reference",
+    "plot_paper",
+    "resolve_attitude",
+    "run_paper_scenario",
+    "sig",
+    "simulate",
+    "unit",
+]

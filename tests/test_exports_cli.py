@@ -1,0 +1,193 @@
+"""``swarmshow export``: exit codes, atomic writes, and hostile names that must not escape."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from app.cli import main
+from app.exports import EXPORT_FORMATS, drone_file_stems, export_show, safe_stem
+from formations import dump_show, parse_show
+from tests.conftest import make_show, ring
+
+SAFE = re.compile(r"[A-Za-z0-9._+-]+")
+HOSTILE = [
+    "../../../etc/passwd",
+    "/absolute/path",
+    "..",
+    ".",
+    "",
+    "   ",
+    "a\x00b",
+    "C:\\Windows\\system32",
+    "con",
+    "NUL.txt",
+    "x" * 5000,
+    "-rf",
+    ".hidden",
+    "ünïcödé ✈ name",
+    "a/b",
+    "a/b",
+]
+
+
+@pytest.fixture(scope="module")
+def show():
+    return make_show(
+        [{"name": "ring", "hold_s": 1.0, "points": ring(len(HOSTILE), 12.0), "color": "#ff0000"}],
+        drones=len(HOSTILE), rows=4, cols=4, spacing_m=4.5,
+    )
+
+
+@pytest.fixture(scope="module")
+def hostile_show(show):
+    data = json.loads(dump_show(show))
+    data["name"] = "../../" + "evil/" * 50 + "x" * 150
+    data["name"] = data["name"][:200]
+    return parse_show(data)
+
+
+@pytest.fixture(scope="module")
+def plan(show):
+    from sim import plan_show
+
+    return plan_show(show)
+
+
+def _check_member_names(names: list[str]) -> None:
+    assert len(names) == len(set(names))
+    for n in names:
+        assert SAFE.fullmatch(n), n
+        assert not n.startswith(("-", ".")) and ".." not in n.split(".")[0:1]
+        assert len(n) <= 100
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_safe_stem(name):
+    stem = safe_stem(name)
+    assert SAFE.fullmatch(stem)
+    assert stem not in (".", "..") and not stem.startswith((".", "-"))
+    assert len(stem) <= 64
+    assert stem.split(".")[0].upper() not in {"CON", "NUL", "PRN", "AUX"}
+
+
+def test_drone_stems_are_unique_and_safe():
+    stems = drone_file_stems(len(HOSTILE), HOSTILE)
+    assert len(set(s.lower() for s in stems)) == len(HOSTILE)
+    assert all(SAFE.fullmatch(s) for s in stems)
+    assert drone_file_stems(3) == ["drone_001", "drone_002", "drone_003"]
+    assert drone_file_stems(1500)[-1] == "drone_1500"
+
+
+@pytest.mark.parametrize("fmt", [f for f in EXPORT_FORMATS if f not in ("show", "viser-html")])
+def test_hostile_names_never_escape_the_archive(hostile_show, plan, fmt, tmp_path):
+    result = export_show(hostile_show, fmt, plan=plan, drone_names=HOSTILE, origin=(47.0, 8.0, 400.0))
+    assert SAFE.fullmatch(result.filename) and "/" not in result.filename
+    assert len(result.filename) <= 100
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        names = z.namelist()
+        _check_member_names(names)
+        out = tmp_path / "extract"
+        out.mkdir()
+        z.extractall(out)
+    extracted = [p for p in tmp_path.rglob("*") if p.is_file()]
+    assert len(extracted) == len(names)
+    assert all(out.resolve() in p.resolve().parents for p in extracted)
+
+
+def _write_show(tmp_path: Path, show) -> Path:
+    path = tmp_path / "show.json"
+    path.write_text(dump_show(show))
+    return path
+
+
+def test_cli_writes_each_format(show, tmp_path, capsys):
+    src = _write_show(tmp_path, show)
+    for fmt in ("show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv"):
+        out = tmp_path / f"out-{fmt}.bin"
+        code = main(["export", str(src), "--format", fmt, "-o", str(out), "--origin", "47.1,8.2,420",
+                     "--heading", "15", "--fps", "2"])
+        assert code == 0, capsys.readouterr().err
+        data = out.read_bytes()
+        if fmt == "show":
+            assert parse_show(data) == show
+        else:
+            with zipfile.ZipFile(io.BytesIO(data)) as z:
+                assert z.testzip() is None
+    # Atomic writes leave no temporary files behind.
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".swarmshow-")]
+
+
+def test_cli_output_directory_gets_the_sanitised_name(hostile_show, tmp_path):
+    src = _write_show(tmp_path, hostile_show)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    assert main(["export", str(src), "--format", "skyc", "-o", str(out_dir)]) == 0
+    files = list(out_dir.iterdir())
+    assert len(files) == 1 and files[0].parent == out_dir and files[0].suffix == ".skyc"
+    # Nothing was written anywhere else under tmp_path.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "show.json"]
+
+
+def test_cli_stdout(show, tmp_path, capsysbinary):
+    src = _write_show(tmp_path, show)
+    assert main(["export", str(src), "--format", "crazyswarm", "-o", "-"]) == 0
+    data = capsysbinary.readouterr().out
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        assert "drone_001.csv" in z.namelist()
+
+
+def test_cli_overwrites_atomically(show, tmp_path):
+    src = _write_show(tmp_path, show)
+    out = tmp_path / "show-copy.json"
+    out.write_text("old")
+    assert main(["export", str(src), "--format", "show", "-o", str(out)]) == 0
+    assert parse_show(out.read_bytes()) == show
+
+
+@pytest.mark.parametrize(
+    "extra, reason",
+    [
+        (["--format", "gcode"], "unknown format"),
+        (["--format", "qgc-wpl"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "1,2"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "a,b,c"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "95,0,0"], "latitude"),
+        (["--format", "skybrush-csv", "--fps", "0"], "fps"),
+        (["--format", "skybrush-csv", "--fps", "nan"], "fps"),
+        (["--format", "skyc", "--source", "simulated"], "simulated"),
+    ],
+)
+def test_cli_bad_options_exit_2(show, tmp_path, capsys, extra, reason):
+    src = _write_show(tmp_path, show)
+    out = tmp_path / "out.zip"
+    assert main(["export", str(src), "-o", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert reason in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_cli_bad_paths_exit_2(show, tmp_path, capsys):
+    src = _write_show(tmp_path, show)
+    assert main(["export", str(tmp_path / "missing.json"), "--format", "skyc", "-o", str(tmp_path / "a")]) == 2
+    assert main(["export", str(src), "--format", "skyc", "-o", str(tmp_path / "no" / "such" / "dir" / "a")]) == 2
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert main(["export", str(bad), "--format", "skyc", "-o", str(tmp_path / "a")]) == 2
+    assert "error" in capsys.readouterr().err
+
+
+def test_cli_prints_warnings(tmp_path, capsys):
+    show = make_show(
+        [{"name": f"f{k}", "hold_s": 1.0, "points": ring(4, 8.0 + 2 * (k % 2)), "color": "#ffffff"}
+         for k in range(17)],
+        drones=4, rows=2, cols=2, spacing_m=4.5,
+    )
+    src = _write_show(tmp_path, show)
+    assert main(["export", str(src), "--format", "crazyswarm", "-o", str(tmp_path / "c.zip")]) == 0
+    assert "warning" in capsys.readouterr().err

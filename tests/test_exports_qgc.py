@@ -1,0 +1,166 @@
+"""QGroundControl exports and the ENU <-> WGS84 conversion."""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pymavlink import mavwp
+
+from app.exports import ExportError, export_show
+from app.exports._geodesy import (
+    WGS84_A,
+    WGS84_B,
+    ecef_to_geodetic,
+    geodetic_to_ecef,
+    geodetic_to_local,
+    local_to_geodetic,
+)
+from app.exports._qgc import mission_waypoints
+from sim import plan_show
+from tests.conftest import fibonacci_sphere, make_show, ring
+
+ORIGIN = (47.397742, 8.545594, 488.0)
+HEADING = 35.0
+
+
+@pytest.fixture(scope="module")
+def show():
+    return make_show(
+        [
+            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
+            {"name": "sphere", "hold_s": 3.5, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
+        ],
+        drones=16, rows=4, cols=4, spacing_m=4.5,
+    )
+
+
+@pytest.fixture(scope="module")
+def plan(show):
+    return plan_show(show)
+
+
+def _expected_local(plan, i):
+    knots, holds = mission_waypoints(plan)
+    return plan.knot_positions_m[knots, i], holds
+
+
+def test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates(show, plan, tmp_path):
+    result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".waypoints"))
+        assert len(names) == 16
+        for i, name in enumerate(names):
+            text = z.read(name)
+            assert text.startswith(b"QGC WPL 110\n")
+            path = tmp_path / name
+            path.write_bytes(text)
+            loader = mavwp.MAVWPLoader()
+            count = loader.load(str(path))
+            local, holds = _expected_local(plan, i)
+            # Home, takeoff, one waypoint per transition (formations and the landing approach), land.
+            assert count == loader.count() == len(local) == 2 + len(holds) + 1
+            wps = [loader.wp(k) for k in range(count)]
+            assert [w.command for w in wps] == [16, 22] + [16] * len(holds) + [21]
+            assert wps[0].current == 1 and all(w.current == 0 for w in wps[1:])
+            assert [w.param1 for w in wps[2:-1]] == pytest.approx(holds)
+            lat = np.array([w.x for w in wps])
+            lon = np.array([w.y for w in wps])
+            alt = np.array([w.z for w in wps])
+            back = geodetic_to_local(lat, lon, alt, origin=ORIGIN, heading_deg=HEADING)
+            assert np.linalg.norm(back - local, axis=1).max() <= 0.05
+            # Independent of the inverse: ECEF distances equal local distances (a rigid map).
+            ecef = geodetic_to_ecef(lat, lon, alt)
+            d_ecef = np.linalg.norm(ecef[1:] - ecef[0], axis=1)
+            d_local = np.linalg.norm(local[1:] - local[0], axis=1)
+            assert np.abs(d_ecef - d_local).max() <= 0.05
+
+
+def test_formation_holds_match_the_show(show, plan):
+    _, holds = mission_waypoints(plan)
+    assert holds == pytest.approx([f.hold_s for f in show.formations] + [0.0])
+
+
+def test_plan_json_structure(show, plan):
+    result = export_show(show, "qgc-plan", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".plan"))
+        assert len(names) == 16
+        manifest = json.loads(z.read("manifest.json"))
+        assert manifest["origin"]["latitude_deg"] == ORIGIN[0]
+        for i, name in enumerate(names):
+            doc = json.loads(z.read(name))
+            assert doc["fileType"] == "Plan" and doc["version"] == 1
+            assert doc["groundStation"] == "QGroundControl"
+            assert doc["geoFence"]["version"] == 2 and doc["rallyPoints"] == {"version": 2, "points": []}
+            fence = doc["geoFence"]["polygons"][0]
+            assert fence["inclusion"] is True and len(fence["polygon"]) == 4
+            m = doc["mission"]
+            for key in ("items", "plannedHomePosition", "firmwareType", "vehicleType", "cruiseSpeed", "hoverSpeed"):
+                assert key in m
+            local, holds = _expected_local(plan, i)
+            home = geodetic_to_local(*m["plannedHomePosition"], origin=ORIGIN, heading_deg=HEADING)
+            assert np.linalg.norm(home - local[0]) <= 0.05
+            items = m["items"]
+            assert len(items) == len(local) - 1
+            assert [it["command"] for it in items] == [22] + [16] * len(holds) + [21]
+            for k, it in enumerate(items):
+                assert it["type"] == "SimpleItem" and it["autoContinue"] is True
+                assert it["doJumpId"] == k + 1 and it["frame"] == 0
+                assert len(it["params"]) == 7
+                p = geodetic_to_local(*it["params"][4:7], origin=ORIGIN, heading_deg=HEADING)
+                assert np.linalg.norm(p - local[k + 1]) <= 0.05
+            assert [it["params"][0] for it in items[1:-1]] == pytest.approx(holds)
+
+
+@pytest.mark.parametrize("fmt", ["qgc-plan", "qgc-wpl"])
+def test_qgc_needs_an_origin(show, plan, fmt):
+    with pytest.raises(ExportError, match="--origin"):
+        export_show(show, fmt, plan=plan)
+
+
+def test_heading_rotates_the_show():
+    # +y at bearing 90 degrees points east: longitude grows, latitude stays.
+    lat, lon, _ = local_to_geodetic([0.0, 100.0, 0.0], origin=(0.0, 0.0, 0.0), heading_deg=90.0)
+    assert abs(lat) < 1e-9 and lon > 0
+    # +x at heading 0 points east; +y north.
+    lat, lon, _ = local_to_geodetic([0.0, 100.0, 0.0], origin=(10.0, 20.0, 0.0))
+    assert lat > 10.0 and abs(lon - 20.0) < 1e-9
+
+
+def test_known_ecef_points():
+    np.testing.assert_allclose(geodetic_to_ecef(0.0, 0.0, 0.0), [WGS84_A, 0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(geodetic_to_ecef(90.0, 0.0, 0.0), [0.0, 0.0, WGS84_B], atol=1e-6)
+    lat, lon, h = ecef_to_geodetic([0.0, 0.0, WGS84_B + 100.0])
+    assert lat == pytest.approx(90.0) and h == pytest.approx(100.0, abs=1e-6)
+    # Published WGS84 value for 45 N 45 E on the ellipsoid.
+    xyz = [3194419.145, 3194419.145, 4487348.409]
+    np.testing.assert_allclose(geodetic_to_ecef(45.0, 45.0, 0.0), xyz, atol=2e-3)
+    lat, lon, h = ecef_to_geodetic(xyz)
+    assert (lat, lon) == (pytest.approx(45.0, abs=1e-7), pytest.approx(45.0, abs=1e-7))
+    assert h == pytest.approx(0.0, abs=2e-3)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    lat=st.floats(-89.9, 89.9),
+    lon=st.floats(-180.0, 180.0),
+    alt=st.floats(-400.0, 9000.0),
+    heading=st.floats(0.0, 360.0),
+    offset=st.tuples(st.floats(-5000.0, 5000.0), st.floats(-5000.0, 5000.0), st.floats(-100.0, 2000.0)),
+)
+def test_geodetic_round_trip(lat, lon, alt, heading, offset):
+    origin = (lat, lon, alt)
+    p = np.array(offset)
+    la, lo, h = local_to_geodetic(p, origin=origin, heading_deg=heading)
+    assert -90.0 <= la <= 90.0 and -180.0 <= lo <= 180.0
+    back = geodetic_to_local(la, lo, h, origin=origin, heading_deg=heading)
+    assert np.linalg.norm(back - p) <= 0.05
+    # The forward map is rigid: the straight-line distance to the origin is preserved.
+    d = np.linalg.norm(geodetic_to_ecef(la, lo, h) - geodetic_to_ecef(*origin))
+    assert d == pytest.approx(np.linalg.norm(p), abs=0.001)

@@ -1,0 +1,228 @@
+"""Crazyswarm polynomials and the Skybrush ``.skyc`` read back with independent readers."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import zipfile
+
+import numpy as np
+import pytest
+
+from app.exports import _skyc as skyc_module
+from app.exports import export_show
+from sim import plan_show
+from tests.conftest import fibonacci_sphere, make_show, ring
+
+CRAZYSWARM_HEADER = (
+    "duration,x^0,x^1,x^2,x^3,x^4,x^5,x^6,x^7,y^0,y^1,y^2,y^3,y^4,y^5,y^6,y^7,"
+    "z^0,z^1,z^2,z^3,z^4,z^5,z^6,z^7,yaw^0,yaw^1,yaw^2,yaw^3,yaw^4,yaw^5,yaw^6,yaw^7,"
+)
+
+
+def _show(n_formations: int = 2):
+    shapes = [ring(16, 12.0), fibonacci_sphere(16, 9.0), ring(16, 15.0, center=(5.0, 3.0, 40.0))]
+    colors = ["#ff0000", "#00ff00", "#2040ff"]
+    return make_show(
+        [
+            {"name": f"f{k}", "hold_s": 2.0 + k, "points": shapes[k % 3], "color": colors[k % 3]}
+            for k in range(n_formations)
+        ],
+        drones=16, rows=4, cols=4, spacing_m=4.5,
+    )
+
+
+@pytest.fixture(scope="module")
+def show():
+    return _show(3)
+
+
+@pytest.fixture(scope="module")
+def plan(show):
+    return plan_show(show)
+
+
+# ---------------------------------------------------------------- Crazyswarm
+
+
+def load_uav_trajectory(text: str) -> np.ndarray:
+    """What Crazyswarm's uav_trajectory.Trajectory.loadcsv does: skip the header, 33 columns."""
+    return np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, usecols=range(33), ndmin=2)
+
+
+def eval_pieces(data: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Position (T, 3) of a piecewise polynomial trajectory at absolute times t (ascending powers)."""
+    ends = np.cumsum(data[:, 0])
+    k = np.minimum(np.searchsorted(ends, t, side="right"), len(data) - 1)
+    local = t - (ends[k] - data[k, 0])
+    powers = local[:, None] ** np.arange(8)[None, :]
+    return np.stack([(data[k, 1 + 8 * a : 9 + 8 * a] * powers).sum(axis=1) for a in range(3)], axis=1)
+
+
+def test_crazyswarm_pieces_are_the_plan(show, plan):
+    result = export_show(show, "crazyswarm", plan=plan)
+    rng = np.random.default_rng(3)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".csv"))
+        assert len(names) == 16
+        manifest = json.loads(z.read("manifest.json"))
+        for i, name in enumerate(names):
+            text = z.read(name).decode("ascii")
+            assert text.splitlines()[0] == CRAZYSWARM_HEADER
+            data = load_uav_trajectory(text)
+            assert data.shape[1] == 33
+            assert np.all(data[:, 0] > 0)
+            assert data[:, 0].sum() == pytest.approx(plan.duration_s, abs=1e-6)
+            assert np.all(data[:, 25:] == 0.0)  # yaw
+            assert np.all(data[:, [7, 8, 15, 16, 23, 24]] == 0.0)  # degree 6, 7 unused by a quintic
+            t = np.r_[rng.uniform(0.0, plan.duration_s, 100), plan.knot_times_s]
+            ref = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
+            assert np.linalg.norm(eval_pieces(data, t) - ref, axis=1).max() <= 0.001
+            assert manifest["pieces"][name[:-4]] == len(data)
+    assert not result.warnings
+
+
+def test_crazyswarm_merges_holds_into_constant_pieces(show, plan):
+    with zipfile.ZipFile(io.BytesIO(export_show(show, "crazyswarm", plan=plan).content)) as z:
+        data = load_uav_trajectory(z.read("drone_001.csv").decode())
+    moving = np.any(data[:, [4, 5, 6, 12, 13, 14, 20, 21, 22]] != 0.0, axis=1)
+    # Never two constant pieces in a row: consecutive rests are one piece.
+    assert not np.any(~moving[1:] & ~moving[:-1])
+    # Takeoff, 3 x (transition, hold), landing approach, landing: 9 segments at most.
+    assert len(data) <= len(plan.segments)
+
+
+def test_crazyswarm_warns_beyond_31_pieces():
+    show = _show(16)
+    result = export_show(show, "crazyswarm")
+    assert any("31" in w and "Crazyflie" in w for w in result.warnings)
+
+
+# ---------------------------------------------------------------- skyc
+
+
+def check_skybrush_rules(doc: dict) -> None:
+    """The Skybrush show-format rules the issue lists."""
+    assert doc["version"] == 1
+    drones = doc["swarm"]["drones"]
+    assert drones
+    for d in drones:
+        assert d["type"] == "generic"
+        s = d["settings"]
+        assert {"name", "home", "trajectory", "lights"} <= set(s)
+        traj = s["trajectory"]
+        assert traj["version"] == 1
+        points = traj["points"]
+        assert points
+        times = [p[0] for p in points]
+        assert all(b > a for a, b in zip(times, times[1:], strict=False))
+        assert points[0][2] == []
+        for t, pos, controls in points:
+            assert isinstance(t, float | int) and len(pos) == 3
+            assert len(controls) <= 2 and all(len(c) == 3 for c in controls)
+        assert s["lights"]["version"] == 1
+        base64.b64decode(s["lights"]["data"], validate=True)
+
+
+def eval_skyc(points: list, t: np.ndarray) -> np.ndarray:
+    """Evaluate Skybrush Bézier trajectory points at times t (held at the ends)."""
+    times = np.array([p[0] for p in points])
+    out = np.empty((len(t), 3))
+    for j, tj in enumerate(t):
+        k = int(np.clip(np.searchsorted(times, tj, side="left"), 1, len(times) - 1))
+        (t0, p0, _), (t1, p1, ctrl) = points[k - 1], points[k]
+        u = min(max((tj - t0) / (t1 - t0), 0.0), 1.0)
+        cps = [np.array(p0)] + [np.array(c) for c in ctrl] + [np.array(p1)]
+        deg = len(cps) - 1
+        out[j] = sum(math.comb(deg, i) * (1 - u) ** (deg - i) * u**i * cps[i] for i in range(deg + 1))
+    return out
+
+
+def run_light_program(code: bytes, until_frame: int) -> np.ndarray:
+    """An independent ledctrl interpreter for SET_COLOR / FADE_TO_COLOR / END: colour at each 1/50 s frame."""
+    colors = np.zeros((until_frame + 1, 3))
+    current = np.zeros(3)
+    frame = 0
+    i = 0
+
+    def varuint() -> int:
+        nonlocal i
+        value, shift = 0, 0
+        while True:
+            b = code[i]
+            i += 1
+            value |= (b & 0x7F) << shift
+            shift += 7
+            if b < 0x80:
+                return value
+
+    while i < len(code):
+        op = code[i]
+        i += 1
+        if op == 0x00:
+            break
+        assert op in (0x04, 0x08), f"unexpected opcode {op:#x}"
+        target = np.array(list(code[i : i + 3]), dtype=float)
+        i += 3
+        dur = varuint()
+        for f in range(frame, min(frame + dur, until_frame + 1)):
+            colors[f] = target if op == 0x04 else current + (target - current) * (f - frame) / dur
+        current = target
+        frame += dur
+    colors[frame:] = current
+    return colors
+
+
+def test_skyc_passes_the_rules_and_evaluates_to_the_plan(show, plan):
+    result = export_show(show, "skyc", plan=plan)
+    assert result.filename.endswith(".skyc")
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        assert "show.json" in z.namelist()
+        doc = json.loads(z.read("show.json"))
+    check_skybrush_rules(doc)
+    assert len(doc["swarm"]["drones"]) == 16
+    v = doc["settings"]["validation"]
+    s = show.settings
+    assert v["minDistance"] == s.min_distance_m and v["maxAltitude"] == s.max_altitude_m
+    assert v["maxVelocityXY"] == s.max_speed_xy_mps and v["maxVelocityZ"] == s.max_speed_z_mps
+    assert v["maxAccelerationXY"] == s.max_accel_mps2
+    seg = doc["meta"]["segments"]
+    assert seg["takeoff"][0] == 0.0 and seg["landing"][1] == pytest.approx(plan.duration_s)
+    assert seg["takeoff"][1] == seg["show"][0] and seg["show"][1] == seg["landing"][0]
+    t = np.linspace(0.0, plan.duration_s, 1500)
+    for i, d in enumerate(doc["swarm"]["drones"]):
+        points = d["settings"]["trajectory"]["points"]
+        assert points[-1][0] == pytest.approx(plan.duration_s, abs=1e-6)
+        ref = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
+        assert np.linalg.norm(eval_skyc(points, t) - ref, axis=1).max() <= 0.01
+        np.testing.assert_allclose(d["settings"]["home"], plan.knot_positions_m[0, i], atol=1e-4)
+
+
+def test_skyc_lights_replay_the_plan_colours(show, plan):
+    with zipfile.ZipFile(io.BytesIO(export_show(show, "skyc", plan=plan).content)) as z:
+        doc = json.loads(z.read("show.json"))
+    last = int(round(plan.duration_s * 50))
+    frames = np.arange(last + 1)
+    for i in (0, 7, 15):
+        code = base64.b64decode(doc["swarm"]["drones"][i]["settings"]["lights"]["data"])
+        assert code[-1] == 0x00
+        got = run_light_program(code, last)
+        ref = plan.evaluate(frames / 50.0, drones=np.array([i])).colors_rgb[:, 0] * 255
+        # Knot times are rounded to the 20 ms frame grid: allow one frame of fade plus rounding.
+        max_rate = 255 / 50 / min(s.duration_s for s in plan.segments if s.duration_s > 0)
+        assert np.abs(got - ref).max() <= 1.0 + 2 * max_rate
+
+
+def test_skyc_warns_above_the_viewer_limit(show, plan, monkeypatch):
+    monkeypatch.setattr(skyc_module, "SKYBRUSH_VIEWER_MAX_DRONES", 10)
+    result = export_show(show, "skyc", plan=plan)
+    assert any("Skybrush Viewer" in w for w in result.warnings)
+
+
+@pytest.mark.parametrize("length_m", [0.5, 10.0, 250.0, 2000.0])
+def test_skyc_piece_count_meets_the_tolerance(length_m):
+    n = skyc_module.pieces_for(length_m)
+    assert skyc_module.hermite_pieces(n)[2] * length_m <= skyc_module.TOLERANCE_M
+    assert n == 1 or skyc_module.hermite_pieces(n - 1)[2] * length_m > skyc_module.TOLERANCE_M

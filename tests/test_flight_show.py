@@ -1,0 +1,135 @@
+"""Flying a planned show, and the ``simulate`` / ``bench sim`` commands."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from sim import plan_show
+from sim.flight import FlightResult, fly_show
+
+
+@pytest.fixture(scope="module")
+def small_plan():
+    from tests.conftest import fibonacci_sphere, make_show, ring
+
+    show = make_show(
+        [
+            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
+            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
+        ],
+        drones=16, rows=4, cols=4, spacing_m=4.5,
+    )
+    return plan_show(show)
+
+
+def test_small_show_flies_with_flown_min_distance(small_plan):
+    calls = []
+    res = fly_show(small_plan, progress=calls.append)
+    assert isinstance(res, FlightResult)
+    n_frames = res.times_s.size
+    assert res.positions_m.shape == (n_frames, 16, 3) and res.positions_m.dtype == np.float32
+    assert res.colors_rgb.shape == (n_frames, 16, 3)
+    assert res.times_s[1] - res.times_s[0] == pytest.approx(0.04)
+    assert res.times_s[-1] <= small_plan.duration_s + 1e-9
+    assert res.diverged == [] and res.ok
+    assert res.tracking_max_m.max() < 1e-3  # m, no disturbance
+    # The flown separation is close to the planned one and names a real pair.
+    planned = small_plan.evaluate(res.times_s).positions_m
+    np.testing.assert_allclose(res.positions_m, planned, atol=2e-3)
+    assert 3.0 <= res.flown_min_distance_m < 10.0
+    i, j = res.flown_min_distance_pair
+    f = int(np.argmin(np.abs(res.times_s - res.flown_min_distance_time_s)))
+    assert np.linalg.norm(res.positions_m[f, i] - res.positions_m[f, j]) == pytest.approx(
+        res.flown_min_distance_m, abs=1e-5)
+    assert calls and calls[-1] == pytest.approx(1.0) and calls == sorted(calls)
+    s = res.summary()
+    json.dumps(s, allow_nan=False)
+    assert s["engine"] == "numba" and s["controller"] == "ismc" and s["disturbance"] == "none"
+    assert s["flown_min_distance_pair"] == [i, j] and len(s["worst_drones"]) == 5
+
+
+def test_subset_wind_baseline_and_output_rate(small_plan):
+    res = fly_show(small_plan, drones=np.array([0, 5, 9]), disturbance="wind", controller="baseline",
+                   output_hz=50.0, seed=2)
+    assert res.positions_m.shape[1] == 3 and list(res.drone_ids) == [0, 5, 9]
+    assert res.times_s[1] == pytest.approx(0.02)
+    assert res.summary()["controller"] == "baseline" and res.summary()["disturbance"] == "wind"
+    assert res.flown_min_distance_pair[0] in (0, 5, 9)
+
+
+def test_progress_exception_cancels(small_plan):
+    class Cancelled(Exception):
+        pass
+
+    def cancel(fraction: float) -> None:
+        raise Cancelled
+
+    with pytest.raises(Cancelled):
+        fly_show(small_plan, progress=cancel)
+
+
+def test_diverging_drone_in_a_show(small_plan):
+    from sim.flight import IsmcGains, PositionGains
+
+    res = fly_show(small_plan, drones=slice(0, 4), gains=IsmcGains(position=PositionGains(k1=-80.0)),
+                   chunk_s=0.5)
+    assert {d for d, _, _ in res.diverged} == {0, 1, 2, 3}
+    assert not res.ok and np.all(np.isfinite(res.positions_m))
+    json.dumps(res.summary(), allow_nan=False)
+
+
+def _write_small_show(path, small_show):
+    from formations import dump_show
+
+    path.write_text(dump_show(small_show))
+
+
+def test_cli_simulate_show_json(tmp_path, small_show, capsys):
+    show = tmp_path / "show.json"
+    _write_small_show(show, small_show)
+    code = main(["simulate", str(show), "--json", "--output-hz", "10"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["ok"] and out["drones"] == 16 and out["output_hz"] == pytest.approx(10.0)
+    assert out["flown_min_distance_m"] >= 3.0 - 0.01 and out["diverged"] == []
+
+
+def test_cli_usage_errors(tmp_path, capsys):
+    assert main(["simulate"]) == 2
+    assert "SHOW" in capsys.readouterr().err
+    assert main(["simulate", str(tmp_path / "missing.json")]) == 2
+    with pytest.raises(SystemExit) as exc:  # argparse: dask is a later engine, not accepted yet
+        main(["simulate", "x.json", "--engine", "dask"])
+    assert exc.value.code == 2
+
+
+def test_cli_paper_scenario(tmp_path, capsys):
+    png = tmp_path / "paper.png"
+    code = main(["simulate", "--scenario", "paper", "--json", "--plot", str(png)])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["meets_thresholds"]
+    for key in ("pos_err_m", "att_err_rad"):
+        assert set(out[key]) == {"max_t_ge_8s", "at_20s"}
+    assert {"settle_time_s", "max_thrust_step_n", "baseline"} <= set(out)
+    assert png.stat().st_size > 10_000
+
+
+def test_cli_bench_sim(capsys):
+    code = main(["bench", "sim", "--drones", "50", "--seconds", "0.1", "--numpy-seconds", "0.02", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["drone_steps_per_s"] > 0 and out["numpy_drone_steps_per_s"] > 0
+    assert out["speedup"] == pytest.approx(out["drone_steps_per_s"] / out["numpy_drone_steps_per_s"])
+
+
+def test_demo_show_flies_with_flown_min_distance():
+    demo = pytest.importorskip("formations._demo")
+    show = demo.load_demo_show()
+    plan = plan_show(show)
+    res = fly_show(plan, output_hz=10.0)
+    s = res.summary()
+    assert s["drones"] == show.drones and s["diverged"] == []
+    assert s["flown_min_distance_m"] >= show.settings.min_distance_m - 0.01
+    assert s["flown_min_distance_pair"] is not None and s["tracking_max_m"] < 1e-2

@@ -1,0 +1,107 @@
+"""The viewer inside the app: lifespan, the /viser/ page, the websocket relay and the playback endpoint."""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+import pytest
+import viser
+import zstandard
+from fastapi.testclient import TestClient
+
+from app.server import create_app
+from app.settings import AppSettings
+
+PROTOCOL = f"viser-v{viser.__version__}"
+
+
+def decode_viser_message(data: bytes) -> list[dict]:
+    """Messages of one viser websocket frame: [raw len][zstd len][zstd msgpack][binary buffers]."""
+    raw_len = int.from_bytes(data[:8], "little")
+    z_len = int.from_bytes(data[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(data[16:16 + z_len], max_output_size=raw_len)
+    return list(msgspec.msgpack.decode(inner)["messages"])
+
+
+@pytest.fixture
+def client(tmp_path, small_show):
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1))
+    with TestClient(app) as c:
+        yield c
+
+
+@pytest.fixture
+def show_id(client, small_show):
+    r = client.post("/api/shows", content=small_show.model_dump_json(), headers={"content-type": "application/json"})
+    assert r.status_code == 201, r.text
+    return r.json()["id"]
+
+
+def test_viser_page_is_served_locally(client):
+    r = client.get("/viser/")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
+    assert "<canvas" in r.text or "<script" in r.text
+    # One self-contained page: no external scripts, styles or fonts.
+    assert 'src="http' not in r.text and 'href="http' not in r.text
+    r = client.get("/viser", follow_redirects=False)
+    assert r.status_code == 307 and r.headers["location"] == "/viser/"
+    assert client.get("/viser/../../etc/passwd").status_code == 404
+
+
+def test_relay_passes_subprotocol_and_messages(client, show_id):
+    r = client.post(f"/api/shows/{show_id}/playback", json={"source": "planned"})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["drones"] == 16 and body["viewer_url"] == "/viser/" and body["source"] == "planned"
+    viewer = client.app.state.viewer
+    assert viewer.current and viewer.current.startswith("test [")
+    for path in ("/viser", "/viser/"):
+        with client.websocket_connect(path, subprotocols=[PROTOCOL]) as ws:
+            assert ws.accepted_subprotocol == PROTOCOL
+            messages = decode_viser_message(ws.receive_bytes())
+            types = {m["type"] for m in messages}
+            names = {m.get("name") for m in messages}
+            assert "PointCloudMessage" in types and "/drones" in names
+            # The share button is off.
+            theme = next(m for m in messages if m["type"] == "ThemeConfigurationMessage")
+            assert theme["show_share_button"] is False
+
+
+def test_playback_errors(client, show_id):
+    assert client.post("/api/shows/nope/playback", json={}).status_code == 404
+    assert client.post(f"/api/shows/{show_id}/playback", json={"source": "bogus"}).status_code == 422
+    assert client.post(f"/api/shows/{show_id}/playback").status_code == 200  # no body: planned
+    r = client.post(f"/api/shows/{show_id}/playback").json()
+    assert r["cached"] is True
+
+
+def test_simulated_playback(client, show_id):
+    r = client.post(f"/api/shows/{show_id}/playback", json={"source": "simulated"})
+    assert r.status_code == 200, r.text
+    viewer = client.app.state.viewer
+    assert viewer.source == "simulated" and not viewer._source_dd.disabled
+    viewer.seek(30.0)
+    frame = viewer.render()
+    plan = viewer._shows[viewer.current].plan
+    # The flown drones track the plan closely.
+    assert np.abs(frame.positions_m - plan.evaluate([30.0]).positions_m[0]).max() < 1.0
+    # Switching back to the plan keeps the flight.
+    viewer.set_source("planned")
+    assert viewer.source == "planned"
+    assert client.post(f"/api/shows/{show_id}/playback", json={"source": "simulated"}).json()["cached"] is True
+
+
+def test_viewer_stops_with_the_app(tmp_path):
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1))
+    with TestClient(app):
+        viewer = app.state.viewer
+        assert viewer is not None and viewer.host == "127.0.0.1"
+    assert viewer._stop.is_set() and app.state.viewer is None
+
+
+def test_viser_html_export_via_api(client, show_id):
+    r = client.get(f"/api/shows/{show_id}/export/viser-html", params={"fps": 5})
+    assert r.status_code == 200, r.text[:300]
+    assert r.headers["content-type"].startswith("text/html")
+    assert b"__VISER_EMBED_DATA__" in r.content
+    assert "attachment" in r.headers.get("content-disposition", "")

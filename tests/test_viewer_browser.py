@@ -1,0 +1,171 @@
+"""The 3D viewer in headless Chromium (Debian's /usr/bin/chromium): through the app's port, and the HTML export.
+
+Everything must stay on loopback (or ``file:``/``data:``/``blob:`` for the export).
+"""
+
+from __future__ import annotations
+
+import re
+import socket
+import threading
+import time
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import numpy as np
+import pytest
+
+from sim import plan_show
+
+CHROMIUM = "/usr/bin/chromium"
+SHOTS = Path(__file__).resolve().parent / "screenshots"
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
+]
+sync_api = pytest.importorskip("playwright.sync_api")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def live_app(tmp_path_factory):
+    """The app under uvicorn on a free loopback port (in this process, so the viewer can be inspected)."""
+    import uvicorn
+
+    from app.server import create_app
+    from app.settings import AppSettings
+
+    app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("viewer-data"), workers=1))
+    port = _free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 60
+    while not server.started or getattr(app.state, "viewer", None) is None:
+        assert time.monotonic() < deadline and thread.is_alive(), "server did not start"
+        time.sleep(0.05)
+    try:
+        yield app, f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=20)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--enable-unsafe-swiftshader"])
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+def _guarded_page(browser, foreign: list[str]):
+    ctx = browser.new_context(viewport={"width": 1280, "height": 800})
+
+    def route(r) -> None:
+        url = urlsplit(r.request.url)
+        if url.scheme in ("http", "https") and url.hostname != "127.0.0.1":
+            foreign.append(r.request.url)
+            r.abort()
+        else:
+            r.continue_()
+
+    ctx.route("**/*", route)
+    page = ctx.new_page()
+    page.on("websocket", lambda ws: urlsplit(ws.url).hostname == "127.0.0.1" or foreign.append(ws.url))
+    return ctx, page
+
+
+def _readout_time(page) -> float:
+    text = page.get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
+    return float(re.search(r"Time\s+([\d.]+)", text).group(1))
+
+
+def _lit_pixels(png: bytes, rgb: tuple[int, int, int]) -> int:
+    import io
+
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    return int((np.abs(img - np.array(rgb)).sum(axis=-1) < 90).sum())
+
+
+def test_viewer_through_the_app_port(live_app, browser, small_show):
+    app, base = live_app
+    import httpx
+
+    r = httpx.post(f"{base}/api/shows", content=small_show.model_dump_json(),
+                   headers={"content-type": "application/json"})
+    assert r.status_code == 201, r.text
+    show_id = r.json()["id"]
+    assert httpx.post(f"{base}/api/shows/{show_id}/playback", json={"source": "planned"}, timeout=60).status_code == 200
+    viewer = app.state.viewer
+    # Park the show in the ring formation (red LEDs) so the screenshot has something to find.
+    ring = next(s for s in viewer._shows[viewer.current].plan.segments if s.kind == "hold")
+    viewer.seek(ring.start_s + 0.5)
+
+    foreign: list[str] = []
+    ctx, page = _guarded_page(browser, foreign)
+    sockets = []
+    page.on("websocket", lambda ws: sockets.append(ws.url))
+    try:
+        page.goto(f"{base}/viser/")
+        page.wait_for_selector("canvas", timeout=30_000)
+        # The websocket went through the relay, on the app's port, and viser sees the client.
+        deadline = time.monotonic() + 30
+        while not viewer.server.get_clients() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert viewer.server.get_clients(), "no client connected through the relay"
+        assert sockets and all(u == f"ws{base[4:]}/viser" for u in sockets)
+        page.get_by_text("16 drones").first.wait_for(timeout=30_000)
+        # No share button (it would open a public tunnel).
+        assert page.get_by_text(re.compile("share", re.I)).count() == 0
+
+        t0 = _readout_time(page)
+        page.get_by_role("button", name="Play").click()
+        time.sleep(2.0)
+        t1 = _readout_time(page)
+        assert t1 > t0 + 0.5 and viewer.playing
+        page.get_by_role("button", name="Pause").click()
+        viewer.seek(ring.start_s + 0.5)
+        time.sleep(1.5)  # let the parked frame render
+
+        SHOTS.mkdir(exist_ok=True)
+        png = page.screenshot(path=str(SHOTS / "viewer_app.png"))
+        # Non-blank 3D view: the ring's red LEDs are drawn.
+        assert _lit_pixels(png, (255, 0, 0)) > 20
+    finally:
+        ctx.close()
+    assert not foreign, f"requests left loopback: {foreign}"
+
+
+def test_viser_html_export_plays_from_file(browser, small_show, tmp_path):
+    from app.viewer import export_viser_html
+
+    path = tmp_path / "show.html"
+    path.write_bytes(export_viser_html(plan_show(small_show), fps=10.0))
+    foreign: list[str] = []
+    ctx, page = _guarded_page(browser, foreign)
+    try:
+        page.goto(path.as_uri())
+        page.wait_for_selector("canvas", timeout=30_000)
+        time_input = page.locator("input").first
+        time_input.wait_for(timeout=30_000)
+        time.sleep(1.0)
+        v0 = float(time_input.input_value())
+        time.sleep(2.5)
+        v1 = float(time_input.input_value())
+        assert v1 > v0 + 1.0, (v0, v1)
+        SHOTS.mkdir(exist_ok=True)
+        page.screenshot(path=str(SHOTS / "viewer_export.png"))
+    finally:
+        ctx.close()
+    assert not foreign, f"requests left the file: {foreign}"

@@ -1,0 +1,209 @@
+"""The live viewer: server lifecycle, frames against the plan, closest pair, GUI feedback guard."""
+
+from __future__ import annotations
+
+import socket
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from app.viewer import FlightTrack, Viewer, closest_pair, framing_camera, show_bounds
+from sim import plan_show
+
+
+@pytest.fixture
+def plan(small_show):
+    return plan_show(small_show)
+
+
+@pytest.fixture
+def viewer():
+    v = Viewer(start_thread=False)
+    yield v
+    v.stop()
+
+
+def _brute_closest(points: np.ndarray) -> tuple[int, int, float]:
+    d = np.linalg.norm(points[:, None] - points[None], axis=-1)
+    d[np.diag_indices(len(points))] = np.inf
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    return min(i, j), max(i, j), float(d[i, j])
+
+
+def test_viewer_starts_on_loopback_and_stops():
+    v = Viewer()
+    try:
+        assert v.host == "127.0.0.1"
+        with socket.create_connection(("127.0.0.1", v.port), timeout=2):
+            pass
+        assert v._thread is not None and v._thread.is_alive()
+    finally:
+        v.stop()
+    assert not v._thread.is_alive()
+    with pytest.raises(OSError), socket.create_connection(("127.0.0.1", v.port), timeout=1):
+        pass
+    v.stop()  # idempotent
+
+
+def test_frame_matches_plan_evaluate(viewer, plan):
+    viewer.load(plan, name="small")
+    for t in (0.0, 3.3, plan.duration_s / 2, plan.duration_s):
+        viewer.seek(t)
+        frame = viewer.render()
+        expected = plan.evaluate([t])
+        np.testing.assert_allclose(frame.positions_m, expected.positions_m[0], atol=1e-12)
+        np.testing.assert_allclose(frame.colors_rgb, expected.colors_rgb[0], atol=1e-12)
+        # What goes to the browsers is the same, in float32.
+        np.testing.assert_allclose(viewer._drones.points, expected.positions_m[0], atol=1e-4)
+        speed = np.linalg.norm(expected.velocities_mps[0], axis=1).max()
+        assert frame.max_speed_mps == pytest.approx(speed)
+
+
+def test_playback_advances_and_loops(viewer, plan):
+    viewer.load(plan, name="small")
+    viewer.set_speed(8.0)
+    viewer.play()
+    viewer.step(1.0)
+    assert viewer.time_s == pytest.approx(8.0)
+    viewer.step(plan.duration_s)  # past the end: loops to the start
+    assert viewer.time_s == 0.0 and viewer.playing
+    viewer._loop_cb.value = False
+    viewer.step(plan.duration_s)
+    assert viewer.time_s == pytest.approx(plan.duration_s) and not viewer.playing
+
+
+def test_closest_pair_matches_brute_force():
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 50, 400):
+        pts = rng.uniform(-50, 50, (n, 3))
+        want = _brute_closest(pts)
+        assert closest_pair(pts) == pytest.approx(want)
+        # A hint too small, exact and too large all give the exact answer.
+        for hint in (want[2] * 0.5, want[2] * 1.0001, want[2] * 3):
+            i, j, d = closest_pair(pts, hint_m=hint)
+            assert (i, j) == want[:2] and d == pytest.approx(want[2])
+    assert closest_pair(np.zeros((1, 3)))[2] == np.inf
+
+
+def test_viewer_closest_pair_each_frame(viewer, plan):
+    viewer.load(plan, name="small")
+    viewer.play()
+    for _ in range(40):
+        frame = viewer.step(0.37)
+        i, j, d = viewer.last_pair
+        _, _, bd = _brute_closest(frame.positions_m)
+        # Ties are common in formations: check the distance, and that the pair has it.
+        assert d == pytest.approx(bd)
+        assert np.linalg.norm(frame.positions_m[i] - frame.positions_m[j]) == pytest.approx(bd)
+    assert viewer._pair_label.text == f"{viewer.last_pair[2]:.2f} m"
+
+
+def test_slider_guard(viewer, plan, monkeypatch):
+    viewer.load(plan, name="small")
+    seeks: list[float] = []
+    original = viewer.seek
+    monkeypatch.setattr(viewer, "seek", lambda t: (seeks.append(t), original(t)))
+    viewer.play()
+    for _ in range(10):
+        viewer.step(0.1)
+    # Python moved the slider ten times; none of it came back as a scrub.
+    assert seeks == []
+    assert viewer._slider.value == pytest.approx(round(viewer.time_s / 0.05) * 0.05)
+    # A browser's scrub does seek.
+    callback = viewer._slider._impl.update_cb[0]
+    viewer._slider._impl.value = 5.0
+    callback(SimpleNamespace(client=object(), client_id=1, target=viewer._slider))
+    assert seeks == [5.0] and viewer.time_s == 5.0
+
+
+def test_registry_source_and_busy(viewer, plan):
+    viewer.load(plan, name="a")
+    viewer.load(plan, name="b")
+    assert viewer.shows == ["a", "b"] and viewer.current == "b"
+    assert viewer._show_dd.options == ("a", "b")
+    assert viewer._source_dd.disabled
+    with pytest.raises(ValueError):
+        viewer.load(plan, name="bad", flight=SimpleNamespace(positions_m=np.zeros((2, 3, 3))))
+    # A flight (here: the plan sampled at 10 Hz) enables the simulated source.
+    t = plan.sample_times(10.0)
+    s = plan.evaluate(t)
+    flight = SimpleNamespace(times_s=t, positions_m=s.positions_m, colors_rgb=s.colors_rgb)
+    viewer.load(plan, name="c", flight=flight)
+    assert viewer.source == "simulated" and not viewer._source_dd.disabled
+    viewer.seek(7.05)
+    frame = viewer.render()
+    np.testing.assert_allclose(frame.positions_m, plan.evaluate([7.05]).positions_m[0], atol=0.05)
+    viewer.set_source("planned")
+    assert viewer.source == "planned" and viewer.time_s == pytest.approx(7.05)
+    viewer.set_busy("Planning", 0.4)
+    assert viewer._progress.visible and viewer._progress.value == pytest.approx(40.0)
+    viewer.set_busy(None)
+    assert not viewer._progress.visible
+
+
+def test_targets_trails_and_readout(viewer, plan):
+    viewer.load(plan, name="small")
+    ring_hold = next(s for s in plan.segments if s.kind == "hold")
+    viewer.seek(0.5)
+    viewer.render()
+    # During takeoff the next targets are the first formation's.
+    np.testing.assert_allclose(viewer._targets.points, plan.knot_positions_m[ring_hold.index], atol=1e-4)
+    assert viewer._trails.visible
+    assert viewer._trails.points.shape == (plan.drone_count * 6, 2, 3)
+    viewer.seek(ring_hold.start_s + 0.5)
+    viewer.render()
+    assert "ring" in viewer._readout.content and "m/s" in viewer._readout.content
+
+
+def test_flight_track_interpolates():
+    times = np.array([0.0, 1.0, 2.0])
+    pos = np.zeros((3, 2, 3))
+    pos[:, 0, 0] = [0.0, 10.0, 30.0]
+    track = FlightTrack(SimpleNamespace(times_s=times, positions_m=pos, colors_rgb=np.ones_like(pos)))
+    f = track.frame(1.5)
+    assert f.positions_m[0, 0] == pytest.approx(20.0) and f.max_speed_mps == pytest.approx(20.0)
+    assert track.positions(np.array([0.5, 5.0]))[:, 0, 0] == pytest.approx([5.0, 30.0])
+
+
+def test_framing_camera_sees_the_whole_show(plan):
+    lo, hi = show_bounds(plan)
+    pos, look = framing_camera(lo, hi, fov_rad=np.deg2rad(75))
+    corners = np.array(np.meshgrid(*zip(lo, hi, strict=True))).reshape(3, -1).T
+    view = (look - pos) / np.linalg.norm(look - pos)
+    rel = corners - pos
+    angle = np.arccos(rel @ view / np.linalg.norm(rel, axis=1))
+    assert angle.max() < np.deg2rad(75) / 2
+
+
+def test_playback_thread_paces_30hz(plan):
+    v = Viewer()
+    try:
+        v.load(plan, name="small")
+        v.play()
+        n0, t0 = v.frames_rendered, time.perf_counter()
+        time.sleep(1.0)
+        rate = (v.frames_rendered - n0) / (time.perf_counter() - t0)
+        assert 20 <= rate <= 33
+    finally:
+        v.stop()
+
+
+def test_show_selector_lists_and_loads_from_the_catalog(viewer, plan):
+    loaded: list[str] = []
+    viewer.set_catalog(lambda: {"k1": "Stored show"}, lambda key: (loaded.append(key), viewer.load(plan, name=key)))
+    assert viewer._show_dd.options == ("(no show loaded)", "Stored show")
+    viewer.load(plan, name="here")
+    assert viewer._show_dd.options == ("here", "Stored show")
+    callback = viewer._show_dd._impl.update_cb[0]
+    viewer._show_dd._impl.value = "Stored show"
+    callback(SimpleNamespace(client=object(), client_id=1, target=viewer._show_dd))
+    deadline = time.monotonic() + 10
+    while viewer.current != "k1" and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert loaded == ["k1"] and viewer.current == "k1"
+    # Picking a loaded show switches back to it.
+    viewer._show_dd._impl.value = "here"
+    callback(SimpleNamespace(client=object(), client_id=1, target=viewer._show_dd))
+    assert viewer.current == "here"
