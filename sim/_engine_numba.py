@@ -416,8 +416,15 @@ def run_chunk_numba(
 
 
 def warm_up() -> None:
-    """Compile (or load from the cache) the kernel for float64 frames on a tiny problem."""
+    """Compile (or load from the on-disk cache) both kernel variants on a tiny problem.
+
+    One variant records float64 frames (``simulate``), the other float32 frames
+    (``fly_show``); call this at image build or server start to move the first-run
+    compile time (several seconds each) out of the first request.
+    """
     from sim._engine_numpy import TrackingReference as _Ref
     from sim._engine_numpy import simulate
 
-    simulate(_Ref.hover(np.zeros((1, 3))), duration_s=0.002, engine="numba", output_every=1)
+    ref = _Ref.hover(np.zeros((1, 3)))
+    simulate(ref, duration_s=0.002, engine="numba", output_every=1)
+    simulate(ref, duration_s=0.002, engine="numba", output_every=1, frames_out=np.zeros((3, 1, 3), np.float32))

@@ -1,7 +1,8 @@
 """``swarmshow bench KIND``: measure the speed of a pipeline stage on synthetic drones.
 
 Kinds live in ``BENCH_KINDS`` (name -> (help, add_arguments, run)); a kind's ``run``
-returns a JSON-safe dict. ``sim``: the flight engines, numba and the numpy reference in
+returns a JSON-safe dict. ``plan`` and ``check``: see :mod:`sim._benchmarks`.
+``sim``: the flight engines, numba and the numpy reference in
 the same run, in drone-steps per second (one drone advanced by one 1 ms control step
 with the full controller and dynamics).
 """
@@ -93,10 +94,69 @@ def _format_sim(r: dict) -> str:
     ])
 
 
+def _no_args(p: argparse.ArgumentParser) -> None:
+    del p  # plan and check take only the common --drones / --json
+
+
+def _check_drones(args: argparse.Namespace) -> int:
+    n = int(args.drones)
+    if not 2 <= n <= 20_000:
+        raise CliError(f"--drones must be in [2, 20000], got {n}")
+    return n
+
+
+def _check_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--formations", type=int, default=5, help="formations in the synthetic show (default 5)")
+
+
+def _bench_plan(args: argparse.Namespace) -> dict:
+    from sim._benchmarks import bench_transition
+
+    n = _check_drones(args)
+    # Dense scipy needs an N x N float64 matrix and minutes beyond ~5000 drones.
+    return {"kind": "plan", **bench_transition(n, dense_baseline=n <= 5000)}
+
+
+def _format_plan(r: dict) -> str:
+    lines = [
+        f"bench plan: one ground-grid -> sphere CAPT transition, {r['drones']} drones",
+        f"  assign {r['assign_s']:.3f} s, timing {r['timing_s'] * 1e3:.2f} ms, exact verify {r['verify_s']:.3f} s "
+        f"(total {r['plan_and_verify_s']:.3f} s); transition {r['duration_s']:g} s, min distance "
+        f"{r['min_distance_m']:.3f} m (CAPT guarantees {r['capt_guarantee_m']:.3f} m)",
+    ]
+    if "dense_lsa_s" in r:
+        lines.append(f"  scipy dense linear_sum_assignment {r['dense_lsa_s']:.3f} s: ours is "
+                     f"{r['dense_over_ours_assign']:.1f}x faster, equal cost: {r['cost_equal']}")
+    return "\n".join(lines)
+
+
+def _bench_check(args: argparse.Namespace) -> dict:
+    from sim._benchmarks import bench_show
+
+    n = _check_drones(args)
+    if not 1 <= args.formations <= 50:
+        raise CliError(f"--formations must be in [1, 50], got {args.formations}")
+    return {"kind": "check", **bench_show(n, formations=int(args.formations))}
+
+
+def _format_check(r: dict) -> str:
+    return "\n".join([
+        f"bench check: {r['drones']} drones, {r['formations']} formations, {r['show_duration_s']:g} s show",
+        f"  plan {r['plan_s']:.3f} s, exact check {r['check_s']:.3f} s: min distance "
+        f"{r['exact_min_distance_m']:.4f} m, {r['violations']} violations",
+        f"  a 10 Hz sampled check takes {r['sampled_10hz_s']:.3f} s ({r['sampled_over_exact_check']:.0f}x the "
+        f"exact one) and finds {r['sampled_10hz_min_distance_m']:.4f} m",
+    ])
+
+
 #: name -> (help, add its arguments, run(args) -> dict, format(dict) -> str)
 BENCH_KINDS: dict[str, tuple[str, Callable, Callable, Callable]] = {
     "sim": ("flight engines: numba kernel vs numpy reference, drone-steps per second",
             _sim_args, _bench_sim, _format_sim),
+    "plan": ("CAPT planning + exact verification of one grid -> sphere transition vs scipy dense LSA",
+             _no_args, _bench_plan, _format_plan),
+    "check": ("plan + exact check of a whole synthetic show vs a 10 Hz sampled check",
+              _check_args, _bench_check, _format_check),
 }
 
 
