@@ -275,21 +275,15 @@ class ShowFile(_ArrayCachingModel):
     @cached_property
     def home_positions_m(self) -> np.ndarray:
         """The first ``drones`` home positions, (N, 3) metres (drone i starts at row i)."""
-        if isinstance(self.home, HomeFromGrid):
-            pts = self.home.grid.positions_m()
-        else:
-            pts = np.asarray(self.home.points, dtype=np.float64)
-        out = np.ascontiguousarray(pts[: self.drones])
-        out.setflags(write=False)
-        return out
+        return self.all_home_positions_m[: self.drones]
 
     @cached_property
     def all_home_positions_m(self) -> np.ndarray:
-        """Every home position (landing may use any of them), (H, 3) metres."""
+        """Every home position (landing may use any of them), (H, 3) metres (read-only)."""
         if isinstance(self.home, HomeFromGrid):
             pts = self.home.grid.positions_m()
         else:
-            pts = np.asarray(self.home.points, dtype=np.float64)
+            pts = np.array(self.home.points, dtype=np.float64)
         pts.setflags(write=False)
         return pts
 
