@@ -11,6 +11,7 @@ from sim._assignment import Assignment as Assignment
 from sim._assignment import AssignmentError as AssignmentError
 from sim._assignment import assign as assign
 from sim._assignment import assignment_cost as assignment_cost
+from sim._assignment import certify as certify
 from sim._plan import PlanError as PlanError
 from sim._plan import PlanSample as PlanSample
 from sim._plan import Segment as Segment
@@ -46,6 +47,7 @@ __all__ = [
     "assign",
     "assignment_cost",
     "check_plan",
+    "certify",
     "check_show",
     "min_transition_duration",
     "plan_show",
