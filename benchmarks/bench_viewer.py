@@ -99,7 +99,7 @@ def test_frame_update_cost(n, record_result):
 
 
 @pytest.mark.skipif(not os.path.exists(CHROMIUM), reason="needs /usr/bin/chromium")
-@pytest.mark.parametrize("n", [1000, 10_000])
+@pytest.mark.parametrize("n", [1000, 10_000, 16_000])
 def test_browser_delivery_rate(n, tmp_path, record_result):
     import uvicorn
     from playwright.sync_api import sync_playwright
@@ -127,6 +127,7 @@ def test_browser_delivery_rate(n, tmp_path, record_result):
             fps_js = ("() => new Promise(r => { let n = 0; const t0 = performance.now();"
                       " const f = () => { n++; if (performance.now() - t0 < 3000) requestAnimationFrame(f);"
                       " else r(n / 3); }; requestAnimationFrame(f); })")
+            t_goto = time.perf_counter()
             page.goto(f"http://127.0.0.1:{port}/viser/")
             page.wait_for_selector("canvas", timeout=30_000)
             # Playwright delivers events while its own calls run: wait with wait_for_timeout, not sleep.
@@ -143,7 +144,10 @@ def test_browser_delivery_rate(n, tmp_path, record_result):
             render_fps = page.evaluate(fps_js)
             browser.close()
         span = end - start
+        # Loaded = the first websocket message big enough to hold every drone's position (float16 x 3).
+        first_cloud = next((t for t, b in frames if b >= 6 * n), None)
         record_result({
+            "page_to_drones_loaded_s": None if first_cloud is None else round(first_cloud - t_goto, 3),
             "drones": n,
             "server_frames_per_s": round(rendered / span, 1),
             "ws_frames_per_s": round(len(got) / span, 1),
