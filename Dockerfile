@@ -1,6 +1,6 @@
 # swarmshow web server: REST API, editor and 3D viewer on one port.
 #   docker build -t swarmshow .
-#   docker run -p 8000:8000 -v swarmshow-data:/data swarmshow
+#   docker run -p 8000:8000 -v swarmshow-data:/data -e SWARMSHOW_TOKEN="$(openssl rand -hex 24)" swarmshow
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
@@ -31,8 +31,9 @@ USER swarmshow
 VOLUME ["/data"]
 EXPOSE 8000
 
-# urllib raises (exit 1) on a refused connection or a non-2xx answer; no curl needed in the image.
+# Off loopback the server requires SWARMSHOW_TOKEN (docker run -e SWARMSHOW_TOKEN=...), so the health check
+# sends it. urllib raises (exit 1) on a refused connection or a non-2xx answer; no curl needed in the image.
 HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
-    CMD python -c "import os, urllib.request; urllib.request.urlopen('http://127.0.0.1:%s/api/health' % os.environ.get('SWARMSHOW_PORT', '8000'), timeout=4)"
+    CMD python -c "import os, urllib.request as u; u.urlopen(u.Request('http://127.0.0.1:%s/api/health' % os.environ.get('SWARMSHOW_PORT', '8000'), headers={'Authorization': 'Bearer ' + os.environ.get('SWARMSHOW_TOKEN', '')}), timeout=4)"
 
 CMD ["swarmshow", "serve", "--host", "0.0.0.0"]

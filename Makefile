@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench chromium clean
+.PHONY: run test lint bench soak chromium clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -36,6 +36,10 @@ lint: $(STAMP)
 ## Every benchmark (slow); writes benchmarks/results.json.
 bench: $(STAMP)
 	$(BIN)/python -m pytest -m slow -p no:cacheprovider benchmarks tests
+
+## Crash, fuzz and load soak tests (slow; also part of `make bench`).
+soak: $(STAMP)
+	$(BIN)/python -m pytest -m slow -p no:cacheprovider tests/test_hardening_crash.py tests/test_api_fuzz.py benchmarks/bench_api.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

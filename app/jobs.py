@@ -34,6 +34,7 @@ from concurrent.futures import CancelledError, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from enum import StrEnum
+from multiprocessing.managers import SyncManager
 from typing import Any
 
 from app import tasks
@@ -41,6 +42,9 @@ from app.store import ShowStore
 from app.version import __version__
 
 log = logging.getLogger("swarmshow.jobs")
+
+#: Seconds a timed-out task gets to notice its cancel event before its worker process is ended.
+TIMEOUT_GRACE_S = 5.0
 
 
 class JobState(StrEnum):
@@ -145,6 +149,7 @@ class JobManager:
         max_jobs_kept: int = 1000,
         max_pending: int = 64,
         max_cached: int = 500,
+        timeout_s: float = 3600.0,
     ) -> None:
         self.store = store
         self.workers = workers
@@ -161,18 +166,30 @@ class JobManager:
         self._pool: ProcessPoolExecutor | None = None
         self._relay: threading.Thread | None = None
         self._closed = False
+        self._started = threading.Event()
+        self.timeout_s = timeout_s
+        self._watchdog: threading.Thread | None = None
 
     # -- life cycle -------------------------------------------------------------------------
 
     def start(self) -> None:
         """Start the manager process, the pool (warming every worker up) and the relay thread."""
-        self._manager = self._ctx.Manager()
+        self._manager = SyncManager(ctx=self._ctx)
+        self._manager.start(initializer=tasks.die_with_parent)
         self._events = self._manager.Queue()
-        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx)
+        self._pool = self._new_pool()
         for _ in range(self.workers):
             self._pool.submit(tasks.warm_up)
         self._relay = threading.Thread(target=self._relay_loop, name="swarmshow-job-relay", daemon=True)
         self._relay.start()
+        self._watchdog = threading.Thread(target=self._watchdog_loop, name="swarmshow-job-watchdog", daemon=True)
+        self._watchdog.start()
+        self._started.set()
+
+    def wait_started(self, timeout_s: float = 120.0) -> None:
+        """Block until :meth:`start` has finished (the server answers before its pool is up)."""
+        if not self._started.wait(timeout_s):
+            raise RuntimeError("the job manager did not start")
 
     def close(self) -> None:
         """Cancel every unfinished job and stop the pool, the relay thread and the manager."""
@@ -203,7 +220,11 @@ class JobManager:
         if self._manager is not None:
             self._manager.shutdown()
 
+    def _new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx, initializer=tasks.worker_init)
+
     def _submit(self, fn: Callable[..., Any], *args: Any) -> Future:
+        self.wait_started()
         if self._closed or self._pool is None:
             raise RuntimeError("the job manager is not running")
         try:
@@ -211,8 +232,39 @@ class JobManager:
         except BrokenProcessPool:
             # A worker died (killed, out of memory): replace the pool rather than fail forever.
             log.warning("worker pool broken; starting a new one")
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx)
+            self._pool = self._new_pool()
             return self._pool.submit(fn, *args)
+
+    def _watchdog_loop(self) -> None:
+        """Fail jobs running longer than ``timeout_s``; stop a worker that ignores the cancel event."""
+        stuck: list[tuple[Future, float]] = []
+        period = min(1.0, self.timeout_s / 4)
+        while not self._closed:
+            time.sleep(period)
+            now = time.time()
+            with self._lock:
+                late = [j for j in self._jobs.values()
+                        if j.state == JobState.RUNNING and j.started_at and now - j.started_at > self.timeout_s]
+            for job in late:
+                fut = job.future
+                self._cancel_job(job, reason=f"timed out after {self.timeout_s:g} s (SWARMSHOW_JOB_TIMEOUT_S)",
+                                 state=JobState.FAILED, status=504)
+                if fut is not None:
+                    stuck.append((fut, time.monotonic() + TIMEOUT_GRACE_S))
+            overdue = [f for f, t in stuck if not f.done() and time.monotonic() > t]
+            stuck = [(f, t) for f, t in stuck if not f.done() and f not in overdue]
+            if overdue:
+                # The task reports no progress (a numerical loop gone wrong): only ending its process stops it.
+                log.warning("%d timed-out job(s) ignored cancellation; restarting the worker pool", len(overdue))
+                self._recycle_pool()
+
+    def _recycle_pool(self) -> None:
+        pool = self._pool
+        if pool is None:
+            return
+        for p in list(getattr(pool, "_processes", {}).values()):
+            if p.is_alive():
+                p.terminate()
 
     def _relay_loop(self) -> None:
         while True:
@@ -243,6 +295,8 @@ class JobManager:
 
     async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
         """Run ``fn(*args)`` in a worker and await its result (a client that leaves cancels a queued task)."""
+        if not self._started.is_set():
+            await asyncio.to_thread(self.wait_started)
         return await asyncio.wrap_future(self._submit(fn, *args))
 
     async def run_cached(
@@ -328,6 +382,7 @@ class JobManager:
             pending = sum(1 for j in self._jobs.values() if not j.terminal)
         if pending >= self.max_pending:
             raise JobsBusy(f"{pending} jobs are queued or running; try again when some have finished")
+        self.wait_started()
         job.cancel_event = self._manager.Event()
         self._add(job, inflight=True)
         try:
@@ -419,7 +474,7 @@ class JobManager:
         self._cancel_job(job, reason="cancelled")
         return job
 
-    def _cancel_job(self, job: Job, *, reason: str) -> None:
+    def _cancel_job(self, job: Job, *, reason: str, state: JobState = JobState.CANCELLED, status: int = 499) -> None:
         event, fut = job.cancel_event, job.future
         if event is not None:
             try:
@@ -428,7 +483,7 @@ class JobManager:
                 pass
         if fut is not None:
             fut.cancel()  # succeeds only while the task waits in the pool's queue
-        self._finish(job, JobState.CANCELLED, error={"status": 499, "message": reason})
+        self._finish(job, state, error={"status": status, "message": reason})
 
     def pending(self) -> int:
         """Jobs queued or running."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 #: Largest show file accepted over HTTP, bytes (DESIGN: 20 MB).
@@ -35,14 +35,45 @@ class AppSettings(BaseSettings):
     port: int = Field(8000, ge=0, le=65535, description="TCP port to listen on.")
     workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Worker processes.")
     max_jobs_kept: int = Field(1000, ge=10, description="Finished jobs remembered in memory (oldest dropped).")
-    max_pending_jobs: int = Field(64, ge=1, description="Queued or running jobs accepted before 503.")
+    max_pending_jobs: int = Field(64, ge=1, description="Queued or running jobs accepted before 429.")
+    job_timeout_s: float = Field(
+        3600.0, gt=0, le=7 * 86_400, description="A background job running longer than this is stopped and fails."
+    )
     max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")
     max_svg_bytes: int = Field(MAX_SVG_BYTES, ge=1024, description="Largest SVG upload, bytes.")
+    token: SecretStr | None = Field(
+        None,
+        description="Bearer token every /api and /viser request must carry (required off loopback).",
+    )
+    session_ttl_s: int = Field(
+        3600, ge=60, le=86_400, description="Lifetime of the session cookie POST /api/session sets, seconds."
+    )
+    access_log: bool = Field(False, description="Log every request (off: a write to stdout per request costs "
+                             "latency under load; errors are logged either way).")
+    viewer: bool = Field(True, description="Run the 3D viewer (off: /viser answers 503; starts faster).")
+    keep_revisions: int = Field(
+        200, ge=1, description="Show file texts kept per show in its revision history (older: metadata only)."
+    )
+    dask_scheduler: str | None = Field(
+        None, description="Dask scheduler (tcp://HOST:PORT, or 'local') that flies simulation jobs "
+        "sharded over drones; unset: the local in-process engine.",
+    )
     static_dir: Path | None = Field(
         None, description="Directory served at / (default: the bundled editor, if present)."
     )
+
+    @field_validator("token", mode="before")
+    @classmethod
+    def _strong_token(cls, value: object) -> object:
+        # An empty variable means "no token"; a short one would be guessed, so it is refused outright.
+        raw = value.get_secret_value() if isinstance(value, SecretStr) else value
+        if raw is None or raw == "":
+            return None
+        if not isinstance(raw, str) or len(raw.strip()) < 16 or raw != raw.strip():
+            raise ValueError("must be at least 16 characters without surrounding spaces")
+        return value
 
     @property
     def db_path(self) -> Path:

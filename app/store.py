@@ -56,6 +56,24 @@ MIGRATIONS: tuple[str, ...] = (
     );
     CREATE INDEX results_by_created ON results (created_at);
     """,
+    # 3: every revision of every show (written in the same transaction as the show), so that a
+    #    concurrent editor can see what happened and no acknowledged change is ever lost unseen.
+    #    Old revisions keep their metadata; their text is dropped beyond ``keep_revisions``.
+    """
+    CREATE TABLE revisions (
+        show_id TEXT NOT NULL,
+        revision INTEGER NOT NULL CHECK (revision >= 1),
+        name TEXT NOT NULL,
+        content_hash TEXT NOT NULL,
+        drones INTEGER NOT NULL,
+        formations INTEGER NOT NULL,
+        json TEXT,
+        created_at TEXT NOT NULL,
+        PRIMARY KEY (show_id, revision)
+    ) WITHOUT ROWID;
+    INSERT INTO revisions (show_id, revision, name, content_hash, drones, formations, json, created_at)
+        SELECT id, revision, name, content_hash, drones, formations, json, updated_at FROM shows;
+    """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -98,6 +116,24 @@ class ShowRecord:
     created_at: str
     updated_at: str
     json: str | None = None
+
+
+@dataclass(frozen=True)
+class RevisionRecord:
+    """One revision of a show; ``json`` is None in lists and once the text was pruned."""
+
+    show_id: str
+    revision: int
+    name: str
+    content_hash: str
+    drones: int
+    formations: int
+    created_at: str
+    has_json: bool = True
+    json: str | None = None
+
+
+_REV_COLUMNS = "show_id, revision, name, content_hash, drones, formations, created_at"
 
 
 @dataclass(frozen=True)
@@ -144,8 +180,9 @@ class ShowStore:
     read never waits for a commit's fsync (WAL readers see the last commit).
     """
 
-    def __init__(self, path: Path | str) -> None:
+    def __init__(self, path: Path | str, *, keep_revisions: int = 200) -> None:
         self.path = Path(path)
+        self.keep_revisions = keep_revisions
         memory = str(path) == ":memory:"
         if not memory:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -240,7 +277,17 @@ class ShowStore:
                 f"INSERT INTO shows ({_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (record.id, record.name, 1, record.content_hash, record.drones, record.formations, now, now, text),
             )
+            self._add_revision(db, record.id, 1, data, now)
         return record
+
+    def _add_revision(self, db: sqlite3.Connection, show_id: str, revision: int, data: ShowData, now: str) -> None:
+        db.execute(
+            f"INSERT INTO revisions ({_REV_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (show_id, revision, data.name, data.content_hash, data.drones, data.formations, now, data.text),
+        )
+        if revision > self.keep_revisions:
+            db.execute("UPDATE revisions SET json = NULL WHERE show_id = ? AND revision = ?",
+                       (show_id, revision - self.keep_revisions))
 
     def get(self, show_id: str) -> ShowRecord:
         """The show with its JSON. Raises :class:`ShowNotFound`."""
@@ -249,6 +296,14 @@ class ShowStore:
         if row is None:
             raise ShowNotFound(show_id)
         return ShowRecord(*row)
+
+    def get_revision_number(self, show_id: str) -> int:
+        """The show's current revision (one indexed read). Raises :class:`ShowNotFound`."""
+        with self._read() as db:
+            row = db.execute("SELECT revision FROM shows WHERE id = ?", (show_id,)).fetchone()
+        if row is None:
+            raise ShowNotFound(show_id)
+        return int(row[0])
 
     def list(self, *, limit: int = 50, offset: int = 0) -> tuple[list[ShowRecord], int]:
         """A page of shows, most recently updated first, and the total count."""
@@ -290,12 +345,14 @@ class ShowStore:
             if current != expected_revision:
                 raise RevisionConflict(show_id, expected=expected_revision, current=current)
             if stored_hash != content_hash:
+                now = _now()
                 db.execute(
                     "UPDATE shows SET name = ?, revision = ?, json = ?, content_hash = ?, drones = ?, "
                     "formations = ?, updated_at = ? WHERE id = ? AND revision = ?",
-                    (data.name, current + 1, text, content_hash, data.drones, data.formations, _now(),
+                    (data.name, current + 1, text, content_hash, data.drones, data.formations, now,
                      show_id, current),
                 )
+                self._add_revision(db, show_id, current + 1, data, now)
             row = db.execute(f"SELECT {_COLUMNS}, json FROM shows WHERE id = ?", (show_id,)).fetchone()
         return ShowRecord(*row)
 
@@ -313,6 +370,35 @@ class ShowStore:
             if expected_revision is not None and int(row[0]) != expected_revision:
                 raise RevisionConflict(show_id, expected=expected_revision, current=int(row[0]))
             db.execute("DELETE FROM shows WHERE id = ?", (show_id,))
+            db.execute("DELETE FROM revisions WHERE show_id = ?", (show_id,))
+
+    def revisions(self, show_id: str, *, limit: int = 100, offset: int = 0) -> tuple[list[RevisionRecord], int]:
+        """A page of a show's revisions, newest first, and how many there are. Raises :class:`ShowNotFound`."""
+        with self._read() as db:
+            db.execute("BEGIN")  # one snapshot for the show, the page and the count
+            try:
+                if db.execute("SELECT 1 FROM shows WHERE id = ?", (show_id,)).fetchone() is None:
+                    raise ShowNotFound(show_id)
+                rows = db.execute(
+                    f"SELECT {_REV_COLUMNS}, json IS NOT NULL FROM revisions WHERE show_id = ? "
+                    "ORDER BY revision DESC LIMIT ? OFFSET ?",
+                    (show_id, limit, offset),
+                ).fetchall()
+                total = int(db.execute("SELECT COUNT(*) FROM revisions WHERE show_id = ?", (show_id,)).fetchone()[0])
+            finally:
+                db.execute("COMMIT")
+        return [RevisionRecord(*r[:7], bool(r[7])) for r in rows], total
+
+    def get_revision(self, show_id: str, revision: int) -> RevisionRecord:
+        """One revision with its text (None once pruned). Raises :class:`ShowNotFound`."""
+        with self._read() as db:
+            row = db.execute(
+                f"SELECT {_REV_COLUMNS}, json IS NOT NULL, json FROM revisions WHERE show_id = ? AND revision = ?",
+                (show_id, revision),
+            ).fetchone()
+        if row is None:
+            raise ShowNotFound(f"{show_id}@{revision}")
+        return RevisionRecord(*row[:7], bool(row[7]), row[8])
 
     # -- cached results ---------------------------------------------------------------------
 

@@ -86,6 +86,39 @@ class Progress:
         return lambda f: self(start + (stop - start) * float(f))
 
 
+#: Scheduling niceness of the worker processes: jobs are batch work, and the event loop's requests
+#: (each a millisecond or two) must not wait behind a simulation that keeps every core busy.
+WORKER_NICE = 10
+
+
+def worker_init() -> None:
+    """Run once in each worker process: end with the server, and run at a lower CPU priority."""
+    die_with_parent()
+    try:
+        os.nice(WORKER_NICE)
+    except (AttributeError, OSError):  # not on this platform, or not permitted: run at normal priority
+        pass
+
+
+def die_with_parent() -> None:
+    """Have Linux kill this process when the server process dies (SIGKILL, out of memory), so that a
+    crashed server leaves no orphaned workers holding memory; elsewhere a no-op."""
+    import ctypes
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the server died before the request took effect
+        os._exit(1)
+
+
 def warm_up() -> int:
     """Import the heavy modules once so that the first real job does not pay for it."""
     import formations  # noqa: F401
@@ -202,9 +235,13 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     progress.check_cancelled(force=True)
     fly_show = _fly_show()
     try:
-        result = fly_show(plan, **options, progress=progress.scaled(PLAN_SHARE, 1.0))
+        result = fly_show(plan, **_flight_options(options), progress=progress.scaled(PLAN_SHARE, 1.0))
     except TaskCancelled:
         raise
+    except ConnectionError as exc:
+        # The Dask scheduler of SWARMSHOW_DASK_SCHEDULER is down or has no worker.
+        progress.check_cancelled(force=True)
+        raise TaskFailure(503, f"simulation cluster unavailable: {exc}") from None
     except ValueError as exc:
         # A wrapped cancellation still counts as one; anything else is a bad option.
         progress.check_cancelled(force=True)
@@ -214,6 +251,21 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
         raise
     progress(1.0)
     return {"plan": plan_summary(plan), "flight": result.summary()}
+
+
+def _flight_options(options: dict[str, Any]) -> dict[str, Any]:
+    """``options`` with the Dask engine swapped in for the local one when the server has a scheduler.
+
+    The setting is read here, in the worker process (which inherits the server's
+    environment), so that ``SWARMSHOW_DASK_SCHEDULER`` switches every simulation job;
+    an explicit ``numpy`` (reference) engine is left alone.
+    """
+    from app.settings import AppSettings
+
+    scheduler = (AppSettings().dask_scheduler or "").strip()
+    if not scheduler or options.get("engine", "numba") not in ("numba", "local"):
+        return dict(options)
+    return {**options, "engine": "dask", "scheduler": scheduler}
 
 
 def _fly_show() -> Any:

@@ -310,6 +310,8 @@ def _closest_pair(points: np.ndarray) -> tuple[int, int, float]:
     dist, idx = tree.query(points, k=2)
     i = int(np.argmin(dist[:, 1]))
     j = int(idx[i, 1])
+    if j == i:  # exact duplicates tie at distance 0 and the tree may list the point itself second
+        j = int(idx[i, 0])
     return min(i, j), max(i, j), float(dist[i, 1])
 
 

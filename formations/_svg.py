@@ -70,12 +70,39 @@ def check_svg_bytes(data: bytes) -> bytes:
         raise FormationError(f"could not decode the SVG: not well-formed XML ({exc})") from None
     if root.tag.rsplit("}", 1)[-1] != "svg":
         raise FormationError(f"not an SVG document (root element is <{root.tag}>)")
+    _refuse_active_content(root)
     numbers = sum(
         len(_NUMBER.findall(el.get(attr, ""))) for el in root.iter() for attr in ("d", "points")
     )
     if numbers > MAX_SVG_NUMBERS:
         raise InputTooLargeError(f"the SVG's paths hold {numbers} coordinates; the limit is {MAX_SVG_NUMBERS}")
     return raw
+
+
+#: Elements that run code or embed other documents; a drawing for drone points needs none of them.
+_ACTIVE_ELEMENTS = frozenset({"script", "foreignObject", "iframe", "embed", "object", "handler", "listener"})
+
+
+def _refuse_active_content(root) -> None:
+    """Refuse scripts, event handlers and references to anything outside the file.
+
+    Nothing here would run them (the SVG is only sampled), but a file carrying them is not a plain
+    drawing: refusing it says so plainly instead of silently dropping parts of it.
+
+    Raises:
+        FormationError: naming the first offending element or attribute.
+    """
+    for el in root.iter():
+        tag = str(el.tag).rsplit("}", 1)[-1]
+        if tag in _ACTIVE_ELEMENTS:
+            raise FormationError(f"SVG refused: <{tag}> elements (scripts, embedded documents) are not allowed")
+        for attr, value in el.attrib.items():
+            name = attr.rsplit("}", 1)[-1]
+            if name.lower().startswith("on"):
+                raise FormationError(f"SVG refused: event handler attribute {name!r} on <{tag}> is not allowed")
+            if name == "href" and not value.strip().startswith(("#", "data:")):
+                raise FormationError(
+                    f"SVG refused: external reference {value.strip()[:80]!r} on <{tag}> is not allowed")
 
 
 def _element_color(element: se.Shape) -> np.ndarray:

@@ -6,6 +6,9 @@ sampling), flies it at 1 kHz with one of the engines, and reports what was *flow
 per-drone tracking error, the flown minimum distance between any two drones (per
 output frame, with a k-d tree), and drones that diverged.
 
+With ``engine="dask"`` the drones are split into shards flown on a Dask ``distributed``
+cluster and merged into the same result (:mod:`sim._flight_dask`).
+
 Memory: the run is split into time chunks (``chunk_s``); per chunk only the shared
 reference and disturbance tables are built, and the flown minimum distance of the
 frames that chunk completed is computed right away. What is kept for the whole show
@@ -23,6 +26,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -42,7 +46,7 @@ __all__ = ["FLOWN_DISTANCE_TOLERANCE_M", "FlightResult", "fly_show", "plan_refer
 #: while any real loss of separation is far larger than this.
 FLOWN_DISTANCE_TOLERANCE_M = 0.01
 
-ENGINES = ("numba", "numpy")
+ENGINES = ("numba", "numpy", "dask")
 CONTROLLERS = ("ismc", "baseline")
 DISTURBANCES = ("none", "paper", "wind")
 
@@ -194,12 +198,17 @@ def fly_show(
     mismatch: float = 0.0,
     divergence_limit_m: float = 25.0,
     chunk_s: float = 2.0,
+    scheduler: Any = None,
+    shards: int | None = None,
+    connect_timeout_s: float = 10.0,
+    flown_distance: bool = True,
 ) -> FlightResult:
     """Fly every drone of ``plan`` along its planned trajectory at 1 kHz.
 
     Args:
         plan: The planned show (``sim.plan_show``).
-        engine: ``"numba"`` (fused parallel kernel) or ``"numpy"`` (reference).
+        engine: ``"numba"`` (fused parallel kernel), ``"numpy"`` (reference) or ``"dask"``
+            (numba on shards of drones on a Dask cluster, same arrays as ``"numba"``).
         controller: ``"ismc"`` (the paper's) or ``"baseline"`` (cascaded PD).
         disturbance: ``"none"``, ``"paper"`` (spec section 7) or ``"wind"`` (seeded gusts).
         output_hz: Rate of the recorded frames (Hz); frames are every
@@ -213,6 +222,13 @@ def fly_show(
         mismatch: Plant mass and inertia off by this fraction (dimensionless).
         divergence_limit_m: Tracking error beyond which a drone is stopped as a runaway (m).
         chunk_s: Simulated time per engine call (s); bounds the working memory.
+        scheduler: With ``engine="dask"``: ``"tcp://HOST:PORT"``, ``"local"`` (an
+            in-process ``LocalCluster``) or a ``distributed.Client``.
+        shards: With ``engine="dask"``: number of tasks (default two per worker thread).
+        connect_timeout_s: With ``engine="dask"``: how long to try to reach the
+            scheduler and a first worker (s).
+        flown_distance: Compute the flown minimum distance; False leaves it inf (the
+            dask engine's shards skip it and compute it once over all drones).
 
     Returns:
         A :class:`FlightResult`.
@@ -223,6 +239,18 @@ def fly_show(
         raise ValueError(f"unknown controller {controller!r} (expected one of {', '.join(CONTROLLERS)})")
     if not output_hz > 0:
         raise ValueError(f"output_hz must be > 0, got {output_hz}")
+    if engine != "dask" and (scheduler is not None or shards is not None):
+        # A scheduler given to a local engine would silently fly on this machine instead.
+        raise ValueError(f"scheduler and shards are only used with engine='dask', not {engine!r}")
+    if engine == "dask":
+        from sim._flight_dask import fly_show_dask
+
+        return fly_show_dask(
+            plan, scheduler=scheduler, shards=shards, connect_timeout_s=connect_timeout_s,
+            drones=drones, progress=progress, controller=controller, disturbance=disturbance,
+            output_hz=output_hz, seed=seed, params=params, gains=gains, mismatch=mismatch,
+            divergence_limit_m=divergence_limit_m, chunk_s=chunk_s,
+        )
     dt_s = 1e-3
     every = max(int(round(1.0 / (output_hz * dt_s))), 1)
     if gains is None:
@@ -262,7 +290,7 @@ def fly_show(
         ref, duration_s=duration, initial_state=initial, params=params, mismatch=mismatch,
         gains=gains, disturbance=dist, seed=seed, dt_s=dt_s, output_every=every, engine=engine,
         divergence_limit_m=divergence_limit_m, chunk_steps=max(int(round(chunk_s / dt_s)), 1),
-        progress=progress, frames_out=positions, on_chunk=on_chunk,
+        progress=progress, frames_out=positions, on_chunk=on_chunk if flown_distance else None,
     )
     wall = time.perf_counter() - start
 

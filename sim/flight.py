@@ -5,6 +5,9 @@ Public names re-exported from the private modules (see each for the details)::
     from sim.flight import fly_show
     result = fly_show(plan, engine="numba", controller="ismc", disturbance="wind")
     result.summary()
+
+    # the same flight sharded over drones on a Dask cluster (identical arrays)
+    result = fly_show(plan, engine="dask", scheduler="tcp://127.0.0.1:8786")
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ from sim._flight import FLOWN_DISTANCE_TOLERANCE_M as FLOWN_DISTANCE_TOLERANCE_M
 from sim._flight import FlightResult as FlightResult
 from sim._flight import fly_show as fly_show
 from sim._flight import plan_reference as plan_reference
+from sim._flight_dask import SchedulerUnreachableError as SchedulerUnreachableError
+from sim._flight_dask import connect_scheduler as connect_scheduler
+from sim._flight_dask import fly_show_dask as fly_show_dask
 from sim._ismc import AttitudeGains as AttitudeGains
 from sim._ismc import IsmcGains as IsmcGains
 from sim._ismc import PositionGains as PositionGains
@@ -45,9 +51,12 @@ __all__ = [
     "PaperRun",
     "PositionGains",
     "QuadrotorParams",
+    "SchedulerUnreachableError",
     "SimResult",
     "TrackingReference",
+    "connect_scheduler",
     "fly_show",
+    "fly_show_dask",
     "hover_state",
     "make_disturbance",
     "numpy_step",

@@ -1,4 +1,4 @@
-"""REST API, jobs: simulate (202), progress events, results, cache, sharing, failure, cancellation, 503."""
+"""REST API, jobs: simulate (202), progress events, results, cache, sharing, failure, cancellation, 429."""
 
 from __future__ import annotations
 
@@ -148,7 +148,7 @@ def test_cancel_a_running_job_stops_its_worker(client):
     client.delete(f"/api/jobs/{again['id']}")
 
 
-def test_cancel_a_queued_job_and_503_when_full(client):
+def test_cancel_a_queued_job_and_429_when_full(client):
     jobs = client.app.state.jobs
     a = _long_job(client, "busy a", 601.0)
     b = _long_job(client, "busy b", 602.0)
@@ -165,7 +165,7 @@ def test_cancel_a_queued_job_and_503_when_full(client):
     try:
         sid = _show_id(client, show_doc("no room", hold_s=3.0))
         r = client.post(f"/api/shows/{sid}/simulate")
-        assert r.status_code == 503 and r.headers["retry-after"] and "queued or running" in r.json()["detail"]
+        assert r.status_code == 429 and r.headers["retry-after"] and "queued or running" in r.json()["detail"]
     finally:
         jobs.max_pending = saved
 

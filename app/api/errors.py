@@ -94,7 +94,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(JobsBusy)
     async def _busy(_: Request, exc: JobsBusy) -> JSONResponse:
-        return _json(503, {"detail": str(exc)}, {"Retry-After": "5"})
+        return _json(429, {"detail": str(exc)}, {"Retry-After": "5"})
 
     @app.exception_handler(TaskFailure)
     async def _task_failed(_: Request, exc: TaskFailure) -> JSONResponse:

@@ -61,7 +61,8 @@ def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         409: {"model": ConflictOut, "description": "Stale revision (or the job already finished)."},
         413: {"model": ErrorOut, "description": "Upload over the limit: show file 20 MB, image 40 MP, SVG 5 MB."},
         422: {"model": ValidationErrorOut, "description": "Invalid input, with the field path and the reason."},
-        503: {"model": ErrorOut, "description": "Too many jobs queued; retry later (see Retry-After)."},
+        429: {"model": ErrorOut, "description": "Too many jobs queued; retry later (see Retry-After)."},
+        503: {"model": ErrorOut, "description": "The service is not running (e.g. the 3D viewer is off)."},
     }
     return {code: table[code] for code in codes}
 
@@ -105,6 +106,28 @@ class ShowList(BaseModel):
     """One page of shows, most recently updated first."""
 
     items: list[ShowSummary]
+    total: int
+    limit: int
+    offset: int
+
+
+class RevisionOut(BaseModel):
+    """One revision of a show (its show file is at ``GET /api/shows/{id}/revisions/{revision}``)."""
+
+    revision: int = Field(ge=1)
+    name: str
+    content_hash: str
+    drones: int
+    formations: int
+    created_at: str
+    has_show: bool = Field(description="False once the text was pruned (only the newest revisions keep it).")
+
+
+class RevisionList(BaseModel):
+    """A page of a show's revisions, newest first."""
+
+    show_id: str
+    items: list[RevisionOut]
     total: int
     limit: int
     offset: int

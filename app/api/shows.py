@@ -8,15 +8,25 @@ import math
 import re
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Query, Request, Response
+from fastapi import APIRouter, Body, Path, Query, Request, Response
 from fastapi.responses import JSONResponse
 
 from app import tasks
 from app.api import deps
 from app.api.errors import ApiError, show_problems
-from app.api.models import CheckOut, JobOut, ShowList, ShowOut, ShowSummary, SimulateOptions, error_responses
+from app.api.models import (
+    CheckOut,
+    JobOut,
+    RevisionList,
+    RevisionOut,
+    ShowList,
+    ShowOut,
+    ShowSummary,
+    SimulateOptions,
+    error_responses,
+)
 from app.server._limits import BodyTooLarge
-from app.store import ShowData, ShowRecord
+from app.store import RevisionConflict, ShowData, ShowRecord
 
 router = APIRouter(tags=["shows"])
 
@@ -65,7 +75,8 @@ async def _parse_show(request: Request, data: bytes | dict[str, Any], *, size: i
     try:
         if size > INLINE_PARSE_BYTES:
             return ShowData(**await deps.jobs(request).run(tasks.validate_task, data))
-        return ShowData.of(await asyncio.to_thread(parse_show, data))
+        # Validation, canonical JSON and its hash all in the thread: none of it on the event loop.
+        return await asyncio.to_thread(lambda: ShowData.of(parse_show(data)))
     except ShowValidationError as exc:
         raise ApiError(422, show_problems(exc.errors, prefix=prefix)) from None
     except tasks.TaskFailure as exc:
@@ -136,6 +147,33 @@ async def get_show(request: Request, show_id: str) -> Response:
     return _show_response(deps.store(request).get(show_id))
 
 
+@router.get("/shows/{show_id}/revisions", response_model=RevisionList, summary="A show's revision history",
+            responses=error_responses(404))
+async def list_revisions(
+    request: Request,
+    show_id: str,
+    limit: int = Query(100, ge=1, le=1000, description="Page size."),
+    offset: int = Query(0, ge=0, le=2**62, description="Revisions to skip."),
+) -> RevisionList:
+    """Every acknowledged change of the show, newest first: revision, name, content hash, time."""
+    records, total = deps.store(request).revisions(show_id, limit=limit, offset=offset)
+    items = [RevisionOut(revision=r.revision, name=r.name, content_hash=r.content_hash, drones=r.drones,
+                         formations=r.formations, created_at=r.created_at, has_show=r.has_json) for r in records]
+    return RevisionList(show_id=show_id, items=items, total=total, limit=limit, offset=offset)
+
+
+@router.get("/shows/{show_id}/revisions/{revision}", summary="One revision's show file",
+            response_class=Response, responses={200: {"description": "The show file of that revision.",
+                                                      "content": {"application/json": {}}},
+                                                **error_responses(404)})
+async def get_revision(request: Request, show_id: str, revision: int = Path(ge=1, le=2**62)) -> Response:
+    """The show file as it was at ``revision`` (404 once only its metadata is kept)."""
+    record = deps.store(request).get_revision(show_id, revision)
+    if record.json is None:
+        raise ApiError(404, f"revision {revision} of show {show_id!r} is too old; only its metadata is kept")
+    return Response(record.json, media_type="application/json", headers={"ETag": f'"{revision}"'})
+
+
 def _revision_from(body_value: Any, if_match: str | None) -> int:
     if body_value is None and if_match:
         body_value = if_match.strip().removeprefix("W/").strip('"')
@@ -170,8 +208,11 @@ async def update_show(request: Request, show_id: str) -> Response:
     if not raw.strip():
         raise _invalid("the body is empty; send {\"revision\": r, \"show\": {...}}")
     try:
-        body = json.loads(raw)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        # Strictly UTF-8 (RFC 8259), as for a new show: json.loads alone would also take UTF-16/32 bytes.
+        body = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise _invalid(f"not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
         raise _invalid(f"not valid JSON: {exc}") from None
     if not isinstance(body, dict):
         raise _invalid("must be a JSON object {\"revision\": r, \"show\": {...}}")
@@ -187,8 +228,13 @@ async def update_show(request: Request, show_id: str) -> Response:
     else:
         revision = _revision_from(None, request.headers.get("if-match"))
         show_data, prefix = body, ()
+    store = deps.store(request)
+    current = store.get_revision_number(show_id)
+    if current != revision:
+        # Stale before any work: no validating megabytes only to refuse them (the write re-checks atomically).
+        raise RevisionConflict(show_id, expected=revision, current=current)
     show = await _parse_show(request, show_data, size=len(raw), prefix=prefix)
-    record = await deps.write(request, deps.store(request).update, show_id, show, expected_revision=revision)
+    record = await deps.write(request, store.update, show_id, show, expected_revision=revision)
     return _show_response(record)
 
 
@@ -233,7 +279,7 @@ async def check_show(request: Request, show_id: str) -> JSONResponse:
     status_code=202,
     response_model=JobOut,
     summary="Fly a show in simulation (background job)",
-    responses=error_responses(404, 422, 503),
+    responses=error_responses(404, 422, 429),
 )
 async def simulate_show(
     request: Request, show_id: str, options: Annotated[SimulateOptions | None, Body()] = None

@@ -38,7 +38,9 @@ def _settings(args: argparse.Namespace):
         return AppSettings(**given)
     except ValidationError as exc:
         err = exc.errors()[0]
-        raise CliError(f"{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        field = ".".join(map(str, err["loc"]))
+        where = f"SWARMSHOW_{field.upper()}" if field in ("token", "session_ttl_s", "job_timeout_s") else field
+        raise CliError(f"{where}: {err['msg']}") from None
 
 
 def seed_demo(data_dir: Path) -> tuple[str, bool]:
@@ -77,8 +79,12 @@ def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from app.server import create_app
+    from app.server._exposure import exposure_problem
 
     settings = _settings(args)
+    problem = exposure_problem(settings)
+    if problem is not None:
+        raise CliError(problem)
     _check_port(settings.host, settings.port)
     shown_host = "127.0.0.1" if settings.host in ("0.0.0.0", "::", "") else settings.host
     url = f"http://{'[' + shown_host + ']' if ':' in shown_host else shown_host}:{settings.port}"
@@ -88,5 +94,6 @@ def _serve(args: argparse.Namespace) -> int:
     print(f"swarmshow {'demo' if args.seed_demo else 'server'}: {url}/  (API docs: {url}/api/docs)",
           flush=True)
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info",
+                access_log=settings.access_log,
                 timeout_graceful_shutdown=5)
     return EXIT_OK

@@ -1,13 +1,20 @@
 """``swarmshow simulate``: fly a planned show, or reproduce the paper's scenario.
 
 ``swarmshow simulate SHOW [--json] [--engine numba|numpy] [--controller ismc|baseline]
-[--disturbance none|paper|wind] [--output-hz HZ] [--seed N]`` plans the show, flies
+[--disturbance none|paper|wind] [--output-hz HZ] [--seed N] [--scheduler tcp://HOST:PORT]``
+plans the show, flies
 every drone at 1 kHz and reports tracking errors, the flown minimum distance and
 diverged drones. Exit 1 (unsafe) when any drone diverged, or when the flown minimum
 distance is below the show's ``min_distance_m`` by more than
 ``sim.flight.FLOWN_DISTANCE_TOLERANCE_M`` (1 cm: plans that sit exactly on the limit,
 such as a home grid spaced at the minimum distance, must not fail on millimetre
 tracking deviations).
+
+``--engine dask --scheduler tcp://HOST:PORT`` flies the drones in shards on a Dask
+``distributed`` cluster (same results as the local engine; ``--scheduler local`` starts
+an in-process cluster; the address defaults to ``$SWARMSHOW_DASK_SCHEDULER``). Exit 2
+with a one-line message when the scheduler or a worker cannot be reached within
+``--scheduler-timeout`` seconds.
 
 ``swarmshow simulate --scenario paper [--json] [--plot PNG] [--controller ...]`` runs
 spec section 7 for 20 s with the chosen controller and the other one for comparison;
@@ -17,12 +24,16 @@ exit 1 if the chosen controller misses the spec's thresholds.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import sys
 
 from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
 
 #: ``local`` (DESIGN.md's name for the in-process engine) is the numba kernel.
-ENGINES = ("numba", "numpy", "local")
+ENGINES = ("numba", "numpy", "local", "dask")
+#: Environment variable giving the default ``--scheduler`` (shared with the server setting).
+SCHEDULER_ENV = "SWARMSHOW_DASK_SCHEDULER"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +49,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.add_argument("--plot", metavar="PNG", help="with --scenario paper: write the error/input figure")
     p.add_argument("--engine", choices=ENGINES, default="numba",
-                   help="numba (alias local): fused parallel kernel (default); numpy: the readable reference")
+                   help="numba (alias local): fused parallel kernel (default); numpy: the readable reference; "
+                   "dask: numba on shards of drones on a Dask cluster (needs --scheduler)")
+    p.add_argument("--scheduler", metavar="ADDR",
+                   help=f"with --engine dask: scheduler address tcp://HOST:PORT, or 'local' for an in-process "
+                   f"cluster (default ${SCHEDULER_ENV})")
+    p.add_argument("--scheduler-timeout", metavar="S", type=float, default=10.0,
+                   help="with --engine dask: seconds to reach the scheduler and a worker (default 10)")
     p.add_argument("--controller", choices=("ismc", "baseline"), default="ismc",
                    help="ismc: the paper's controllers (default); baseline: cascaded PD")
     p.add_argument("--disturbance", choices=("none", "paper", "wind"), default="none",
@@ -59,7 +76,21 @@ def _simulate(args: argparse.Namespace) -> int:
         raise CliError("--plot is only available with --scenario paper")
     if not args.output_hz > 0:
         raise CliError(f"--output-hz must be > 0, got {args.output_hz}")
+    if args.scheduler is not None and args.engine != "dask":
+        raise CliError("--scheduler is only used with --engine dask")
+    if not args.scheduler_timeout > 0:
+        raise CliError(f"--scheduler-timeout must be > 0, got {args.scheduler_timeout}")
     return _show(args)
+
+
+def _dask_options(args: argparse.Namespace) -> dict:
+    """``fly_show`` keywords of the dask engine (empty for the local engines)."""
+    if args.engine != "dask":
+        return {}
+    scheduler = args.scheduler or os.environ.get(SCHEDULER_ENV, "").strip() or None
+    if scheduler is None:
+        raise CliError(f"--engine dask needs --scheduler tcp://HOST:PORT (or 'local', or ${SCHEDULER_ENV})")
+    return {"scheduler": scheduler, "connect_timeout_s": args.scheduler_timeout}
 
 
 def _engine(args: argparse.Namespace) -> str:
@@ -68,18 +99,27 @@ def _engine(args: argparse.Namespace) -> str:
 
 def _show(args: argparse.Namespace) -> int:
     from sim import PlanError, plan_show
-    from sim.flight import fly_show
+    from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
 
+    dask = _dask_options(args)
     show = load_show_arg(args.show)
-    try:
-        plan = plan_show(show)
-    except PlanError as exc:
-        raise CliError(f"{args.show}: {exc}") from exc
-    with progress_bar("simulate") as update:
-        result = fly_show(
-            plan, engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
-            output_hz=args.output_hz, seed=args.seed, progress=update,
-        )
+    with contextlib.ExitStack() as stack:
+        if dask:
+            # Connect before planning so that an unreachable cluster fails in seconds, not
+            # after a large show has been planned.
+            try:
+                dask["scheduler"] = stack.enter_context(connect_scheduler(dask["scheduler"], dask["connect_timeout_s"]))
+            except SchedulerUnreachableError as exc:
+                raise CliError(" ".join(str(exc).split())) from None
+        try:
+            plan = plan_show(show)
+        except PlanError as exc:
+            raise CliError(f"{args.show}: {exc}") from exc
+        with progress_bar("simulate") as update:
+            result = fly_show(
+                plan, engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
+                output_hz=args.output_hz, seed=args.seed, progress=update, **dask,
+            )
     summary = result.summary()
     summary["show"] = show.name
     if args.json:
@@ -118,6 +158,8 @@ def format_flight(s: dict) -> str:
 def _paper(args: argparse.Namespace) -> int:
     from sim.flight import paper_report, plot_paper
 
+    if args.engine == "dask" or args.scheduler is not None:
+        raise CliError("--engine dask flies shows only; the paper scenario is one drone")
     with progress_bar("paper scenario") as update:
         report, run, other = paper_report(controller=args.controller, engine=_engine(args))
         update(1.0)

@@ -30,10 +30,12 @@ from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-from app.api import formations, health, jobs, shows
+from app.api import formations, health, jobs, session, shows
 from app.api.errors import install_error_handlers
 from app.api.models import ShowUpdate
 from app.jobs import JobManager
+from app.server._auth import TokenMiddleware
+from app.server._headers import SecurityHeadersMiddleware
 from app.server._limits import ENVELOPE_BYTES, BodyLimit, BodyLimitMiddleware
 from app.settings import AppSettings
 from app.store import ShowStore
@@ -51,6 +53,10 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 * Invalid input gets **422** whose `detail` lists `{loc, path, msg}`: `path` is the JSON path of the
   field inside the body (`formations[2].hold_s`).
 * Uploads over the limits get **413**: show file 20 MB, image 40 megapixels (50 MB), SVG 5 MB.
+* With a server token (`SWARMSHOW_TOKEN`), every request needs `Authorization: Bearer <token>` or the
+  cookie set by `POST /api/session`; otherwise **401**.
+* A full job queue answers **429** with `Retry-After`; a job running longer than `SWARMSHOW_JOB_TIMEOUT_S`
+  fails (status 504 in its error).
 * Heavy work (checks, simulations, formation sampling, exports) runs in worker processes; simulations are
   jobs (`202`) with progress as server-sent events. Results are cached by the show's content hash.
 """
@@ -59,12 +65,15 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: AppSettings = app.state.settings
-    store = await asyncio.to_thread(ShowStore, settings.db_path)
+    store = await asyncio.to_thread(ShowStore, settings.db_path, keep_revisions=settings.keep_revisions)
     manager = JobManager(
         store=store, workers=settings.workers, max_jobs_kept=settings.max_jobs_kept,
         max_pending=settings.max_pending_jobs, max_cached=settings.max_cached_results,
+        timeout_s=settings.job_timeout_s,
     )
-    await asyncio.to_thread(manager.start)
+    # The pool starts in the background: the API answers (and the store serves) a few hundred ms
+    # sooner after a restart; the first job waits for it (JobManager.wait_started).
+    starting = asyncio.get_running_loop().run_in_executor(None, manager.start)
     writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="swarmshow-store")
     app.state.store, app.state.jobs, app.state.store_writer = store, manager, writer
     started: list[Any] = []
@@ -79,6 +88,10 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
                 await _call(hook, app)
             except Exception:
                 log.exception("shutdown hook %r failed", hook)
+        try:
+            await starting
+        except Exception:
+            log.exception("the job manager failed to start")
         await asyncio.to_thread(manager.close)
         writer.shutdown(wait=True)
         await asyncio.to_thread(store.close)
@@ -133,8 +146,12 @@ def create_app(settings: AppSettings | None = None) -> FastAPI:
     app.state.shutdown = []
     install_error_handlers(app)
     limits, default = _body_limits(settings)
+    # The last added runs first: headers on every answer, then the token, then the body limits.
     app.add_middleware(BodyLimitMiddleware, limits=limits, default=default)
-    for module in (health, shows, jobs, formations):
+    if settings.token is not None:
+        app.add_middleware(TokenMiddleware, token=settings.token.get_secret_value())
+    app.add_middleware(SecurityHeadersMiddleware)
+    for module in (health, shows, jobs, formations, session):
         app.include_router(module.router, prefix="/api")
     for name in EXTENSIONS:
         importlib.import_module(name).install(app)

@@ -144,6 +144,9 @@ def playback_router() -> APIRouter:
 
 
 async def _start(app: FastAPI) -> None:
+    settings = getattr(app.state, "settings", None)
+    if settings is not None and not settings.viewer:
+        return  # switched off (tests that restart the server often): /viser closes with 1013, playback is 503
     viewer = await asyncio.to_thread(Viewer)
     loader = _Loader(app, viewer)
     app.state.viewer, app.state.viewer_loader = viewer, loader

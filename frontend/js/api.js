@@ -77,6 +77,23 @@ export function setTokenPrompt(fn) {
   tokenPrompt = fn;
 }
 
+/**
+ * Trade the token for the server's short-lived HttpOnly cookie, which the 3D preview iframe, the
+ * progress stream and the viewer's websocket carry (they cannot send an Authorization header).
+ */
+export async function startSession() {
+  if (!sessionStorage.getItem(TOKEN_KEY)) return;
+  try {
+    await fetch("/api/session", { method: "POST", headers: authHeaders(), credentials: "same-origin" });
+  } catch {
+    // the next API call reports an unreachable server
+  }
+}
+
+// A reload keeps the token (per tab) but the cookie may have expired: renew it now and every 20 min.
+startSession();
+setInterval(startSession, 20 * 60 * 1000);
+
 function authHeaders() {
   const t = sessionStorage.getItem(TOKEN_KEY);
   return t ? { Authorization: `Bearer ${t}` } : {};
@@ -108,6 +125,7 @@ export async function request(method, url, opts = {}, retried = false) {
     const token = await tokenPrompt();
     if (token) {
       sessionStorage.setItem(TOKEN_KEY, token);
+      await startSession();
       return request(method, url, opts, true);
     }
   }

@@ -1,0 +1,87 @@
+"""A real ``swarmshow serve`` process for the hardening tests: start, wait until it answers, crash, stop."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import httpx
+
+from tests.test_api_live import swarmshow_command
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ServerProcess:
+    """``swarmshow serve`` on a loopback port in its own process group (so a crash takes its workers too)."""
+
+    def __init__(self, data_dir: Path, *, port: int | None = None, workers: int = 1, viewer: bool = False,
+                 env: dict[str, str] | None = None) -> None:
+        self.data_dir, self.port, self.workers = data_dir, port or free_port(), workers
+        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", "SWARMSHOW_VIEWER": "true" if viewer else "false",
+                    **(env or {})}
+        self.proc: subprocess.Popen | None = None
+        self.log = data_dir / "server.log"
+
+    @property
+    def base(self) -> str:
+        """The server's base URL."""
+        return f"http://127.0.0.1:{self.port}"
+
+    def start(self, *, wait: bool = True, timeout_s: float = 60.0) -> float:
+        """Start the server; returns the seconds until ``/api/health`` answered (0 if not waited for)."""
+        t0 = time.monotonic()
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen(
+                [*swarmshow_command(), "serve", "--port", str(self.port), "--data-dir", str(self.data_dir),
+                 "--workers", str(self.workers)],
+                stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True,
+            )
+        if not wait:
+            return 0.0
+        self.wait_ready(timeout_s=timeout_s)
+        return time.monotonic() - t0
+
+    def wait_ready(self, *, timeout_s: float = 60.0, headers: dict[str, str] | None = None) -> None:
+        """Wait until ``/api/health`` answers (any status below 500)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                if httpx.get(f"{self.base}/api/health", timeout=1, headers=headers).status_code < 500:
+                    return
+            except httpx.TransportError:
+                pass
+            if self.proc is None or self.proc.poll() is not None or time.monotonic() > deadline:
+                raise AssertionError(f"server did not start: {self.log.read_text(errors='replace')[-3000:]}")
+            time.sleep(0.03)
+
+    def crash(self) -> None:
+        """SIGKILL the server and every process it started (its worker pool and manager)."""
+        if self.proc is None:
+            return
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.proc.wait()
+        self.proc = None
+
+    def stop(self) -> None:
+        """Stop the server gracefully (SIGINT), or crash it if it does not stop in 30 s."""
+        if self.proc is None:
+            return
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            pass
+        self.crash()
