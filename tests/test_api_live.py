@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import signal
 import socket
 import subprocess
@@ -19,18 +18,7 @@ import pytest
 from app.cli import build_parser
 from app.cli._serve import seed_demo
 from app.store import ShowStore
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def swarmshow_command() -> list[str]:
-    exe = shutil.which("swarmshow", path=str(Path(sys.executable).parent))
-    return [exe] if exe else [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main())"]
-
+from tests.live_server import free_port, swarmshow_command
 
 SHOW = {
     "format": "swarmshow/1", "name": "live", "drones": 4,

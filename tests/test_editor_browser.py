@@ -4,19 +4,15 @@ against a live server on a free loopback port. Every request must stay on 127.0.
 from __future__ import annotations
 
 import json
-import os
-import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
 from urllib.parse import urlsplit
 
 import httpx
 import pytest
 
+from tests.live_server import ServerProcess
+
 CHROMIUM = "/usr/bin/chromium"
-ROOT = Path(__file__).resolve().parent.parent
 SHOTS = Path(__file__).resolve().parent / "screenshots"
 
 pytestmark = [
@@ -27,46 +23,15 @@ pytestmark = [
 sync_api = pytest.importorskip("playwright.sync_api")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    """`swarmshow serve` on a free loopback port with an empty store; yields the base URL."""
-    data = tmp_path_factory.mktemp("editor-data")
-    port = _free_port()
-    code = (
-        "import sys; from app.cli import main; "
-        f"sys.exit(main(['serve', '--host', '127.0.0.1', '--port', '{port}', '--data-dir', {str(data)!r}, "
-        "'--workers', '1']))"
-    )
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    log = (data / "server.log").open("w")
-    proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            if httpx.get(f"{base}/api/health", timeout=1).status_code == 200:
-                break
-        except httpx.HTTPError:
-            pass
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"server did not start:\n{(data / 'server.log').read_text()}")
-        time.sleep(0.2)
+    """`swarmshow serve` (viewer on, for the 3D preview) on a free loopback port with an empty store."""
+    srv = ServerProcess(tmp_path_factory.mktemp("editor-data"), viewer=True)
+    srv.start()
     try:
-        yield base
+        yield srv.base
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        log.close()
+        srv.stop()
 
 
 @pytest.fixture(scope="module")

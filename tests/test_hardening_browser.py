@@ -13,7 +13,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.hardening_server import ServerProcess
+from tests.live_server import ServerProcess
 from tests.test_api_live import SHOW
 
 CHROMIUM = "/usr/bin/chromium"

@@ -14,7 +14,7 @@ import threading
 import httpx
 import pytest
 
-from tests.hardening_server import ServerProcess
+from tests.live_server import ServerProcess
 from tests.test_api_live import SHOW
 
 CLIENTS = 20

@@ -19,7 +19,7 @@ import httpx
 import pytest
 
 from formations import parse_show
-from tests.hardening_server import ServerProcess
+from tests.live_server import ServerProcess
 
 
 def _show(name: str, *, drones: int) -> dict:

@@ -14,8 +14,8 @@ from app.server import create_app
 from app.server._auth import COOKIE, session_ok, session_value
 from app.server._exposure import is_loopback
 from app.settings import AppSettings
-from tests.hardening_server import ServerProcess
-from tests.test_api_live import SHOW, swarmshow_command
+from tests.live_server import ServerProcess, swarmshow_command
+from tests.test_api_live import SHOW
 
 TOKEN = "correct-horse-battery-staple-42"
 

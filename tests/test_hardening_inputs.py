@@ -18,8 +18,8 @@ from fastapi.testclient import TestClient
 
 from app.server import create_app
 from app.settings import AppSettings
-from tests.hardening_server import ServerProcess
-from tests.test_api_live import SHOW, swarmshow_command
+from tests.live_server import ServerProcess, swarmshow_command
+from tests.test_api_live import SHOW
 
 
 def show(**changes) -> dict:

@@ -6,7 +6,6 @@ Everything must stay on loopback (or ``file:``/``data:``/``blob:`` for the expor
 from __future__ import annotations
 
 import re
-import socket
 import threading
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 
 from sim import plan_show
+from tests.live_server import free_port
 
 CHROMIUM = "/usr/bin/chromium"
 SHOTS = Path(__file__).resolve().parent / "screenshots"
@@ -27,12 +27,6 @@ pytestmark = [
 sync_api = pytest.importorskip("playwright.sync_api")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def live_app(tmp_path_factory):
     """The app under uvicorn on a free loopback port (in this process, so the viewer can be inspected)."""
@@ -42,7 +36,7 @@ def live_app(tmp_path_factory):
     from app.settings import AppSettings
 
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("viewer-data"), workers=1))
-    port = _free_port()
+    port = free_port()
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()

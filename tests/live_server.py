@@ -1,17 +1,17 @@
-"""A real ``swarmshow serve`` process for the hardening tests: start, wait until it answers, crash, stop."""
+"""A real ``swarmshow serve`` process for live tests: start, wait until it answers, crash, stop."""
 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import httpx
-
-from tests.test_api_live import swarmshow_command
 
 
 def free_port() -> int:
@@ -19,6 +19,12 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def swarmshow_command() -> list[str]:
+    """The installed ``swarmshow`` next to this interpreter, or ``python -c`` running the CLI."""
+    exe = shutil.which("swarmshow", path=str(Path(sys.executable).parent))
+    return [exe] if exe else [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main())"]
 
 
 class ServerProcess:
