@@ -183,6 +183,27 @@ def _frame_min_distance(points: np.ndarray) -> tuple[float, int, int]:
     return float(dist[i, 1]), i, int(idx[i, 1])
 
 
+def _fold_flown_distance(
+    best: list, frames: range, *, positions: np.ndarray, times: np.ndarray, ids: np.ndarray,
+    dstep: np.ndarray, every: int,
+) -> None:
+    """Fold the closest pair of each frame's live drones into ``best`` = [m, drone i, drone j, s] (in place).
+
+    A drone counts until the step it diverged at (``dstep`` < 0: never); frame f is step f·every.
+    """
+    for f in frames:
+        alive = np.flatnonzero((dstep < 0) | (dstep > f * every))
+        d, i, j = _frame_min_distance(positions[f, alive].astype(np.float64))
+        if d < best[0]:
+            best[:] = [d, int(ids[alive[i]]), int(ids[alive[j]]), float(times[f])]
+
+
+def _ordered_pair(best: list) -> tuple[int, int]:
+    """The (smaller, larger) drone ids of a ``best`` record."""
+    i, j = int(best[1]), int(best[2])
+    return (i, j) if i <= j else (j, i)
+
+
 def fly_show(
     plan: ShowPlan,
     *,
@@ -277,12 +298,8 @@ def fly_show(
         # Frames below ``ready`` were written by the chunks so far (a frame is recorded
         # at the start of its step).
         ready = min(-(-steps_done // every), n_frames)
-        for f in range(done_frames[0], ready):
-            step = f * every
-            alive = np.flatnonzero((dstep < 0) | (dstep > step))
-            d, i, j = _frame_min_distance(positions[f, alive].astype(np.float64))
-            if d < best[0]:
-                best[:] = [d, int(ids[alive[i]]), int(ids[alive[j]]), float(times[f])]
+        _fold_flown_distance(best, range(done_frames[0], ready), positions=positions, times=times, ids=ids,
+                             dstep=dstep, every=every)
         done_frames[0] = ready
 
     start = time.perf_counter()
@@ -299,9 +316,7 @@ def fly_show(
     for f0 in range(0, n_frames, block):
         colors[f0:f0 + block] = plan.evaluate(times[f0:f0 + block], drones=ids).colors_rgb
 
-    pair = (int(best[1]), int(best[2]))
-    if pair[0] > pair[1]:
-        pair = (pair[1], pair[0])
+    pair = _ordered_pair(best)
     return FlightResult(
         times_s=times,
         positions_m=positions,

@@ -361,7 +361,7 @@ def _run_shards(
 
 def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable[[float], None]) -> Any:
     """Concatenate the shards' arrays in drone order and compute the flown distance over all."""
-    from sim._flight import FlightResult, _frame_min_distance
+    from sim._flight import FlightResult, _fold_flown_distance, _ordered_pair
 
     first = results[0]
     times = first.times_s
@@ -379,16 +379,10 @@ def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable
     best = [float("inf"), -1, -1, float("nan")]
     n_frames = times.size
     for f0 in range(0, n_frames, DISTANCE_BLOCK_FRAMES):
-        for f in range(f0, min(f0 + DISTANCE_BLOCK_FRAMES, n_frames)):
-            alive = np.flatnonzero((dstep < 0) | (dstep > f * every))
-            d, i, j = _frame_min_distance(positions[f, alive].astype(np.float64))
-            if d < best[0]:
-                best[:] = [d, int(ids[alive[i]]), int(ids[alive[j]]), float(times[f])]
+        _fold_flown_distance(best, range(f0, min(f0 + DISTANCE_BLOCK_FRAMES, n_frames)), positions=positions,
+                             times=times, ids=ids, dstep=dstep, every=every)
         report(min(f0 + DISTANCE_BLOCK_FRAMES, n_frames) / n_frames * 0.999)
 
-    pair = (int(best[1]), int(best[2]))
-    if pair[0] > pair[1]:
-        pair = (pair[1], pair[0])
     return FlightResult(
         times_s=times,
         positions_m=positions,
@@ -398,7 +392,7 @@ def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable
         tracking_max_m=np.concatenate([r.tracking_max_m for r in results]),
         max_thrust_step_n=np.concatenate([r.max_thrust_step_n for r in results]),
         flown_min_distance_m=float(best[0]),
-        flown_min_distance_pair=pair,
+        flown_min_distance_pair=_ordered_pair(best),
         flown_min_distance_time_s=float(best[3]),
         min_distance_limit_m=float(plan.settings.min_distance_m),
         diverged=diverged,

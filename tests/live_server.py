@@ -12,6 +12,17 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
+
+#: Debian's chromium (``playwright install`` cannot download browsers here).
+CHROMIUM = "/usr/bin/chromium"
+#: Where browser tests put their screenshots (gitignored).
+SHOTS = Path(__file__).resolve().parent / "screenshots"
+#: Marks for a module of browser tests: skipped where chromium is missing.
+BROWSER_MARKS = [
+    pytest.mark.browser,
+    pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
+]
 
 
 def free_port() -> int:

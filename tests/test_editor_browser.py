@@ -10,15 +10,9 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 
-from tests.live_server import ServerProcess
+from tests.live_server import BROWSER_MARKS, CHROMIUM, SHOTS, ServerProcess
 
-CHROMIUM = "/usr/bin/chromium"
-SHOTS = Path(__file__).resolve().parent / "screenshots"
-
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
-]
+pytestmark = BROWSER_MARKS
 
 sync_api = pytest.importorskip("playwright.sync_api")
 

@@ -8,21 +8,16 @@ a CSP violation or an uncaught error.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import httpx
 import pytest
 
-from tests.live_server import ServerProcess
+from tests.live_server import BROWSER_MARKS, CHROMIUM, ServerProcess
 from tests.test_api_live import SHOW
 
-CHROMIUM = "/usr/bin/chromium"
 TOKEN = "browser-token-0123456789abcdef"
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
-]
+pytestmark = BROWSER_MARKS
 
 sync_api = pytest.importorskip("playwright.sync_api")
 
