@@ -89,6 +89,40 @@ def _unit_scale(x0: float, x1: float, x2: float) -> float:
     return 1.0 / max(n, SWITCH_EPS)
 
 
+@nb.njit(inline="always", cache=True)
+def _ismc_law(
+    ex: float, ey: float, ez: float, edx: float, edy: float, edz: float, fx: float, fy: float, fz: float,
+    ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
+    ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float,
+) -> tuple:
+    """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim._ismc``.
+
+    Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
+    r_a, r_b of the nominal law, ė at the start, the integral of the nominal closed loop, the
+    previous step's sliding variable, and the switching gain.
+
+    Returns:
+        (u_n x, y, z: nominal control; s x, y, z: sliding variable; w x, y, z: rate of u_d).
+    """
+    sa = _sig_scale(ex, ey, ez, ra)
+    sb = _sig_scale(edx, edy, edz, rb)
+    unx = -ka * (ex * sa) - kb * (edx * sb) - fx
+    uny = -ka * (ey * sa) - kb * (edy * sb) - fy
+    unz = -ka * (ez * sa) - kb * (edz * sb) - fz
+    sx = edx - e0x - ix
+    sy = edy - e0y - iy
+    sz = edz - e0z - iz
+    us = _unit_scale(sx, sy, sz)
+    qx = sx - spx
+    qy = sy - spy
+    qz = sz - spz
+    uq = _unit_scale(qx, qy, qz)
+    wx = -gain * (sx * us + 0.5 * (qx * uq))
+    wy = -gain * (sy * us + 0.5 * (qy * uq))
+    wz = -gain * (sz * us + 0.5 * (qz * uq))
+    return unx, uny, unz, sx, sy, sz, wx, wy, wz
+
+
 @nb.njit(parallel=True, cache=True, error_model="numpy",
          fastmath={"nsz", "afn", "contract", "reassoc"})
 def _kernel(
@@ -175,22 +209,10 @@ def _kernel(
             # ---- position ISMC (spec 4)
             e2x, e2y, e2z = vx - vrx, vy - vry, vz - vrz
             fx, fy, fz = -arx, -ary, -arz - g
-            s1 = _sig_scale(e1x, e1y, e1z, r1)
-            s2 = _sig_scale(e2x, e2y, e2z, r2)
-            unx = -k1 * (e1x * s1) - k2 * (e2x * s2) - fx
-            uny = -k1 * (e1y * s1) - k2 * (e2y * s2) - fy
-            unz = -k1 * (e1z * s1) - k2 * (e2z * s2) - fz
-            sx = e2x - e200 - ip0
-            sy = e2y - e201 - ip1
-            sz = e2z - e202 - ip2
-            us = _unit_scale(sx, sy, sz)
-            qx = sx - sp0
-            qy = sy - sp1
-            qz = sz - sp2
-            uq = _unit_scale(qx, qy, qz)
-            wpx = -alpha * (sx * us + 0.5 * (qx * uq))
-            wpy = -alpha * (sy * us + 0.5 * (qy * uq))
-            wpz = -alpha * (sz * us + 0.5 * (qz * uq))
+            unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
+                e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, r1, r2,
+                e200, e201, e202, ip0, ip1, ip2, sp0, sp1, sp2, alpha,
+            )
             ux = unx + ud0
             uy = uny + ud1
             uz = unz + ud2
@@ -242,22 +264,10 @@ def _kernel(
             fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
             fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
             faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
-            s3 = _sig_scale(e3x, e3y, e3z, r3)
-            s4 = _sig_scale(e4x, e4y, e4z, r4)
-            unax = -k3 * (e3x * s3) - k4 * (e4x * s4) - fax
-            unay = -k3 * (e3y * s3) - k4 * (e4y * s4) - fay
-            unaz = -k3 * (e3z * s3) - k4 * (e4z * s4) - faz
-            sax = e4x - e400 - ia0
-            say = e4y - e401 - ia1
-            saz = e4z - e402 - ia2
-            usa = _unit_scale(sax, say, saz)
-            qax = sax - sap0
-            qay = say - sap1
-            qaz = saz - sap2
-            uqa = _unit_scale(qax, qay, qaz)
-            wax = -beta_g * (sax * usa + 0.5 * (qax * uqa))
-            way = -beta_g * (say * usa + 0.5 * (qay * uqa))
-            waz = -beta_g * (saz * usa + 0.5 * (qaz * uqa))
+            unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
+                e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, r3, r4,
+                e400, e401, e402, ia0, ia1, ia2, sap0, sap1, sap2, beta_g,
+            )
             uax = unax + uda0
             uay = unay + uda1
             uaz = unaz + uda2
