@@ -12,6 +12,7 @@ from sim._assignment import AssignmentError as AssignmentError
 from sim._assignment import assign as assign
 from sim._assignment import assignment_cost as assignment_cost
 from sim._assignment import certify as certify
+from sim._closest import closest_pair as closest_pair
 from sim._plan import PlanError as PlanError
 from sim._plan import PlanSample as PlanSample
 from sim._plan import Segment as Segment
@@ -49,6 +50,7 @@ __all__ = [
     "check_plan",
     "certify",
     "check_show",
+    "closest_pair",
     "min_transition_duration",
     "plan_show",
     "quintic_coefficients",

@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sim._baseline import BaselineGains
+from sim._closest import closest_pair
 from sim._disturbance import make_disturbance
 from sim._engine_numpy import STATE_SIZE, TrackingReference, simulate
 from sim._ismc import IsmcGains
@@ -175,12 +175,8 @@ def plan_reference(plan: ShowPlan, *, drones: slice | np.ndarray | None = None) 
 
 def _frame_min_distance(points: np.ndarray) -> tuple[float, int, int]:
     """Closest pair of one frame's ``(n, 3)`` points: ``(distance m, i, j)`` (inf, -1, -1 if n < 2)."""
-    if points.shape[0] < 2:
-        return float("inf"), -1, -1
-    # Threads pay off only for large frames (their start-up costs ~0.1 ms per call).
-    dist, idx = cKDTree(points).query(points, k=2, workers=-1 if points.shape[0] > 5000 else 1)
-    i = int(np.argmin(dist[:, 1]))
-    return float(dist[i, 1]), i, int(idx[i, 1])
+    i, j, d = closest_pair(points)
+    return d, i, j
 
 
 def _fold_flown_distance(

@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-from app.viewer._closest import closest_pair as closest_pair
 from app.viewer._export import DEFAULT_EXPORT_FPS as DEFAULT_EXPORT_FPS
 from app.viewer._export import export_viser_html as export_viser_html
 from app.viewer._export import viser_html_exporter as viser_html_exporter
@@ -29,6 +28,7 @@ from app.viewer._tracks import framing_camera as framing_camera
 from app.viewer._tracks import show_bounds as show_bounds
 from app.viewer._viewer import FRAME_RATE_HZ as FRAME_RATE_HZ
 from app.viewer._viewer import Viewer as Viewer
+from sim._closest import closest_pair as closest_pair
 
 __all__ = [
     "CLIENT_BUILD_DIR",

@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.viewer._closest import closest_pair
 from app.viewer._tracks import (
     Frame,
     Source,
@@ -30,6 +29,7 @@ from app.viewer._tracks import (
     show_bounds,
 )
 from sim import ShowPlan
+from sim._closest import closest_pair
 
 #: Playback pacing, frames per second.
 FRAME_RATE_HZ = 30.0

@@ -1,4 +1,4 @@
-"""Exact closest pair of a point set in O(N), for a per-frame readout at 10k+ drones.
+"""Exact closest pair of a point set in O(N): per-frame readouts and the flown-distance check at 10k+ drones.
 
 A cKDTree (build + 2-nearest query) costs 5-30 ms at 10,000 points, far over a
 30 Hz frame budget. Instead the points are hashed into cubic cells of side h:
