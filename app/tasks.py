@@ -272,7 +272,7 @@ def _fly_show() -> Any:
     """``fly_show`` from wherever the simulation package exposes it."""
     import importlib
 
-    for name in ("sim", "sim.flight", "sim._flight"):
+    for name in ("sim", "sim.flight", "sim.flight._runner"):
         try:
             fn = getattr(importlib.import_module(name), "fly_show", None)
         except ImportError:

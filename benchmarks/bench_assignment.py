@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from sim._assignment_bench import bench_assignment
-from sim._benchmarks import benchmark_show
+from sim.bench._assignment import bench_assignment
+from sim.bench._shows import benchmark_show
 
 pytestmark = pytest.mark.slow
 

@@ -19,7 +19,7 @@ import pytest
 from app.exports import export_show
 from formations import parse_show
 from sim import Segment, ShowPlan, min_transition_duration
-from sim._benchmarks import BENCH_SPACING_M
+from sim.bench._shows import BENCH_SPACING_M
 
 pytestmark = pytest.mark.slow
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sim._benchmarks import bench_show, bench_transition
+from sim.bench._shows import bench_show, bench_transition
 
 pytestmark = pytest.mark.slow
 

@@ -15,7 +15,7 @@ import pytest
 
 from app.viewer import Viewer
 from sim import check_plan, plan_show
-from sim._benchmarks import benchmark_show
+from sim.bench._shows import benchmark_show
 
 pytestmark = pytest.mark.slow
 

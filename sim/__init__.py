@@ -1,5 +1,8 @@
-"""Planning and flight: CAPT assignment, quintic time law, whole-show plans,
-exact verification, the quadrotor model, ISMC controllers and simulation engines.
+"""Planning, verification and flight, a subpackage per stage.
+
+``sim.plan`` (CAPT assignment, time laws, the show plan), ``sim.verify`` (the exact
+check), ``sim.flight`` (quadrotor model, controllers, engines, runners), and
+``sim.geometry`` (primitives shared by the stages, such as the closest-pair search).
 
 Data flows one way: ``plan_show`` (show file -> :class:`ShowPlan`) ->
 ``check_plan`` (exact verification) -> flight simulation -> playback / export.
@@ -7,30 +10,30 @@ Data flows one way: ``plan_show`` (show file -> :class:`ShowPlan`) ->
 
 from __future__ import annotations
 
-from sim._assignment import Assignment as Assignment
-from sim._assignment import AssignmentError as AssignmentError
-from sim._assignment import assign as assign
-from sim._assignment import assignment_cost as assignment_cost
-from sim._assignment import certify as certify
-from sim._closest import closest_pair as closest_pair
-from sim._plan import PlanError as PlanError
-from sim._plan import PlanSample as PlanSample
-from sim._plan import Segment as Segment
-from sim._plan import ShowPlan as ShowPlan
-from sim._plan import TimeLaw as TimeLaw
-from sim._plan import TransitionInfo as TransitionInfo
-from sim._plan import plan_show as plan_show
-from sim._quintic import PEAK_ACCEL_FACTOR as PEAK_ACCEL_FACTOR
-from sim._quintic import PEAK_SPEED_FACTOR as PEAK_SPEED_FACTOR
-from sim._quintic import quintic_coefficients as quintic_coefficients
-from sim._quintic import quintic_eval as quintic_eval
-from sim._quintic import rest_to_rest as rest_to_rest
-from sim._timing import min_transition_duration as min_transition_duration
-from sim._verify import CheckReport as CheckReport
-from sim._verify import Violation as Violation
-from sim._verify import check_plan as check_plan
-from sim._verify import check_show as check_show
-from sim._verify import segment_close_pairs as segment_close_pairs
+from sim.geometry import closest_pair as closest_pair
+from sim.plan import PEAK_ACCEL_FACTOR as PEAK_ACCEL_FACTOR
+from sim.plan import PEAK_SPEED_FACTOR as PEAK_SPEED_FACTOR
+from sim.plan import Assignment as Assignment
+from sim.plan import AssignmentError as AssignmentError
+from sim.plan import PlanError as PlanError
+from sim.plan import PlanSample as PlanSample
+from sim.plan import Segment as Segment
+from sim.plan import ShowPlan as ShowPlan
+from sim.plan import TimeLaw as TimeLaw
+from sim.plan import TransitionInfo as TransitionInfo
+from sim.plan import assign as assign
+from sim.plan import assignment_cost as assignment_cost
+from sim.plan import certify as certify
+from sim.plan import min_transition_duration as min_transition_duration
+from sim.plan import plan_show as plan_show
+from sim.plan import quintic_coefficients as quintic_coefficients
+from sim.plan import quintic_eval as quintic_eval
+from sim.plan import rest_to_rest as rest_to_rest
+from sim.verify import CheckReport as CheckReport
+from sim.verify import Violation as Violation
+from sim.verify import check_plan as check_plan
+from sim.verify import check_show as check_show
+from sim.verify import segment_close_pairs as segment_close_pairs
 
 __all__ = [
     "PEAK_ACCEL_FACTOR",

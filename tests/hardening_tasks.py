@@ -29,7 +29,7 @@ def _fly(show_text: str, job_id: str, queue: Any, cancel: Any, **kwargs: Any) ->
 
 def absurd_gains_task(show_text: str, options: dict, job_id: str, queue: Any, cancel: Any) -> dict[str, Any]:
     """Position gains a million times the paper's: the controller saturates and drones diverge."""
-    from sim._ismc import IsmcGains, PositionGains
+    from sim.flight.control._ismc import IsmcGains, PositionGains
 
     gains = IsmcGains(position=PositionGains(k1=5e6, k2=4e6, alpha=5e6))
     return _fly(show_text, job_id, queue, cancel, gains=gains)
@@ -39,7 +39,7 @@ def nan_reference_task(show_text: str, options: dict, job_id: str, queue: Any, c
     """A NaN in one drone's reference (drone 2, from the second knot on)."""
     import numpy as np
 
-    import sim._flight as flight
+    import sim.flight._runner as flight
 
     original = flight.plan_reference
 

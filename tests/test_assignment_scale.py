@@ -9,9 +9,9 @@ from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from sim._assignment import SPARSE_MIN_DRONES, AssignmentError, assign, assignment_cost, certify
-from sim._assignment_sparse import _kd_order, _scan_all_pairs, solve_sparse
-from sim._benchmarks import grid_to_sphere_input
+from sim.bench._shows import grid_to_sphere_input
+from sim.plan._assignment import SPARSE_MIN_DRONES, AssignmentError, assign, assignment_cost, certify
+from sim.plan._assignment_sparse import _kd_order, _scan_all_pairs, solve_sparse
 
 
 def dense_optimum(x: np.ndarray, g: np.ndarray) -> float:

@@ -9,7 +9,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
 from app.cli import main as cli_main
-from sim._benchmarks import grid_to_sphere_input
+from sim.bench._shows import grid_to_sphere_input
 
 
 def test_bench_plan_json_matches_dense_optimum(capsys) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim._engine_numba import run_chunk_numba
-from sim._engine_numpy import STATS_SIZE, _run_chunk_numpy, init_controller
 from sim.flight import IsmcGains, QuadrotorParams, TrackingReference, hover_state, make_disturbance, simulate
+from sim.flight.engines._numba import run_chunk_numba
+from sim.flight.engines._numpy import STATS_SIZE, _run_chunk_numpy, init_controller
 
 
 @pytest.mark.parametrize("disturbance", ["none", "wind", "paper"])

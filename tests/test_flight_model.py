@@ -5,16 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim._quadrotor import (
-    QuadrotorParams,
-    euler_rate_matrix,
-    euler_rate_matrix_inverse,
-    mix,
-    rotation_matrix,
-    saturate,
-    thrust_axis,
-    unmix,
-)
 from sim.flight import (
     Disturbance,
     TrackingReference,
@@ -23,6 +13,16 @@ from sim.flight import (
     sig,
     simulate,
     unit,
+)
+from sim.flight._quadrotor import (
+    QuadrotorParams,
+    euler_rate_matrix,
+    euler_rate_matrix_inverse,
+    mix,
+    rotation_matrix,
+    saturate,
+    thrust_axis,
+    unmix,
 )
 
 RNG = np.random.default_rng(7)

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sim import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR, quintic_coefficients, quintic_eval, rest_to_rest
-from sim._quintic import invert_rest_to_rest
+from sim.plan._quintic import invert_rest_to_rest
 
 finite = st.floats(-100, 100, allow_nan=False)
 

@@ -1,7 +1,7 @@
 """``swarmshow bench KIND``: measure the speed of a pipeline stage on synthetic drones.
 
 Kinds live in ``BENCH_KINDS`` (name -> (help, add_arguments, run)); a kind's ``run``
-returns a JSON-safe dict. ``plan`` and ``check``: see :mod:`sim._benchmarks`.
+returns a JSON-safe dict. ``plan`` and ``check``: see :mod:`sim.bench._shows`.
 ``sim``: the flight engines, numba and the numpy reference in
 the same run, in drone-steps per second (one drone advanced by one 1 ms control step
 with the full controller and dynamics).
@@ -110,7 +110,7 @@ def _check_args(p: argparse.ArgumentParser) -> None:
 
 
 def _bench_plan(args: argparse.Namespace) -> dict:
-    from sim._benchmarks import bench_transition
+    from sim.bench._shows import bench_transition
 
     n = _check_drones(args)
     # Dense scipy needs an N x N float64 matrix and minutes beyond ~5000 drones.
@@ -131,7 +131,7 @@ def _format_plan(r: dict) -> str:
 
 
 def _bench_check(args: argparse.Namespace) -> dict:
-    from sim._benchmarks import bench_show
+    from sim.bench._shows import bench_show
 
     n = _check_drones(args)
     if not 1 <= args.formations <= 50:

@@ -28,7 +28,7 @@ from app.viewer._tracks import framing_camera as framing_camera
 from app.viewer._tracks import show_bounds as show_bounds
 from app.viewer._viewer import FRAME_RATE_HZ as FRAME_RATE_HZ
 from app.viewer._viewer import Viewer as Viewer
-from sim._closest import closest_pair as closest_pair
+from sim.geometry import closest_pair as closest_pair
 
 __all__ = [
     "CLIENT_BUILD_DIR",

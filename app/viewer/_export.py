@@ -30,7 +30,7 @@ import viser
 
 from app.viewer._tracks import framing_camera, make_track, show_bounds
 from sim import ShowPlan
-from sim._closest import closest_pair
+from sim.geometry import closest_pair
 
 #: Default keyframe rate of the export, frames per second.
 DEFAULT_EXPORT_FPS = 15.0

@@ -29,7 +29,7 @@ from app.viewer._tracks import (
     show_bounds,
 )
 from sim import ShowPlan
-from sim._closest import closest_pair
+from sim.geometry import closest_pair
 
 #: Playback pacing, frames per second.
 FRAME_RATE_HZ = 30.0

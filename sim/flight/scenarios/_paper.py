@@ -2,7 +2,7 @@
 
 Reference ``p_ref = [sin t, cos t, sin t]`` (m), ψ_ref = 0; disturbances
 ``Δ1 = Δ2 = [0.1 sin t, 0.1 cos t, 0.1 (sin t + cos t)]`` with Δ1 in m/s² and Δ2 an
-Euler-angle acceleration in rad/s² (see ``sim._disturbance``); start at
+Euler-angle acceleration in rad/s² (see ``sim.flight._disturbance``); start at
 ``p0 = [2, -3, 2]`` m, at rest, ``Θ0 = [0.2, -0.3, 0.2]`` rad; the paper's gains;
 20 s at the 1 ms step. Every control step is recorded.
 
@@ -27,7 +27,7 @@ the position loop's switching input u_d: it never stops moving (its rate is betw
 ~α dt / g per step, and the command filter passes ``ω_n² ΔΘ_ref`` straight into Θ̈_c;
 closing the loop through the filter and attitude lag gives the classic sliding-mode
 limit cycle with unmodelled actuator dynamics. A lower ω_n smooths the torques but
-lets the lag break the 1e-3 m position requirement (table in ``sim._attitude``).
+lets the lag break the 1e-3 m position requirement (table in ``sim.flight.control._attitude``).
 """
 
 from __future__ import annotations
@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim._baseline import BaselineGains
-from sim._engine_numpy import TELEMETRY_FIELDS, TrackingReference, simulate
-from sim._ismc import IsmcGains
+from sim.flight.control._baseline import BaselineGains
+from sim.flight.control._ismc import IsmcGains
+from sim.flight.engines._numpy import TELEMETRY_FIELDS, TrackingReference, simulate
 
 __all__ = [
     "PAPER_ATT_THRESHOLD_RAD",

@@ -34,11 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim._attitude import resolve_attitude
-from sim._baseline import BaselineGains
-from sim._disturbance import Disturbance, make_disturbance
-from sim._ismc import IsmcGains, ismc_nominal, ismc_switching
-from sim._quadrotor import (
+from sim.flight._disturbance import Disturbance, make_disturbance
+from sim.flight._quadrotor import (
     STATE_SIZE,
     QuadrotorParams,
     euler_rate_matrix,
@@ -50,6 +47,9 @@ from sim._quadrotor import (
     unmix,
     w_dot_omega,
 )
+from sim.flight.control._attitude import resolve_attitude
+from sim.flight.control._baseline import BaselineGains
+from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching
 
 __all__ = [
     "CTRL_SIZE",
@@ -531,7 +531,7 @@ def simulate(
     if engine == "numba":
         if integrator != "euler":
             raise ValueError("the numba engine integrates with semi-implicit Euler only")
-        from sim._engine_numba import run_chunk_numba as runner
+        from sim.flight.engines._numba import run_chunk_numba as runner
     elif engine == "numpy":
         runner = _run_chunk_numpy
     else:

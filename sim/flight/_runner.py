@@ -1,13 +1,13 @@
 """Fly a planned show: every drone in the rigid-body model under its controller.
 
-:func:`fly_show` turns a :class:`~sim._plan.ShowPlan` into a tracking reference (the
+:func:`fly_show` turns a :class:`~sim.plan._plan.ShowPlan` into a tracking reference (the
 plan's knots and shared quintic time law give ``p_ref, v_ref, a_ref`` exactly, no
 sampling), flies it at 1 kHz with one of the engines, and reports what was *flown*:
 per-drone tracking error, the flown minimum distance between any two drones (per
 output frame, with a k-d tree), and drones that diverged.
 
 With ``engine="dask"`` the drones are split into shards flown on a Dask ``distributed``
-cluster and merged into the same result (:mod:`sim._flight_dask`).
+cluster and merged into the same result (:mod:`sim.flight._dask`).
 
 Memory: the run is split into time chunks (``chunk_s``); per chunk only the shared
 reference and disturbance tables are built, and the flown minimum distance of the
@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from sim._baseline import BaselineGains
-from sim._closest import closest_pair
-from sim._disturbance import make_disturbance
-from sim._engine_numpy import STATE_SIZE, TrackingReference, simulate
-from sim._ismc import IsmcGains
-from sim._plan import ShowPlan
-from sim._quadrotor import QuadrotorParams
+from sim.flight._disturbance import make_disturbance
+from sim.flight._quadrotor import QuadrotorParams
+from sim.flight.control._baseline import BaselineGains
+from sim.flight.control._ismc import IsmcGains
+from sim.flight.engines._numpy import STATE_SIZE, TrackingReference, simulate
+from sim.geometry import closest_pair
+from sim.plan._plan import ShowPlan
 
 __all__ = ["FLOWN_DISTANCE_TOLERANCE_M", "FlightResult", "fly_show", "plan_reference"]
 
@@ -260,7 +260,7 @@ def fly_show(
         # A scheduler given to a local engine would silently fly on this machine instead.
         raise ValueError(f"scheduler and shards are only used with engine='dask', not {engine!r}")
     if engine == "dask":
-        from sim._flight_dask import fly_show_dask
+        from sim.flight._dask import fly_show_dask
 
         return fly_show_dask(
             plan, scheduler=scheduler, shards=shards, connect_timeout_s=connect_timeout_s,

@@ -3,7 +3,7 @@
 Exact. Below :data:`SPARSE_MIN_DRONES` drones: scipy's ``linear_sum_assignment``
 (a shortest-augmenting-path solver after Crouse 2016) on the dense N x M
 squared-distance matrix, which is fastest there. From that size on: the sparse
-ε-scaling auction with column generation of :mod:`sim._assignment_sparse`,
+ε-scaling auction with column generation of :mod:`sim.plan._assignment_sparse`,
 which never builds the N x M matrix and returns an optimality certificate
 checked over all pairs; the dense solver remains the fallback should the
 certificate not close.
@@ -18,8 +18,8 @@ from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from sim._assignment_sparse import Certificate, solve_sparse
-from sim._assignment_sparse import certify as _certify_with_prices
+from sim.plan._assignment_sparse import Certificate, solve_sparse
+from sim.plan._assignment_sparse import certify as _certify_with_prices
 
 #: Drones from which ``assign`` uses the sparse certified solver. Measured on this machine
 #: (CPU seconds, ground grid -> sphere and random -> random): dense 0.10 / 0.20 s vs sparse

@@ -3,15 +3,15 @@
 Drones fly independently given the plan (the disturbances depend on time only, the
 wind is one field over the whole fleet), so a show splits over drones without any
 communication during the flight. :func:`fly_show_dask` cuts the plan's drones into
-contiguous shards, runs the local numba engine (:func:`sim._flight.fly_show` with
+contiguous shards, runs the local numba engine (:func:`sim.flight._runner.fly_show` with
 ``drones=shard``) on each shard as one task, gathers the per-shard arrays and merges
-them into one :class:`~sim._flight.FlightResult`. Each drone's trajectory is computed
+them into one :class:`~sim.flight._runner.FlightResult`. Each drone's trajectory is computed
 by the same kernel from the same inputs whatever shard it is in, so the merged arrays
 equal the local engine's bit for bit (on workers with the same CPU features: numba
 compiles for the host CPU). The flown minimum distance needs every drone of a frame,
 so the shards skip it and it is computed once, after merging, over all drones.
 
-What is shipped: the :class:`~sim._plan.ShowPlan` (knots and colours, a few MB even at
+What is shipped: the :class:`~sim.plan._plan.ShowPlan` (knots and colours, a few MB even at
 16,000 drones) goes to the cluster once, as the result of a tiny task whose
 specification holds it; the shard tasks depend on it, so each worker fetches it once
 from a peer, and if the worker holding it dies the scheduler simply recomputes it
@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from sim._plan import ShowPlan
+from sim.plan._plan import ShowPlan
 
 __all__ = ["SchedulerUnreachableError", "connect_scheduler", "fly_show_dask"]
 
@@ -95,11 +95,11 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: dict[str, Any], toke
         shard: Index of the shard, echoed in its progress events.
 
     Returns:
-        The shard's :class:`~sim._flight.FlightResult` (without the flown distance).
+        The shard's :class:`~sim.flight._runner.FlightResult` (without the flown distance).
     """
     from distributed import get_worker
 
-    from sim._flight import fly_show
+    from sim.flight._runner import fly_show
 
     worker = get_worker()
     key = worker.get_current_task()
@@ -121,13 +121,13 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: dict[str, Any], toke
 
 
 def dask_setup(worker: Any) -> None:
-    """Worker preload hook: ``dask worker ... --preload sim._flight_dask`` loads the kernels at start.
+    """Worker preload hook: ``dask worker ... --preload sim.flight._dask`` loads the kernels at start.
 
     The numba kernels are compiled once per machine into ``__pycache__`` (10-20 s) and
     loaded from there by every process (about a second); doing it when the worker starts
     keeps both out of the first shard. Without the preload the first shard pays it.
     """
-    from sim._engine_numba import warm_up
+    from sim.flight.engines._numba import warm_up
 
     warm_up()
 
@@ -223,11 +223,11 @@ def fly_show_dask(
         drones: Optional subset (slice or index array) of the plan's drones to fly.
         progress: Called with the completed fraction in [0, 1] (increasing, ending at 1);
             if it raises, the run is cancelled and the exception propagates.
-        **options: The other keyword arguments of :func:`sim._flight.fly_show`
+        **options: The other keyword arguments of :func:`sim.flight._runner.fly_show`
             (controller, disturbance, output_hz, seed, params, gains, ...).
 
     Returns:
-        A :class:`~sim._flight.FlightResult` with ``engine="dask"``.
+        A :class:`~sim.flight._runner.FlightResult` with ``engine="dask"``.
 
     Raises:
         SchedulerUnreachableError: The scheduler or its workers could not be reached.
@@ -361,7 +361,7 @@ def _run_shards(
 
 def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable[[float], None]) -> Any:
     """Concatenate the shards' arrays in drone order and compute the flown distance over all."""
-    from sim._flight import FlightResult, _fold_flown_distance, _ordered_pair
+    from sim.flight._runner import FlightResult, _fold_flown_distance, _ordered_pair
 
     first = results[0]
     times = first.times_s

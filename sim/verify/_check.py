@@ -22,8 +22,8 @@ import numpy as np
 from pydantic import BaseModel, Field
 from scipy.spatial import cKDTree
 
-from sim._plan import ShowPlan
-from sim._quintic import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR, TAU_PEAK_ACCEL, invert_rest_to_rest
+from sim.plan._plan import ShowPlan
+from sim.plan._quintic import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR, TAU_PEAK_ACCEL, invert_rest_to_rest
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
 _TOL = 1e-9
@@ -301,7 +301,7 @@ def check_show(show, *, progress: Callable[[float], None] | None = None) -> Chec
         progress: optional callback receiving the fraction done in [0, 1]
             (planning is the first half, verification the second).
     """
-    from sim._plan import plan_show
+    from sim.plan._plan import plan_show
 
     half = (lambda f: progress(0.5 * f)) if progress else None
     plan = plan_show(show, enforce_limits=False, progress=half)

@@ -1,11 +1,11 @@
 """The fast engine: one fused numba kernel, parallel over drones.
 
-The kernel computes exactly what :func:`sim._engine_numpy.numpy_step` computes (same
+The kernel computes exactly what :func:`sim.flight.engines._numpy.numpy_step` computes (same
 controller, same mixer and saturation, same semi-implicit Euler step, same divergence
 rules), but with the loops the other way round: ``prange`` over drones, and for each
 drone a serial loop over the steps of the chunk with the whole state in registers.
 Drones are independent (disturbances depend on time only), so no synchronisation is
-needed inside a chunk; the driver (:func:`sim._engine_numpy.simulate`) calls the
+needed inside a chunk; the driver (:func:`sim.flight.engines._numpy.simulate`) calls the
 kernel once per chunk of steps, which bounds the memory of the reference and
 disturbance tables and gives progress granularity.
 
@@ -39,7 +39,8 @@ import math
 import numba as nb
 import numpy as np
 
-from sim._engine_numpy import (
+from sim.flight.control._ismc import SWITCH_EPS
+from sim.flight.engines._numpy import (
     C_E2_0,
     C_E4_0,
     C_IATT,
@@ -61,14 +62,13 @@ from sim._engine_numpy import (
     RefChunk,
     TrackingReference,
 )
-from sim._ismc import SWITCH_EPS
 
 __all__ = ["run_chunk_numba", "warm_up"]
 
 
 @nb.njit(inline="always", cache=True)
 def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
-    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (same branches as ``sim._ismc.sig``)."""
+    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (same branches as ``sim.flight.control._ismc.sig``)."""
     n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
     if not n > 0.0:
         return 0.0
@@ -82,7 +82,7 @@ def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
 
 @nb.njit(inline="always", cache=True)
 def _unit_scale(x0: float, x1: float, x2: float) -> float:
-    """Factor ``1/max(||x||, SWITCH_EPS)``, 0 at x = 0 (``sim._ismc.unit``)."""
+    """Factor ``1/max(||x||, SWITCH_EPS)``, 0 at x = 0 (``sim.flight.control._ismc.unit``)."""
     n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
     if not n > 0.0:
         return 0.0
@@ -95,7 +95,7 @@ def _ismc_law(
     ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
     ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float,
 ) -> tuple:
-    """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim._ismc``.
+    """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim.flight.control._ismc``.
 
     Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
     r_a, r_b of the nominal law, ė at the start, the integral of the nominal closed loop, the
@@ -254,7 +254,7 @@ def _kernel(
             gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
             gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
             gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
-            # Ẇ Ω (see sim._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
+            # Ẇ Ω (see sim.flight._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
             sec2 = icth * icth
             wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
             wd1 = -sph * edx * wy - cph * edx * wz
@@ -276,7 +276,7 @@ def _kernel(
             tcy = iy * (cph * uay + sph * cth * uaz)
             tcz = iz * (-sph * uay + cph * cth * uaz)
 
-            # ---- rotors ("+" mixer of sim._quadrotor), saturation, what acts
+            # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
             # Divisions kept here: the same rounding as the reference mixer is what makes the
             # hover thrust come back as exactly m·g (hover is held bit-exactly).
             base = thrust_cmd / (4.0 * kf)
@@ -432,8 +432,8 @@ def warm_up() -> None:
     (``fly_show``); call this at image build or server start to move the first-run
     compile time (several seconds each) out of the first request.
     """
-    from sim._engine_numpy import TrackingReference as _Ref
-    from sim._engine_numpy import simulate
+    from sim.flight.engines._numpy import TrackingReference as _Ref
+    from sim.flight.engines._numpy import simulate
 
     ref = _Ref.hover(np.zeros((1, 3)))
     simulate(ref, duration_s=0.002, engine="numba", output_every=1)

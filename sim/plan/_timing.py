@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from sim._quintic import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR
+from sim.plan._quintic import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR
 
 #: Durations are rounded up to this step, seconds.
 DURATION_STEP_S = 0.1

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sim._attitude import CommandFilter
-from sim._ismc import AttitudeGains, IsmcGains, PositionGains
+from sim.flight.control._attitude import CommandFilter
+from sim.flight.control._ismc import AttitudeGains, IsmcGains, PositionGains
 
 __all__ = ["BaselineGains"]
 

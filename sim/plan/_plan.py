@@ -26,9 +26,10 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from formations import Settings, ShowFile
-from sim._assignment import assign
-from sim._quintic import rest_to_rest
-from sim._timing import min_transition_duration
+from sim.plan._assignment import assign
+from sim.plan._quintic import rest_to_rest
+from sim.plan._timing import min_transition_duration
+from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
 ProgressFn = Callable[[float], None]
@@ -130,6 +131,17 @@ class ShowPlan:
     transitions: tuple[TransitionInfo, ...]
     settings: Settings
     show_name: str = ""
+    trajectories: Trajectories | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.trajectories is None:
+            object.__setattr__(self, "trajectories", trajectories_from_knots(self.knot_times_s, self.knot_positions_m))
+
+    @property
+    def motion(self) -> Trajectories:
+        """Every drone's piecewise-polynomial position (the one source of motion for all consumers)."""
+        assert self.trajectories is not None  # set in __post_init__
+        return self.trajectories
 
     @property
     def drone_count(self) -> int:
@@ -185,18 +197,18 @@ class ShowPlan:
         """
         t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
         sel = slice(None) if drones is None else drones
-        law = self.time_law(t)
-        p0 = self.knot_positions_m[law.segment][:, sel]
-        dp = self.knot_positions_m[law.segment + 1][:, sel] - p0
-        c0 = self.knot_colors_rgb[law.segment][:, sel]
-        dc = self.knot_colors_rgb[law.segment + 1][:, sel] - c0
-        col = lambda x: x[:, None, None]  # noqa: E731  (broadcast a per-time scalar over drones)
+        motion = self.motion.evaluate(t, sel)
+        k = self.segment_index(t)
+        t0 = self.knot_times_s[k]
+        tau = np.clip((t - t0) / (self.knot_times_s[k + 1] - t0), 0.0, 1.0)
+        c0 = self.knot_colors_rgb[k][:, sel]
+        dc = self.knot_colors_rgb[k + 1][:, sel] - c0
         return PlanSample(
             times_s=t,
-            positions_m=p0 + col(law.beta) * dp,
-            velocities_mps=col(law.beta_d) * dp,
-            accelerations_mps2=col(law.beta_dd) * dp,
-            colors_rgb=c0 + col(law.tau) * dc,
+            positions_m=motion.positions_m,
+            velocities_mps=motion.velocities_mps,
+            accelerations_mps2=motion.accelerations_mps2,
+            colors_rgb=c0 + tau[:, None, None] * dc,
         )
 
     def sample_times(self, fps: float) -> np.ndarray:
@@ -210,6 +222,16 @@ class ShowPlan:
     def formation_segments(self) -> list[tuple[str, Segment]]:
         """(formation name, hold segment) for each formation, in show order."""
         return [(s.label, s) for s in self.segments if s.kind == "hold"]
+
+
+def trajectories_from_knots(knot_times_s: np.ndarray, knot_positions_m: np.ndarray) -> Trajectories:
+    """Shared-segment knots (K+1,), (K+1, N, 3) as one rest-to-rest quintic piece per segment and drone."""
+    n = knot_positions_m.shape[1]
+    builder = TrajectoryBuilder(knot_positions_m[0], float(knot_times_s[0]))
+    for k in range(len(knot_times_s) - 1):
+        dur = np.full(n, float(knot_times_s[k + 1] - knot_times_s[k]))
+        builder.append(dur, rest_to_rest_quintic_coeffs(knot_positions_m[k], knot_positions_m[k + 1], dur))
+    return builder.build()
 
 
 def _closest_distance(points: np.ndarray) -> float:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from sim._benchmarks import BENCH_SPACING_M, grid_to_sphere_input
+from sim.bench._shows import BENCH_SPACING_M, grid_to_sphere_input
 
 
 def random_to_random_input(n: int, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -54,7 +54,7 @@ def _measure(kind: str, n: int, solver: str) -> dict[str, Any]:
 
     starts, goals = transition_input(kind, n)
     if solver == "ours":
-        from sim._assignment import assign
+        from sim.plan._assignment import assign
 
         assign(*transition_input(kind, 1200))  # load the numba kernels (compiled and cached on disk)
         tracemalloc.start()
@@ -93,7 +93,7 @@ def _measure(kind: str, n: int, solver: str) -> dict[str, Any]:
 def measure_in_subprocess(kind: str, n: int, solver: str, *, timeout_s: float = 1800.0) -> dict[str, Any]:
     """:func:`_measure` in a fresh interpreter (its own peak memory); ``solver`` is "ours" or "dense"."""
     code = (
-        "import json, sys; from sim._assignment_bench import _measure; "
+        "import json, sys; from sim.bench._assignment import _measure; "
         f"print(json.dumps(_measure({kind!r}, {int(n)}, {solver!r})))"
     )
     proc = subprocess.run(

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim._attitude import CommandFilter
+from sim.flight.control._attitude import CommandFilter
 
 __all__ = [
     "SWITCH_EPS",

@@ -1,0 +1,1 @@
+"""Benchmark inputs and runners shared by ``swarmshow bench`` and ``benchmarks/``."""

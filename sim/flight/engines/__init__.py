@@ -1,0 +1,1 @@
+"""Simulation engines: the plain-numpy reference step and the fused numba kernel."""

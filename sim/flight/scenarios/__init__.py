@@ -1,0 +1,1 @@
+"""Flight scenarios: the paper's test scenario (PAPER.md)."""

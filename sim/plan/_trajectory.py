@@ -1,0 +1,248 @@
+"""Per-drone piecewise-polynomial trajectories: the plan's one representation of motion.
+
+Every drone's position over the whole show is a sequence of polynomial pieces of
+degree <= :data:`DEGREE` in local time ``u = t - breaks_s[i, p]``:
+
+* ``breaks_s``: (N, P+1) float64, nondecreasing along each row; every row starts at
+  the same show start and ends at the same show end. Pieces may have zero length
+  (a phase of a profile that vanishes, or padding); a zero-length piece carries the
+  Taylor polynomial of the motion at its instant, so evaluating exactly there is
+  still right.
+* ``coeffs_m``: (N, P, 3, DEGREE+1) float64, ascending powers: the position on
+  piece p is Σ_k coeffs_m[i, p, :, k]·u^k (metres; coefficient k in m/s^k).
+
+Drones do not share piece boundaries: each has its own departure time and time law
+(the planner staggers drones to keep them apart), so everything that consumes
+motion (verification, flight references, playback, exports) reads this table, never
+a shared time law. Pieces are looked up per drone with one flat ``searchsorted``
+over rows offset into disjoint ranges, so evaluation stays vectorised over drones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+#: Highest polynomial degree of a piece (the paper's quintic; jerk-limited profiles are cubic).
+DEGREE = 5
+
+# Evaluate at most this many (time, drone) pairs at once, to bound the gathered coefficients' memory.
+_EVAL_CHUNK = 1 << 20
+
+
+class TrajectorySample(NamedTuple):
+    """Positions (m), velocities (m/s), accelerations (m/s²) at T times for n drones: (T, n, 3) each."""
+
+    positions_m: np.ndarray
+    velocities_mps: np.ndarray
+    accelerations_mps2: np.ndarray
+
+
+def _derivative_coeffs(c: np.ndarray, order: int) -> np.ndarray:
+    """Coefficients (..., D+1) of the ``order``-th derivative in the same ascending layout (zero-padded)."""
+    out = np.array(c, copy=True)
+    for _ in range(order):
+        k = np.arange(1, out.shape[-1], dtype=np.float64)
+        out = np.concatenate([out[..., 1:] * k, np.zeros_like(out[..., :1])], axis=-1)
+    return out
+
+
+def horner(c: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Σ_k c[..., k]·u^k with ``u`` broadcast against ``c[..., 0]``."""
+    acc = c[..., -1].copy()
+    for k in range(c.shape[-1] - 2, -1, -1):
+        acc = acc * u + c[..., k]
+    return acc
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectories:
+    """Per-drone piecewise polynomials (see the module docstring for the layout)."""
+
+    breaks_s: np.ndarray
+    coeffs_m: np.ndarray
+    _flat: np.ndarray = field(init=False, repr=False)
+    _offset_s: float = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        b = np.ascontiguousarray(self.breaks_s, dtype=np.float64)
+        c = np.ascontiguousarray(self.coeffs_m, dtype=np.float64)
+        if b.ndim != 2 or c.ndim != 4 or c.shape[:2] != (b.shape[0], b.shape[1] - 1) or c.shape[2] != 3:
+            raise ValueError(f"breaks (N, P+1) and coeffs (N, P, 3, D+1) do not match: {b.shape}, {c.shape}")
+        if b.shape[1] < 2:
+            raise ValueError("every drone needs at least one piece")
+        if np.any(np.diff(b, axis=1) < 0):
+            raise ValueError("breaks_s must be nondecreasing along each drone")
+        object.__setattr__(self, "breaks_s", b)
+        object.__setattr__(self, "coeffs_m", c)
+        # Rows shifted into disjoint ranges make one sorted array: a single searchsorted
+        # then finds every drone's piece at once.
+        span = float(b[:, -1].max() - b[:, 0].min()) + 1.0
+        flat = (b[:, 1:] + span * np.arange(b.shape[0])[:, None]).ravel()
+        object.__setattr__(self, "_flat", flat)
+        object.__setattr__(self, "_offset_s", span)
+
+    @property
+    def drone_count(self) -> int:
+        """N."""
+        return int(self.breaks_s.shape[0])
+
+    @property
+    def piece_count(self) -> int:
+        """P, pieces per drone (zero-length ones included)."""
+        return int(self.breaks_s.shape[1] - 1)
+
+    @property
+    def start_s(self) -> float:
+        """Show start, seconds."""
+        return float(self.breaks_s[0, 0])
+
+    @property
+    def end_s(self) -> float:
+        """Show end, seconds."""
+        return float(self.breaks_s[0, -1])
+
+    def _rows(self, drones: slice | np.ndarray | None) -> np.ndarray:
+        return np.arange(self.drone_count)[slice(None) if drones is None else drones]
+
+    def piece_index(self, times_s: ArrayLike, drones: slice | np.ndarray | None = None) -> np.ndarray:
+        """(T, n) index of the piece each drone is on at each time (the last piece starting at or before t).
+
+        Times are clamped to [start, end]; at a break the later piece is chosen.
+        """
+        t = np.clip(np.atleast_1d(np.asarray(times_s, dtype=np.float64)), self.start_s, self.end_s)
+        rows = self._rows(drones)
+        p = self.piece_count
+        key = t[:, None] + self._offset_s * rows[None, :]
+        # Position among row i's P interior breaks (breaks[:, 1:]), counted within the row.
+        idx = np.searchsorted(self._flat, key, side="right") - rows[None, :] * p
+        return np.clip(idx, 0, p - 1)
+
+    def evaluate(
+        self, times_s: ArrayLike, drones: slice | np.ndarray | None = None, *, derivatives: int = 2
+    ) -> TrajectorySample:
+        """Position and (up to ``derivatives``) velocity and acceleration at ``times_s`` (T,) for (some) drones.
+
+        Returns (T, n, 3) arrays; those not asked for are zeros. Outside the show the
+        drones rest at their first / last position.
+        """
+        t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
+        rows = self._rows(drones)
+        n_t, n = len(t), len(rows)
+        pos = np.empty((n_t, n, 3))
+        vel = np.zeros((n_t, n, 3))
+        acc = np.zeros((n_t, n, 3))
+        inside = (t >= self.start_s) & (t <= self.end_s)
+        step = max(1, _EVAL_CHUNK // max(n, 1))
+        for a in range(0, n_t, step):
+            tc = np.clip(t[a:a + step], self.start_s, self.end_s)
+            idx = self.piece_index(tc, rows)  # (Tc, n)
+            c = self.coeffs_m[rows[None, :], idx]  # (Tc, n, 3, D+1)
+            u = (tc[:, None] - self.breaks_s[rows[None, :], idx])[..., None]  # (Tc, n, 1)
+            pos[a:a + step] = horner(c, u)
+            live = inside[a:a + step, None, None]
+            if derivatives >= 1:
+                vel[a:a + step] = np.where(live, horner(_derivative_coeffs(c, 1), u), 0.0)
+            if derivatives >= 2:
+                acc[a:a + step] = np.where(live, horner(_derivative_coeffs(c, 2), u), 0.0)
+        return TrajectorySample(pos, vel, acc)
+
+    def select(self, drones: slice | np.ndarray) -> Trajectories:
+        """The trajectories of a subset of drones (same pieces)."""
+        rows = self._rows(drones)
+        return Trajectories(self.breaks_s[rows], self.coeffs_m[rows])
+
+
+class TrajectoryBuilder:
+    """Appends pieces to all N drones at once, each drone with its own piece times.
+
+    Every call appends the same number of pieces to every drone (zero-length pieces
+    where a drone has nothing to do), so the table stays a dense (N, P) array.
+    """
+
+    def __init__(self, start_positions_m: ArrayLike, start_s: float = 0.0) -> None:
+        p = np.asarray(start_positions_m, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"start positions must be (N, 3), got {p.shape}")
+        self._pos_m = p.copy()
+        self._time_s = np.full(len(p), float(start_s))
+        self._breaks: list[np.ndarray] = [self._time_s.copy()]
+        self._coeffs: list[np.ndarray] = []
+
+    @property
+    def positions_m(self) -> np.ndarray:
+        """(N, 3) where each drone is after the pieces so far."""
+        return self._pos_m.copy()
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """(N,) when each drone's pieces so far end."""
+        return self._time_s.copy()
+
+    def append(self, durations_s: ArrayLike, coeffs_m: ArrayLike) -> None:
+        """Append one piece per drone: (N,) durations (>= 0) and (N, 3, k) ascending coefficients, k <= D+1.
+
+        The constant coefficient must continue from where each drone is (checked to 1e-9 m).
+        """
+        d = np.broadcast_to(np.asarray(durations_s, dtype=np.float64), self._time_s.shape)
+        c = np.asarray(coeffs_m, dtype=np.float64)
+        if np.any(d < 0):
+            raise ValueError("piece durations must be >= 0")
+        full = np.zeros((len(d), 3, DEGREE + 1))
+        full[..., : c.shape[-1]] = c
+        if not np.allclose(full[..., 0], self._pos_m, rtol=0.0, atol=1e-9):
+            raise ValueError("a piece does not start where the drone is")
+        full[..., 0] = self._pos_m  # exact continuity
+        self._coeffs.append(full)
+        self._time_s = self._time_s + d
+        self._pos_m = horner(full, d[:, None])
+        self._breaks.append(self._time_s.copy())
+
+    def hold_until(self, times_s: ArrayLike) -> None:
+        """Each drone rests where it is until its time in ``times_s`` (N,) (or a scalar), never before now."""
+        t = np.broadcast_to(np.asarray(times_s, dtype=np.float64), self._time_s.shape)
+        if np.any(t < self._time_s - 1e-9):
+            raise ValueError("hold_until goes back in time")
+        self.append(np.maximum(t - self._time_s, 0.0), self._pos_m[..., None])
+
+    def build(self) -> Trajectories:
+        """The trajectories so far; every drone must end at the same time (use :meth:`hold_until`)."""
+        if not self._coeffs:
+            self.hold_until(self._time_s)
+        end = self._time_s
+        if np.ptp(end) > 1e-9:
+            raise ValueError("drones end at different times; hold them until a common end first")
+        breaks = np.stack(self._breaks, axis=1)
+        breaks[:, -1] = end.max()
+        return Trajectories(breaks, np.stack(self._coeffs, axis=1))
+
+
+def rest_to_rest_quintic_coeffs(start_m: np.ndarray, end_m: np.ndarray, duration_s: np.ndarray) -> np.ndarray:
+    """(N, 3, 6) coefficients of straight rest-to-rest quintic legs p(u) = A + (10τ³ - 15τ⁴ + 6τ⁵)·D, τ = u/T.
+
+    Zero durations give a constant piece at ``start_m`` (the leg must then have D = 0).
+    """
+    a = np.asarray(start_m, dtype=np.float64)
+    dvec = np.asarray(end_m, dtype=np.float64) - a
+    t = np.asarray(duration_s, dtype=np.float64)
+    safe = np.where(t > 0, t, 1.0)[:, None]
+    c = np.zeros(a.shape + (DEGREE + 1,))
+    c[..., 0] = a
+    moving = (t > 0)[:, None]
+    c[..., 3] = np.where(moving, 10.0 * dvec / safe**3, 0.0)
+    c[..., 4] = np.where(moving, -15.0 * dvec / safe**4, 0.0)
+    c[..., 5] = np.where(moving, 6.0 * dvec / safe**5, 0.0)
+    return c
+
+
+__all__ = [
+    "DEGREE",
+    "TrajectoryBuilder",
+    "Trajectories",
+    "TrajectorySample",
+    "horner",
+    "rest_to_rest_quintic_coeffs",
+]

@@ -1,0 +1,9 @@
+"""Verify: the exact continuous-time check of a planned show (separation, speeds, acceleration, altitude)."""
+
+from __future__ import annotations
+
+from sim.verify._check import CheckReport as CheckReport
+from sim.verify._check import Violation as Violation
+from sim.verify._check import check_plan as check_plan
+from sim.verify._check import check_show as check_show
+from sim.verify._check import segment_close_pairs as segment_close_pairs
