@@ -20,7 +20,6 @@ over rows offset into disjoint ranges, so evaluation stays vectorised over drone
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -58,32 +57,34 @@ def horner(c: np.ndarray, u: np.ndarray) -> np.ndarray:
     return acc
 
 
-@dataclass(frozen=True, eq=False)
 class Trajectories:
-    """Per-drone piecewise polynomials (see the module docstring for the layout)."""
+    """Per-drone piecewise polynomials (see the module docstring for the layout).
+
+    A plain class, not a dataclass: Dask rebuilds dataclass arguments field by field,
+    which would drop the derived lookup table.
+    """
 
     breaks_s: np.ndarray
     coeffs_m: np.ndarray
-    _flat: np.ndarray = field(init=False, repr=False)
-    _offset_s: float = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
-        b = np.ascontiguousarray(self.breaks_s, dtype=np.float64)
-        c = np.ascontiguousarray(self.coeffs_m, dtype=np.float64)
+    def __init__(self, breaks_s: ArrayLike, coeffs_m: ArrayLike) -> None:
+        b = np.ascontiguousarray(breaks_s, dtype=np.float64)
+        c = np.ascontiguousarray(coeffs_m, dtype=np.float64)
         if b.ndim != 2 or c.ndim != 4 or c.shape[:2] != (b.shape[0], b.shape[1] - 1) or c.shape[2] != 3:
             raise ValueError(f"breaks (N, P+1) and coeffs (N, P, 3, D+1) do not match: {b.shape}, {c.shape}")
         if b.shape[1] < 2:
             raise ValueError("every drone needs at least one piece")
         if np.any(np.diff(b, axis=1) < 0):
             raise ValueError("breaks_s must be nondecreasing along each drone")
-        object.__setattr__(self, "breaks_s", b)
-        object.__setattr__(self, "coeffs_m", c)
+        self.breaks_s, self.coeffs_m = b, c
         # Rows shifted into disjoint ranges make one sorted array: a single searchsorted
         # then finds every drone's piece at once.
         span = float(b[:, -1].max() - b[:, 0].min()) + 1.0
         flat = (b[:, 1:] + span * np.arange(b.shape[0])[:, None]).ravel()
-        object.__setattr__(self, "_flat", flat)
-        object.__setattr__(self, "_offset_s", span)
+        self._flat, self._offset_s = flat, span
+
+    def __repr__(self) -> str:
+        return f"Trajectories(drones={self.drone_count}, pieces={self.piece_count}, {self.start_s}..{self.end_s} s)"
 
     @property
     def drone_count(self) -> int:
