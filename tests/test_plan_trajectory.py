@@ -1,0 +1,100 @@
+"""Per-drone piecewise polynomials (sim.plan.Trajectories) against a per-drone brute-force evaluation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.polynomial import polynomial as P
+
+from sim.plan import Trajectories, TrajectoryBuilder
+from sim.plan._trajectory import rest_to_rest_quintic_coeffs
+
+
+def _random_builder(rng: np.random.Generator, n: int, pieces: int) -> TrajectoryBuilder:
+    """Random continuous motion: each piece a random polynomial continuing from where the drone is.
+
+    A third of the pieces have zero length (as vanishing profile phases do), and every
+    drone has its own durations, so no two drones share piece boundaries.
+    """
+    b = TrajectoryBuilder(rng.uniform(-50, 50, (n, 3)), start_s=rng.uniform(-2, 2))
+    for _ in range(pieces):
+        dur = rng.uniform(0.1, 5.0, n) * (rng.random(n) > 0.33)
+        c = np.concatenate([b.positions_m[..., None], rng.normal(0, 1, (n, 3, 5))], axis=-1)
+        b.append(dur, c)
+    b.hold_until(b.times_s.max() + rng.uniform(0, 1))
+    return b
+
+
+def _brute(traj: Trajectories, t: float, i: int, order: int) -> np.ndarray:
+    """Drone i's ``order``-th derivative at t by scanning its pieces in Python (the last piece starting <= t)."""
+    br = traj.breaks_s[i]
+    tc = min(max(t, br[0]), br[-1])
+    p = max(k for k in range(traj.piece_count) if br[k] <= tc)
+    if order and not br[0] <= t <= br[-1]:
+        return np.zeros(3)
+    return np.array([P.polyval(tc - br[p], P.polyder(traj.coeffs_m[i, p, ax], order) if order else
+                               traj.coeffs_m[i, p, ax]) for ax in range(3)])
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 6), pieces=st.integers(1, 6))
+def test_evaluate_matches_per_drone_scan(seed: int, n: int, pieces: int) -> None:
+    rng = np.random.default_rng(seed)
+    traj = _random_builder(rng, n, pieces).build()
+    # Random times plus every break exactly (zero-length pieces meet there) and outside the show.
+    times = np.concatenate([rng.uniform(traj.start_s - 1, traj.end_s + 1, 20), traj.breaks_s.ravel()])
+    got = traj.evaluate(times)
+    for k, t in enumerate(times):
+        for i in range(n):
+            np.testing.assert_allclose(got.positions_m[k, i], _brute(traj, t, i, 0), rtol=1e-9, atol=1e-6)
+            np.testing.assert_allclose(got.velocities_mps[k, i], _brute(traj, t, i, 1), rtol=1e-9, atol=1e-6)
+            np.testing.assert_allclose(got.accelerations_mps2[k, i], _brute(traj, t, i, 2), rtol=1e-9, atol=1e-6)
+
+
+def test_motion_is_continuous_across_every_break() -> None:
+    """Each piece starts where the previous one ends (its polynomial at its own length)."""
+    traj = _random_builder(np.random.default_rng(3), 8, 5).build()
+    lengths = np.diff(traj.breaks_s, axis=1)
+    for i in range(8):
+        for p in range(1, traj.piece_count):
+            end = [P.polyval(lengths[i, p - 1], traj.coeffs_m[i, p - 1, ax]) for ax in range(3)]
+            np.testing.assert_allclose(traj.coeffs_m[i, p, :, 0], end, rtol=1e-12, atol=1e-9)
+
+
+def test_quintic_leg_matches_closed_form_and_rests_at_both_ends() -> None:
+    a, bpt, dur = np.array([[0.0, 0, 10]]), np.array([[30.0, -4, 50]]), np.array([12.5])
+    builder = TrajectoryBuilder(a)
+    builder.hold_until(2.0)
+    builder.append(dur, rest_to_rest_quintic_coeffs(a, bpt, dur))
+    builder.hold_until(20.0)
+    traj = builder.build()
+    t = np.linspace(2.0, 14.5, 101)
+    tau = (t - 2.0) / 12.5
+    s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    got = traj.evaluate(t).positions_m[:, 0]
+    np.testing.assert_allclose(got, a + s[:, None] * (bpt - a), atol=1e-9)
+    ends = traj.evaluate([0.0, 2.0, 14.5, 20.0])
+    np.testing.assert_allclose(ends.positions_m[:, 0], [a[0], a[0], bpt[0], bpt[0]], atol=1e-9)
+    assert np.abs(ends.velocities_mps).max() < 1e-9
+
+
+def test_builder_refuses_jumps_backward_holds_and_ragged_ends() -> None:
+    b = TrajectoryBuilder(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="start where"):
+        b.append([1.0, 1.0], np.ones((2, 3, 1)))
+    b.append([1.0, 2.0], np.zeros((2, 3, 1)))
+    with pytest.raises(ValueError, match="back in time"):
+        b.hold_until(1.5)
+    with pytest.raises(ValueError, match="different times"):
+        b.build()
+    b.hold_until(2.0)
+    assert b.build().end_s == 2.0
+
+
+def test_select_keeps_each_drones_pieces() -> None:
+    traj = _random_builder(np.random.default_rng(7), 5, 3).build()
+    sub = traj.select(np.array([4, 1]))
+    t = np.linspace(traj.start_s, traj.end_s, 17)
+    np.testing.assert_array_equal(sub.evaluate(t).positions_m, traj.evaluate(t, np.array([4, 1])).positions_m)
