@@ -98,3 +98,17 @@ def test_select_keeps_each_drones_pieces() -> None:
     sub = traj.select(np.array([4, 1]))
     t = np.linspace(traj.start_s, traj.end_s, 17)
     np.testing.assert_array_equal(sub.evaluate(t).positions_m, traj.evaluate(t, np.array([4, 1])).positions_m)
+
+
+def test_piece_lookup_is_exact_for_large_fleets_and_long_shows() -> None:
+    """A break a nanosecond away decides the piece for the last drone of 16,000 in a 1,000 s show."""
+    n = 16_000
+    b = TrajectoryBuilder(np.zeros((n, 3)))
+    b.hold_until(np.full(n, 999.123456789))
+    b.hold_until(1000.0)
+    traj = b.build()
+    t_break = 999.123456789
+    idx = traj.piece_index([t_break - 1e-9, t_break, t_break + 1e-9])
+    assert idx.shape == (3, n)
+    np.testing.assert_array_equal(idx[:, -1], [0, 1, 1])
+    assert (idx == idx[:, :1]).all()

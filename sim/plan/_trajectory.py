@@ -14,8 +14,8 @@ degree <= :data:`DEGREE` in local time ``u = t - breaks_s[i, p]``:
 Drones do not share piece boundaries: each has its own departure time and time law
 (the planner staggers drones to keep them apart), so everything that consumes
 motion (verification, flight references, playback, exports) reads this table, never
-a shared time law. Pieces are looked up per drone with one flat ``searchsorted``
-over rows offset into disjoint ranges, so evaluation stays vectorised over drones.
+a shared time law. Pieces are looked up by a compiled binary search per drone, so evaluation stays
+vectorised over drones.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 
 #: Highest polynomial degree of a piece (the paper's quintic; jerk-limited profiles are cubic).
@@ -30,6 +31,24 @@ DEGREE = 5
 
 # Evaluate at most this many (time, drone) pairs at once, to bound the gathered coefficients' memory.
 _EVAL_CHUNK = 1 << 20
+
+
+@njit(cache=True, nogil=True)
+def _search_pieces(breaks_s: np.ndarray, rows: np.ndarray, times_s: np.ndarray, out: np.ndarray) -> None:
+    """out[k, j] = number of interior breaks of drone rows[j] at or before times_s[k], at most P-1."""
+    p = breaks_s.shape[1] - 1
+    for j in range(rows.shape[0]):
+        b = breaks_s[rows[j]]
+        for k in range(times_s.shape[0]):
+            lo, hi = 1, p  # search breaks b[1 .. p-1] (side="right")
+            t = times_s[k]
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if b[mid] <= t:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            out[k, j] = lo - 1
 
 
 class TrajectorySample(NamedTuple):
@@ -77,11 +96,6 @@ class Trajectories:
         if np.any(np.diff(b, axis=1) < 0):
             raise ValueError("breaks_s must be nondecreasing along each drone")
         self.breaks_s, self.coeffs_m = b, c
-        # Rows shifted into disjoint ranges make one sorted array: a single searchsorted
-        # then finds every drone's piece at once.
-        span = float(b[:, -1].max() - b[:, 0].min()) + 1.0
-        flat = (b[:, 1:] + span * np.arange(b.shape[0])[:, None]).ravel()
-        self._flat, self._offset_s = flat, span
 
     def __repr__(self) -> str:
         return f"Trajectories(drones={self.drone_count}, pieces={self.piece_count}, {self.start_s}..{self.end_s} s)"
@@ -112,15 +126,15 @@ class Trajectories:
     def piece_index(self, times_s: ArrayLike, drones: slice | np.ndarray | None = None) -> np.ndarray:
         """(T, n) index of the piece each drone is on at each time (the last piece starting at or before t).
 
-        Times are clamped to [start, end]; at a break the later piece is chosen.
+        Times are clamped to [start, end]; at a break the later piece is chosen. A binary
+        search per drone and time over that drone's own breaks, so no precision is lost
+        to offsets however long the show or large the fleet.
         """
         t = np.clip(np.atleast_1d(np.asarray(times_s, dtype=np.float64)), self.start_s, self.end_s)
-        rows = self._rows(drones)
-        p = self.piece_count
-        key = t[:, None] + self._offset_s * rows[None, :]
-        # Position among row i's P interior breaks (breaks[:, 1:]), counted within the row.
-        idx = np.searchsorted(self._flat, key, side="right") - rows[None, :] * p
-        return np.clip(idx, 0, p - 1)
+        rows = np.ascontiguousarray(self._rows(drones), dtype=np.int64)
+        out = np.empty((len(t), len(rows)), dtype=np.int64)
+        _search_pieces(self.breaks_s, rows, np.ascontiguousarray(t), out)
+        return out
 
     def evaluate(
         self, times_s: ArrayLike, drones: slice | np.ndarray | None = None, *, derivatives: int = 2
