@@ -221,8 +221,33 @@ def test_skyc_warns_above_the_viewer_limit(show, plan, monkeypatch):
     assert any("Skybrush Viewer" in w for w in result.warnings)
 
 
+def _hermite_error_dense(c: np.ndarray, duration_s: float, parts: int) -> float:
+    """Largest distance between one piece (3, 6) and its cubic Hermite parts, sampled densely (independent)."""
+    t = np.linspace(0.0, duration_s, 4001)
+    powers = lambda x: x[:, None] ** np.arange(6)  # noqa: E731
+    dpowers = lambda x: np.c_[np.zeros(len(x)), x[:, None] ** np.arange(5) * np.arange(1, 6)]  # noqa: E731
+    h = duration_s / parts
+    j = np.minimum((t // h).astype(int), parts - 1)
+    a, b = j * h, (j + 1) * h
+    pa, pb, va, vb = powers(a) @ c.T, powers(b) @ c.T, dpowers(a) @ c.T, dpowers(b) @ c.T
+    s = ((t - a) / h)[:, None]
+    # Cubic Hermite basis (independent of the exporter's Bézier form).
+    cubic = ((2 * s**3 - 3 * s**2 + 1) * pa + (s**3 - 2 * s**2 + s) * h * va + (-2 * s**3 + 3 * s**2) * pb
+             + (s**3 - s**2) * h * vb)
+    return float(np.linalg.norm(cubic - powers(t) @ c.T, axis=1).max())
+
+
 @pytest.mark.parametrize("length_m", [0.5, 10.0, 250.0, 2000.0])
 def test_skyc_piece_count_meets_the_tolerance(length_m):
-    n = skyc_module.pieces_for(length_m)
-    assert skyc_module.hermite_pieces(n)[2] * length_m <= skyc_module.TOLERANCE_M
-    assert n == 1 or skyc_module.hermite_pieces(n - 1)[2] * length_m > skyc_module.TOLERANCE_M
+    # A straight rest-to-rest quintic leg (the paper's time law) of this length, 40 s long.
+    duration = 40.0
+    direction = np.array([0.6, 0.0, 0.8])
+    c = np.zeros((3, 6))
+    c[:, 3], c[:, 4], c[:, 5] = (10 * direction * length_m / duration**3, -15 * direction * length_m / duration**4,
+                                 6 * direction * length_m / duration**5)
+    n = int(skyc_module.subdivisions(c[None], np.array([duration]))[0])
+    assert _hermite_error_dense(c, duration, n) <= skyc_module.TOLERANCE_M
+    # n is the smallest count the bound allows, and the bound is tight: at most one part more than needed.
+    bound = skyc_module.hermite_error_bound(c[None], np.array([duration]), np.array([max(n - 1, 1)]))[0]
+    assert n == 1 or bound > skyc_module.TOLERANCE_M
+    assert n <= 2 or _hermite_error_dense(c, duration, n - 2) > skyc_module.TOLERANCE_M
