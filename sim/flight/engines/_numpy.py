@@ -164,10 +164,29 @@ class TrackingReference:
         )
 
     def at_step(self, chunk: RefChunk, j: int) -> tuple[np.ndarray, ...]:
-        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk."""
-        s = self.motion.evaluate(chunk.times[j:j + 1])
+        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk.
+
+        :meth:`~sim.plan.Trajectories.evaluate` at one time (each drone on its own piece,
+        clamped to the show, at rest outside it), with the derivative polynomials written
+        out by Horner's rule as the numba kernel writes them.
+        """
+        m = self.motion
+        t = float(chunk.times[j])
+        inside = m.start_s <= t <= m.end_s
+        tc = min(max(t, m.start_s), m.end_s)
+        rows = np.arange(m.drone_count)
+        idx = m.piece_index(np.array([tc]))[0]
+        c = m.coeffs_m[rows, idx]  # (N, 3, 6)
+        u = (tc - m.breaks_s[rows, idx])[:, None]
+        c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
         off = chunk.offset[j]
-        return s.positions_m[0] + off[0:3], s.velocities_mps[0] + off[3:6], s.accelerations_mps2[0] + off[6:9]
+        pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0 + off[0:3]
+        if not inside:
+            return pos, np.broadcast_to(off[3:6], pos.shape).copy(), np.broadcast_to(off[6:9], pos.shape).copy()
+        d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
+        vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1 + off[3:6]
+        acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2 + off[6:9]
+        return pos, vel, acc
 
     # -- simple references for tests and scenarios ------------------------------------
     @classmethod
