@@ -19,7 +19,6 @@ from sim.plan import PlanError as PlanError
 from sim.plan import PlanSample as PlanSample
 from sim.plan import Segment as Segment
 from sim.plan import ShowPlan as ShowPlan
-from sim.plan import TimeLaw as TimeLaw
 from sim.plan import TransitionInfo as TransitionInfo
 from sim.plan import assign as assign
 from sim.plan import assignment_cost as assignment_cost
@@ -45,7 +44,6 @@ __all__ = [
     "PlanSample",
     "Segment",
     "ShowPlan",
-    "TimeLaw",
     "TransitionInfo",
     "Violation",
     "assign",

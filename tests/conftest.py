@@ -53,3 +53,95 @@ def small_show() -> ShowFile:
         ],
         drones=16, rows=4, cols=4, spacing_m=4.5,
     )
+
+
+class StaggeredLegs:
+    """Closed form of a plan re-timed by :func:`staggered_plan` (independent of the polynomial tables).
+
+    Per segment k: every drone rests at ``start_m[k]`` until ``depart_s[k]``, flies the
+    straight line to ``end_m[k]`` in ``duration_s[k]`` with s(τ) = 10τ³ - 15τ⁴ + 6τ⁵
+    (or 3τ² - 2τ³ where ``cubic[k]``), then rests until the window ends.
+    """
+
+    def __init__(self) -> None:
+        self.window_s: list[tuple[float, float]] = []
+        self.start_m: list[np.ndarray] = []
+        self.end_m: list[np.ndarray] = []
+        self.depart_s: list[np.ndarray] = []
+        self.duration_s: list[np.ndarray] = []
+        self.cubic: list[np.ndarray] = []
+
+    def positions(self, times_s: np.ndarray) -> np.ndarray:
+        """(T, N, 3) positions at ``times_s`` (seconds, inside the show)."""
+        t = np.asarray(times_s, dtype=float)
+        starts = np.array([w[0] for w in self.window_s])
+        out = np.empty((len(t), len(self.start_m[0]), 3))
+        for j, tj in enumerate(t):
+            k = min(max(int(np.searchsorted(starts, tj, side="right")) - 1, 0), len(starts) - 1)
+            dur = self.duration_s[k]
+            tau = np.clip((tj - self.depart_s[k]) / np.where(dur > 0, dur, 1.0), 0.0, 1.0)
+            tau = np.where(dur > 0, tau, 1.0)
+            s = np.where(self.cubic[k], tau**2 * (3 - 2 * tau), tau**3 * (10 - 15 * tau + 6 * tau**2))
+            out[j] = self.start_m[k] + s[:, None] * (self.end_m[k] - self.start_m[k])
+        return out
+
+
+def staggered_plan(plan, *, seed: int = 0, fraction: float = 0.5):
+    """``plan`` with per-drone timing inside every transition window, windows and knots kept.
+
+    A random ``fraction`` of the drones depart up to 30 % of the window late and arrive up
+    to 20 % early; half of those fly a cubic smoothstep instead of the quintic, so the
+    plan mixes degree-3 and degree-5 pieces, zero-length pieces (drones without delay)
+    and drone-specific break times. Returns ``(plan, StaggeredLegs)``.
+    """
+    from dataclasses import replace
+
+    from sim.plan import TrajectoryBuilder
+
+    rng = np.random.default_rng(seed)
+    knots, times = plan.knot_positions_m, plan.knot_times_s
+    n = plan.drone_count
+    builder = TrajectoryBuilder(knots[0], float(times[0]))
+    legs = StaggeredLegs()
+    for k, seg in enumerate(plan.segments):
+        t0, t1 = float(times[k]), float(times[k + 1])
+        a, b = knots[k], knots[k + 1]
+        chosen = (rng.random(n) < fraction) & (seg.kind == "transition") & (t1 > t0)
+        depart = t0 + np.where(chosen, rng.uniform(0.0, 0.3, n), 0.0) * (t1 - t0)
+        arrive = t1 - np.where(chosen, rng.uniform(0.0, 0.2, n), 0.0) * (t1 - t0)
+        cubic = chosen & (rng.random(n) < 0.5)
+        dur = arrive - depart
+        builder.hold_until(depart)
+        d = b - a
+        c = np.zeros((n, 3, 6))
+        c[..., 0] = a
+        safe = np.where(dur > 0, dur, 1.0)[:, None]
+        c[..., 2] = np.where(cubic[:, None], 3 * d / safe**2, 0.0)
+        c[..., 3] = np.where(cubic[:, None], -2 * d / safe**3, 10 * d / safe**3)
+        c[..., 4] = np.where(cubic[:, None], 0.0, -15 * d / safe**4)
+        c[..., 5] = np.where(cubic[:, None], 0.0, 6 * d / safe**5)
+        c[dur <= 0, :, 1:] = 0.0
+        builder.append(dur, c)
+        builder.hold_until(np.full(n, t1))
+        legs.window_s.append((t0, t1))
+        legs.start_m.append(a)
+        legs.end_m.append(b)
+        legs.depart_s.append(depart)
+        legs.duration_s.append(dur)
+        legs.cubic.append(cubic)
+    return replace(plan, trajectories=builder.build()), legs
+
+
+@pytest.fixture(scope="session")
+def staggered_small():
+    """The 16-drone ring -> sphere show, planned, then re-timed per drone: ``(plan, legs)``."""
+    show = make_show(
+        [
+            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
+            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
+        ],
+        drones=16, rows=4, cols=4, spacing_m=4.5,
+    )
+    from sim import plan_show
+
+    return staggered_plan(plan_show(show), seed=1)

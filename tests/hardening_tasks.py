@@ -36,7 +36,7 @@ def absurd_gains_task(show_text: str, options: dict, job_id: str, queue: Any, ca
 
 
 def nan_reference_task(show_text: str, options: dict, job_id: str, queue: Any, cancel: Any) -> dict[str, Any]:
-    """A NaN in one drone's reference (drone 2, from the second knot on)."""
+    """A NaN in one drone's reference (drone 2, from its second piece on)."""
     import numpy as np
 
     import sim.flight._runner as flight
@@ -45,9 +45,11 @@ def nan_reference_task(show_text: str, options: dict, job_id: str, queue: Any, c
 
     def poisoned(plan, *, drones=None):
         ref = original(plan, drones=drones)
-        knots = np.array(ref.knots_m, copy=True)
-        knots[1:, 2, :] = np.nan
-        return replace(ref, knots_m=knots)
+        from sim.plan import Trajectories
+
+        coeffs = np.array(ref.motion.coeffs_m, copy=True)
+        coeffs[2, 1:] = np.nan
+        return replace(ref, motion=Trajectories(ref.motion.breaks_s, coeffs))
 
     flight.plan_reference = poisoned
     try:

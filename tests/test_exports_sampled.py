@@ -251,3 +251,28 @@ def test_skybrush_studio_importer_accepts_the_archive(show, plan):
     assert sorted(drones) == [f"drone_{i:03d}" for i in range(1, 17)]
     first = np.array([d[0, 1:4] for d in drones.values()])
     np.testing.assert_allclose(first, plan.knot_positions_m[0], atol=5e-4)
+
+
+# ---------------------------------------------------------------- per-drone timing
+
+
+@pytest.fixture(scope="module")
+def staggered(plan):
+    from tests.conftest import staggered_plan
+
+    return staggered_plan(plan, seed=3)
+
+
+@pytest.mark.parametrize("fmt", ["skybrush-csv", "waypoints-csv"])
+def test_sampled_rows_follow_each_drones_own_timing(show, staggered, fmt):
+    plan, legs = staggered
+    files = read_zip_csvs(export_show(show, fmt, plan=plan, fps=7).content)
+    names = sorted(files)
+    assert len(names) == 16
+    for i, name in enumerate(names):
+        data = np.array(files[name][1:], dtype=float)
+        t = data[:, 0] / (1000.0 if fmt == "skybrush-csv" else 1.0)
+        ref = plan.evaluate(t, drones=np.array([i]))
+        assert np.abs(data[:, 1:4] - ref.positions_m[:, 0]).max() <= 0.0005 + 1e-9
+        assert np.abs(data[:, 1:4] - legs.positions(t)[:, i]).max() <= 0.0005 + 1e-9
+        assert np.abs(data[:, 4:] - ref.colors_rgb[:, 0] * 255).max() <= 0.5 + 1e-9

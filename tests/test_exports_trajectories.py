@@ -10,6 +10,8 @@ import zipfile
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from app.exports import _skyc as skyc_module
 from app.exports import export_show
@@ -221,8 +223,107 @@ def test_skyc_warns_above_the_viewer_limit(show, plan, monkeypatch):
     assert any("Skybrush Viewer" in w for w in result.warnings)
 
 
+def _hermite_error_dense(c: np.ndarray, duration_s: float, parts: int) -> float:
+    """Largest distance between one piece (3, 6) and its cubic Hermite parts, sampled densely (independent)."""
+    t = np.linspace(0.0, duration_s, 4001)
+    powers = lambda x: x[:, None] ** np.arange(6)  # noqa: E731
+    dpowers = lambda x: np.c_[np.zeros(len(x)), x[:, None] ** np.arange(5) * np.arange(1, 6)]  # noqa: E731
+    h = duration_s / parts
+    j = np.minimum((t // h).astype(int), parts - 1)
+    a, b = j * h, (j + 1) * h
+    pa, pb, va, vb = powers(a) @ c.T, powers(b) @ c.T, dpowers(a) @ c.T, dpowers(b) @ c.T
+    s = ((t - a) / h)[:, None]
+    # Cubic Hermite basis (independent of the exporter's Bézier form).
+    cubic = ((2 * s**3 - 3 * s**2 + 1) * pa + (s**3 - 2 * s**2 + s) * h * va + (-2 * s**3 + 3 * s**2) * pb
+             + (s**3 - s**2) * h * vb)
+    return float(np.linalg.norm(cubic - powers(t) @ c.T, axis=1).max())
+
+
 @pytest.mark.parametrize("length_m", [0.5, 10.0, 250.0, 2000.0])
 def test_skyc_piece_count_meets_the_tolerance(length_m):
-    n = skyc_module.pieces_for(length_m)
-    assert skyc_module.hermite_pieces(n)[2] * length_m <= skyc_module.TOLERANCE_M
-    assert n == 1 or skyc_module.hermite_pieces(n - 1)[2] * length_m > skyc_module.TOLERANCE_M
+    # A straight rest-to-rest quintic leg (the paper's time law) of this length, 40 s long.
+    duration = 40.0
+    direction = np.array([0.6, 0.0, 0.8])
+    c = np.zeros((3, 6))
+    c[:, 3], c[:, 4], c[:, 5] = (10 * direction * length_m / duration**3, -15 * direction * length_m / duration**4,
+                                 6 * direction * length_m / duration**5)
+    n = int(skyc_module.subdivisions(c[None], np.array([duration]))[0])
+    assert _hermite_error_dense(c, duration, n) <= skyc_module.TOLERANCE_M
+    # n is the smallest count the bound allows, and the bound is tight: at most one part more than needed.
+    bound = skyc_module.hermite_error_bound(c[None], np.array([duration]), np.array([max(n - 1, 1)]))[0]
+    assert n == 1 or bound > skyc_module.TOLERANCE_M
+    assert n <= 2 or _hermite_error_dense(c, duration, n - 2) > skyc_module.TOLERANCE_M
+
+
+# ---------------------------------------------------------------- per-drone timing
+
+
+@pytest.fixture(scope="module")
+def staggered(plan):
+    from tests.conftest import staggered_plan
+
+    return staggered_plan(plan, seed=5)
+
+
+def test_crazyswarm_converts_each_drones_own_pieces_exactly(show, staggered):
+    plan, legs = staggered
+    breaks = plan.motion.breaks_s
+    rng = np.random.default_rng(6)
+    with zipfile.ZipFile(io.BytesIO(export_show(show, "crazyswarm", plan=plan).content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".csv"))
+        for i, name in enumerate(names):
+            data = load_uav_trajectory(z.read(name).decode("ascii"))
+            assert np.all(data[:, 0] > 0)  # zero-length pieces dropped
+            assert data[:, 0].sum() == pytest.approx(plan.duration_s, abs=1e-6)
+            assert np.all(data[:, 25:] == 0.0) and np.all(data[:, [7, 8, 15, 16, 23, 24]] == 0.0)
+            # The drone's own break times are piece boundaries (merged rests excepted).
+            ends = np.cumsum(data[:, 0])
+            own = breaks[i, 1:][np.diff(breaks[i]) > 0]
+            assert np.all(np.min(np.abs(ends[:, None] - own[None, :]), axis=1) < 1e-9)
+            t = np.r_[rng.uniform(0.0, plan.duration_s, 200), breaks[i]]
+            want = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
+            assert np.linalg.norm(eval_pieces(data, t) - want, axis=1).max() <= 0.001
+            assert np.linalg.norm(eval_pieces(data, t) - legs.positions(t)[:, i], axis=1).max() <= 0.001
+            # Rests merged: never two constant pieces in a row.
+            moving = np.any(data[:, np.r_[2:7, 10:15, 18:23]] != 0.0, axis=1)
+            assert not np.any(~moving[1:] & ~moving[:-1])
+
+
+def test_skyc_follows_each_drones_own_pieces(show, staggered):
+    plan, legs = staggered
+    with zipfile.ZipFile(io.BytesIO(export_show(show, "skyc", plan=plan).content)) as z:
+        doc = json.loads(z.read("show.json"))
+    check_skybrush_rules(doc)
+    t = np.linspace(0.0, plan.duration_s, 3000)
+    cubic_legs = 0
+    for i, d in enumerate(doc["swarm"]["drones"]):
+        points = d["settings"]["trajectory"]["points"]
+        assert points[-1][0] == pytest.approx(plan.duration_s, abs=1e-6)
+        got = eval_skyc(points, t)
+        ref = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
+        err = np.linalg.norm(got - ref, axis=1).max()
+        assert err <= 0.01
+        # Within the fitting tolerance plus the 0.1 mm rounding of the written numbers.
+        assert err <= skyc_module.TOLERANCE_M + 3e-4
+        assert np.linalg.norm(got - legs.positions(t)[:, i], axis=1).max() <= skyc_module.TOLERANCE_M + 3e-4
+        # A cubic (smoothstep) leg is one Bézier, exactly: a point at its arrival time
+        # whose previous point is its departure.
+        times = np.array([p[0] for p in points])
+        for k in range(len(legs.window_s)):
+            if legs.cubic[k][i]:
+                dep, arr = legs.depart_s[k][i], legs.depart_s[k][i] + legs.duration_s[k][i]
+                j = int(np.argmin(np.abs(times - arr)))
+                assert times[j] == pytest.approx(arr, abs=1e-6) and times[j - 1] == pytest.approx(dep, abs=1e-6)
+                assert len(points[j][2]) == 2
+                cubic_legs += 1
+    assert cubic_legs > 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 6))
+def test_hermite_error_bound_holds_for_any_quintic(seed, parts):
+    rng = np.random.default_rng(seed)
+    c = rng.normal(size=(3, 6)) * rng.uniform(0.01, 3.0, 6)
+    duration = float(rng.uniform(0.1, 20.0))
+    bound = skyc_module.hermite_error_bound(c[None], np.array([duration]), np.array([parts]))[0]
+    assert _hermite_error_dense(c, duration, parts) <= bound * (1 + 1e-9) + 1e-12

@@ -14,6 +14,7 @@ from sim.flight import (
     paper_report,
     simulate,
 )
+from sim.plan import Trajectories
 
 
 def test_step_reference_converges():
@@ -68,9 +69,10 @@ def test_baseline_runs_with_the_same_interface():
 @pytest.mark.parametrize("engine", ["numpy", "numba"])
 def test_diverging_drones_are_reported_and_the_rest_fly_on(engine):
     pts = np.array([[0.0, 0.0, 10.0], [5.0, 0.0, 10.0], [10.0, 0.0, 10.0]])
-    knots = np.stack([pts, pts])
-    knots[:, 1] = np.nan  # drone 1: a broken (non-finite) reference
-    ref = TrackingReference(knots_m=knots)
+    motion = TrackingReference.hover(pts).motion
+    coeffs = motion.coeffs_m.copy()
+    coeffs[1] = np.nan  # drone 1: a broken (non-finite) reference
+    ref = TrackingReference(motion=Trajectories(motion.breaks_s, coeffs))
     start = hover_state(pts + [0.5, 0.0, 0.0])
     res = simulate(ref, duration_s=0.5, initial_state=start, engine=engine, output_every=10)
     assert res.diverged() == [(1, 0.0, "non-finite")]

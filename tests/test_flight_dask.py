@@ -85,6 +85,15 @@ def test_dask_equals_local_with_wind_and_progress(client, small_plan):
     assert len(seen) >= 5  # at least one report per shard, not just the end
 
 
+def test_dask_equals_local_on_per_drone_timing(client, staggered_small):
+    # Each drone's own pieces travel with the plan (plan.motion, a plain class that Dask
+    # ships whole) and each shard flies them with its own piece cursors: bit for bit.
+    plan, _ = staggered_small
+    local = fly_show(plan, output_hz=10)
+    dask = fly_show(plan, engine="dask", scheduler=client, shards=3, output_hz=10)
+    _assert_same(local, dask)
+
+
 def test_dask_merges_divergences_and_distance_over_all_drones(client, small_plan):
     # A runaway limit at the median of the baseline's worst error in the wind stops about
     # half the drones, at different times; the flown distance skips each from then on.

@@ -207,3 +207,74 @@ def test_show_selector_lists_and_loads_from_the_catalog(viewer, plan):
     viewer._show_dd._impl.value = "here"
     callback(SimpleNamespace(client=object(), client_id=1, target=viewer._show_dd))
     assert viewer.current == "here"
+
+
+# ---------------------------------------------------------------- per-drone timing
+
+
+def test_frames_trails_and_samples_follow_each_drones_own_timing(viewer, staggered_small):
+    plan, legs = staggered_small
+    viewer.load(plan, name="staggered")
+    rng = np.random.default_rng(11)
+    # Playing forward, then scrubbing back and forth (the piece cursors move both ways).
+    times = np.r_[np.arange(0.0, plan.duration_s, 0.37), rng.uniform(0.0, plan.duration_s, 60), plan.duration_s]
+    for t in times:
+        viewer.seek(float(t))
+        frame = viewer.render()
+        expected = plan.evaluate([t])
+        np.testing.assert_allclose(frame.positions_m, expected.positions_m[0], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(frame.positions_m, legs.positions([t])[0], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(frame.colors_rgb, expected.colors_rgb[0], atol=1e-12)
+        speed = np.linalg.norm(expected.velocities_mps[0], axis=1).max()
+        assert frame.max_speed_mps == pytest.approx(speed, rel=1e-9, abs=1e-12)
+        # Trails: the 7 samples behind the drone, newest first.
+        trail_times = np.clip(t - 0.25 * np.arange(7), 0.0, plan.duration_s)
+        trail = plan.evaluate(trail_times).positions_m  # (7, N, 3)
+        want = np.stack([trail[:-1], trail[1:]], axis=2).transpose(1, 0, 2, 3).reshape(-1, 2, 3)
+        np.testing.assert_allclose(viewer._trails.points, want, atol=1e-4)  # float32 on the wire
+    # Many times at once (the HTML export's batches), in random order.
+    track = viewer._track
+    batch = rng.uniform(0.0, plan.duration_s, 50)
+    pos, col, speeds = track.sample(batch)
+    want = plan.evaluate(batch)
+    np.testing.assert_allclose(pos, want.positions_m, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(col, want.colors_rgb, atol=1e-12)
+    np.testing.assert_allclose(speeds, np.linalg.norm(want.velocities_mps, axis=2).max(axis=1), rtol=1e-9)
+
+
+def test_next_targets_and_bounds_with_per_drone_timing(viewer, staggered_small):
+    plan, _ = staggered_small
+    viewer.load(plan, name="staggered")
+    ring_hold = next(s for s in plan.segments if s.kind == "hold")
+    viewer.seek(0.5)
+    viewer.render()
+    np.testing.assert_allclose(viewer._targets.points, plan.knot_positions_m[ring_hold.index], atol=1e-4)
+    # The bounds hold every position the show visits (dense sampling) and are no larger
+    # than the Bézier hull of the pieces needs: here the straight legs' end points.
+    lo, hi = show_bounds(plan)
+    dense = plan.evaluate(np.linspace(0.0, plan.duration_s, 3000)).positions_m.reshape(-1, 3)
+    assert np.all(dense >= lo - 1e-9) and np.all(dense <= hi + 1e-9)
+    knots = plan.knot_positions_m.reshape(-1, 3)
+    np.testing.assert_allclose(lo, knots.min(axis=0), atol=1e-9)
+    np.testing.assert_allclose(hi, knots.max(axis=0), atol=1e-9)
+
+
+def test_bezier_control_points_bound_curved_pieces():
+    from app.viewer._tracks import bezier_control_points
+    from sim.plan import Trajectories
+
+    rng = np.random.default_rng(12)
+    coeffs = rng.normal(size=(5, 3, 3, 6))
+    breaks = np.cumsum(np.c_[np.zeros(5), rng.uniform(0.0, 2.0, (5, 3))], axis=1)
+    breaks[:, -1] = breaks[:, -1].max()
+    motion = Trajectories(breaks, coeffs)
+    cp = bezier_control_points(motion)
+    for i in range(5):
+        for p in range(3):
+            h = breaks[i, p + 1] - breaks[i, p]
+            u = np.linspace(0.0, h, 200)
+            curve = (u[:, None, None] ** np.arange(6) * coeffs[i, p][None]).sum(axis=2)  # (200, 3)
+            # The control polygon's ends are the piece's ends; the curve stays in its box.
+            np.testing.assert_allclose(cp[i, p, 0], curve[0], atol=1e-9)
+            np.testing.assert_allclose(cp[i, p, -1], curve[-1], atol=1e-9)
+            assert np.all(curve >= cp[i, p].min(axis=0) - 1e-9) and np.all(curve <= cp[i, p].max(axis=0) + 1e-9)

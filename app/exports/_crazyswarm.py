@@ -6,13 +6,14 @@ z (metres) and yaw (radians, always 0) in ascending powers of the piece's local
 time t in [0, duration] (``uav_trajectory.Trajectory.loadcsv`` /
 ``Polynomial4D``; the Crazyflie firmware's ``poly4d``).
 
-The plan is converted exactly, no fitting: within a segment of duration T a
-drone flies p(t) = p0 + (10τ³ - 15τ⁴ + 6τ⁵)·Δp with τ = t/T, i.e. the degree-5
-polynomial with coefficients p0, 0, 0, 10Δp/T³, -15Δp/T⁴, 6Δp/T⁵ (degrees 6
-and 7 zero). Wherever a drone does not move (holds, and transitions in which it
-keeps its place) consecutive segments merge into one constant piece, which
-keeps the piece count down: the Crazyflie's trajectory memory (4 KiB) holds 31
-pieces, and the export warns about drones that need more.
+The plan is converted exactly, no fitting: every drone has its own polynomial
+pieces (``plan.motion``: its own break times, degree <= 5 in the piece's local
+time), which are exactly this format's pieces (degrees 6 and 7 zero). Zero-length
+pieces carry no motion and are dropped; wherever a drone does not move (holds,
+waiting for its turn in a staggered transition, transitions in which it keeps its
+place) consecutive constant pieces merge into one, which keeps the piece count
+down: the Crazyflie's trajectory memory (4 KiB) holds 31 pieces, and the export
+warns about drones that need more.
 """
 
 from __future__ import annotations
@@ -29,8 +30,8 @@ HEADER = (
     + ",".join(f"{axis}^{k}" for axis in ("x", "y", "z", "yaw") for k in range(8))
     + ",\n"
 )
-# Only p0, t³, t⁴, t⁵ of x, y, z can be non-zero: 13 numbers a row, the rest written as literal zeros.
-_AXIS_FMT = "%.12g,0,0,%.12g,%.12g,%.12g,0,0"
+# Degrees 0-5 of x, y, z: 19 numbers a row, degrees 6, 7 and yaw written as literal zeros.
+_AXIS_FMT = "%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,0,0"
 _ROW_FMT = "%.12g," + ",".join([_AXIS_FMT] * 3) + "," + ",".join(["0"] * 8) + "\n"
 #: Drones per formatting block.
 _BLOCK = 64
@@ -44,8 +45,8 @@ piece with its duration (s) and the polynomial coefficients in ascending powers
 of the piece's local time (metres; yaw 0 rad). Load with
 uav_trajectory.Trajectory().loadcsv(path), upload with cf.uploadTrajectory(...).
 Times start at 0 on the ground at the drone's home position (the first piece
-is the takeoff). The pieces reproduce the plan exactly (quintic segments as
-polynomials, holds as constant pieces). A Crazyflie holds at most {max_pieces}
+is the takeoff). The pieces reproduce the plan exactly (each drone's own
+polynomial pieces, rests as constant pieces). A Crazyflie holds at most {max_pieces}
 pieces; see manifest.json for the per-drone counts.
 """
 
@@ -58,34 +59,26 @@ def piece_table(plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         ``coef`` (P, 3, 8) coefficients (metres, ascending powers of local
         time in seconds), and ``counts`` (N,) pieces per drone.
     """
-    times = plan.knot_times_s
-    durations = np.diff(times)
-    # Zero-length segments (a transition between identical formations) carry no motion: drop them.
-    seg = np.flatnonzero(durations > 0)
-    p0 = plan.knot_positions_m[seg]  # (S, N, 3)
-    dp = plan.knot_positions_m[seg + 1] - p0
-    moving = np.any(dp != 0.0, axis=2).T  # (N, S)
-    n, s = moving.shape
-    new_piece = moving.copy()
-    new_piece[:, 0] = True
-    new_piece[:, 1:] |= moving[:, :-1]
-    drone, col = np.nonzero(new_piece)  # row-major: drone by drone, in time order
-    start = times[seg][col]
+    motion = plan.motion
+    breaks, coeffs = motion.breaks_s, motion.coeffs_m  # (N, P+1), (N, P, 3, D+1)
+    n = motion.drone_count
+    # Zero-length pieces (a vanished profile phase, padding) carry no motion: drop them.
+    drone, piece = np.nonzero(np.diff(breaks, axis=1) > 0)  # row-major: drone by drone, in time order
+    constant = ~np.any(coeffs[drone, piece, :, 1:] != 0.0, axis=(1, 2))
+    first = np.r_[True, drone[1:] != drone[:-1]]
+    # A constant piece right after another constant piece of the same drone continues it
+    # (the motion is continuous, so both hold the same position): one piece.
+    new_piece = first | ~constant | ~np.r_[False, constant[:-1]]
+    drone, piece = drone[new_piece], piece[new_piece]
+    start = breaks[drone, piece]
     end = np.empty_like(start)
     end[:-1] = start[1:]
     last = np.r_[drone[1:] != drone[:-1], True]
-    end[last] = times[-1]
-    duration = end - start
+    end[last] = breaks[drone[last], -1]
     coef = np.zeros((len(drone), 3, 8))
-    coef[:, :, 0] = p0[col, drone]
-    mov = moving[drone, col]
-    T = duration[mov][:, None]
-    d = dp[col[mov], drone[mov]]
-    coef[mov, :, 3] = 10.0 * d / T**3
-    coef[mov, :, 4] = -15.0 * d / T**4
-    coef[mov, :, 5] = 6.0 * d / T**5
-    counts = new_piece.sum(axis=1)
-    return drone, duration, coef, counts
+    coef[:, :, : coeffs.shape[-1]] = coeffs[drone, piece]
+    counts = np.bincount(drone, minlength=n)
+    return drone, end - start, coef, counts
 
 
 def export_crazyswarm(ctx: ExportContext) -> ExportResult:
@@ -97,8 +90,8 @@ def export_crazyswarm(ctx: ExportContext) -> ExportResult:
     names = ctx.drone_names
     n = ctx.show.drones
     header = HEADER.encode()
-    # Columns in row order: duration, then (c0, c3, c4, c5) for x, y, z.
-    values = np.concatenate([duration[:, None], coef[:, :, [0, 3, 4, 5]].reshape(len(drone), 12)], axis=1)
+    # Columns in row order: duration, then c0..c5 for x, y, z.
+    values = np.concatenate([duration[:, None], coef[:, :, :6].reshape(len(drone), 18)], axis=1)
     values += 0.0  # -0.0 (from -15·0) would print as "-0"
     bounds = np.r_[0, np.cumsum(counts)]
     z = ZipBuilder()

@@ -67,17 +67,17 @@ def iter_samples(
             yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
         return
     plan = ctx.plan
-    # The same evaluation as ShowPlan.evaluate, but slicing the drones before gathering the
-    # knots: evaluate() gathers every drone at every time and only then selects the block.
-    law = plan.time_law(times_s)
-    k0, k1 = law.segment, law.segment + 1
-    beta = law.beta[:, None, None]
-    tau = law.tau[:, None, None]
+    # The same evaluation as ShowPlan.evaluate, but a block of drones at a time, positions
+    # only: each drone on its own pieces (plan.motion), colours fading linearly over each
+    # show-wide window.
+    k0 = plan.segment_index(times_s)
+    k1 = k0 + 1
+    t0, t1 = plan.knot_times_s[k0], plan.knot_times_s[k1]
+    tau = np.clip((times_s - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)[:, None, None]
     for a in range(0, n, block):
         b = min(a + block, n)
-        P = plan.knot_positions_m[:, a:b]
+        pos = plan.motion.evaluate(times_s, slice(a, b), derivatives=0).positions_m
         C = plan.knot_colors_rgb[:, a:b]
-        pos = P[k0] + beta * (P[k1] - P[k0])
         col = C[k0] + tau * (C[k1] - C[k0])
         yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
 

@@ -18,14 +18,16 @@ the previous point to this one is a Bézier curve in normalised time with 0
 (straight line), 1 or 2 control points; the first point has none. Times are
 strictly increasing seconds.
 
-The plan's straight-line quintic segments are split into n equal-time pieces,
-each the cubic Hermite interpolant of the time law β (exact position and
-velocity at every piece boundary, so the curve is C¹). All drones share β, so
-one cubic per piece serves the whole fleet: the control points are
-p0 + b·Δp with b the Bézier ordinates of the cubic. n is the smallest count
-for which the largest move of the segment stays within :data:`TOLERANCE_M`
-of the plan. Drones that do not move in a segment get one constant point,
-and runs of constant points are merged.
+Every drone is written from its own polynomial pieces (``plan.motion``: its own
+break times, so staggered departures and arrivals are kept): each piece of
+degree <= 3 is one cubic Bézier, exactly (the cubic Hermite interpolant of a
+cubic is the cubic itself: control points p0 + h·v0/3 and p1 - h·v1/3); a
+piece of degree 4 or 5 is split into m equal-time parts, each its cubic
+Hermite interpolant (exact position and velocity at every boundary, so the
+curve is C¹), m the smallest count whose error bound (:func:`hermite_error_bound`)
+stays within :data:`TOLERANCE_M`. Pieces of degree <= 1 need no control points
+(a straight line in normalised time is linear in time); zero-length pieces are
+dropped, and runs of constant points are merged.
 
 Lights are Skybrush / ``ledctrl`` light-program bytecode (pyledctrl's
 ``CommandCode``): ``SET_COLOR r g b duration`` (0x04), ``FADE_TO_COLOR r g b
@@ -38,13 +40,12 @@ from __future__ import annotations
 
 import base64
 import json
-import math
-from functools import cache
 
 import numpy as np
 
 from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
+from sim.plan import horner
 
 #: Largest deviation of the Bézier curves from the plan, metres (the issue allows 1 cm).
 TOLERANCE_M = 0.002
@@ -60,47 +61,47 @@ _TIME_DECIMALS = 6
 _POS_DECIMALS = 4
 
 
-def _beta(tau: np.ndarray) -> np.ndarray:
-    return tau**3 * (10.0 + tau * (-15.0 + 6.0 * tau))
+def hermite_error_bound(coeffs_m: np.ndarray, duration_s: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """Bound on the distance (m) between pieces and their cubic Hermite interpolants on ``parts`` equal parts.
 
+    For a quintic f re-expanded at a part's start (coefficients a_k) the Hermite
+    error on a part of length h is exactly e(s) = s²(s-h)²·(a4 + 2h·a5 + a5·s)
+    (e and e' vanish at both ends and e - f is cubic), so
+    ||e|| <= h⁴/16 · max over the part's ends of ||a4 + 2h·a5 + a5·s|| (a norm of an
+    affine function is convex). With a4 = c4 + 5·c5·u0 at part j (u0 = j·h) the ends
+    are c4 + c5·h·(5j + 2) and c4 + c5·h·(5j + 3): over all parts, x = 2 and 5m - 2.
 
-def _beta_d(tau: np.ndarray) -> np.ndarray:
-    return 30.0 * tau**2 * (1.0 - tau) ** 2
-
-
-@cache
-def hermite_pieces(n: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """Cubic Bézier ordinates approximating β on n equal pieces of [0, 1].
-
-    Returns:
-        ``ends`` (n,) β at each piece's end, ``controls`` (n, 2) the two inner
-        Bézier ordinates, and the largest |cubic - β| over [0, 1]
-        (dimensionless: multiply by the move length for metres).
+    Args:
+        coeffs_m: (M, 3, D+1) pieces, ascending powers of local time (D <= 5).
+        duration_s: (M,) piece lengths, seconds.
+        parts: (M,) parts per piece (>= 1).
     """
-    a = np.arange(n) / n
-    b = np.arange(1, n + 1) / n
-    h = 1.0 / n
-    b0, b3 = _beta(a), _beta(b)
-    b1 = b0 + h * _beta_d(a) / 3.0
-    b2 = b3 - h * _beta_d(b) / 3.0
-    u = np.linspace(0.0, 1.0, 129)[None, :]
-    cubic = (
-        (1 - u) ** 3 * b0[:, None] + 3 * (1 - u) ** 2 * u * b1[:, None] + 3 * (1 - u) * u**2 * b2[:, None]
-        + u**3 * b3[:, None]
-    )
-    err = float(np.abs(cubic - _beta(a[:, None] + u * h)).max())
-    return b3, np.stack([b1, b2], axis=1), err
+    c4, c5 = coeffs_m[:, :, 4], coeffs_m[:, :, 5]
+    h = (duration_s / parts)[:, None]
+    lo = np.linalg.norm(c4 + 2.0 * h * c5, axis=1)
+    hi = np.linalg.norm(c4 + (5.0 * parts[:, None] - 2.0) * h * c5, axis=1)
+    return h[:, 0] ** 4 / 16.0 * np.maximum(lo, hi)
 
 
-def pieces_for(length_m: float, tolerance_m: float = TOLERANCE_M) -> int:
-    """Smallest n with ``length_m`` × (Hermite error of n pieces) <= ``tolerance_m``."""
-    if length_m <= 0:
-        return 1
-    # Hermite cubic error <= h⁴/384·max|β''''| = 360/384·h⁴: start there, then confirm numerically.
-    n = max(1, math.ceil((360.0 / 384.0 * length_m / tolerance_m) ** 0.25) - 1)
-    while hermite_pieces(n)[2] * length_m > tolerance_m:
-        n += 1
-    return n
+def subdivisions(coeffs_m: np.ndarray, duration_s: np.ndarray, tolerance_m: float = TOLERANCE_M) -> np.ndarray:
+    """(M,) the smallest part count per piece whose :func:`hermite_error_bound` is within ``tolerance_m``.
+
+    Pieces of degree <= 3 need one part (their Hermite cubic is exact).
+    """
+    m = np.ones(len(duration_s), dtype=np.int64)
+    todo = np.flatnonzero(hermite_error_bound(coeffs_m, duration_s, m) > tolerance_m)
+    while len(todo):
+        # The bound falls like m⁻⁴ for large m: jump close to the answer, then step by one.
+        ratio = hermite_error_bound(coeffs_m[todo], duration_s[todo], m[todo]) / tolerance_m
+        m[todo] = np.maximum(m[todo] + 1, np.floor(m[todo] * ratio**0.25 * 0.9).astype(np.int64))
+        todo = todo[hermite_error_bound(coeffs_m[todo], duration_s[todo], m[todo]) > tolerance_m]
+    # Step back down where the jump overshot (the bound is not exactly m⁻⁴).
+    while True:
+        fewer = np.flatnonzero(m > 1)
+        fewer = fewer[hermite_error_bound(coeffs_m[fewer], duration_s[fewer], m[fewer] - 1) <= tolerance_m]
+        if not len(fewer):
+            return m
+        m[fewer] -= 1
 
 
 def _varuint(value: int) -> bytes:
@@ -146,47 +147,54 @@ def light_program(frames: np.ndarray, colors: np.ndarray) -> bytes:
 
 
 def _drone_points(plan) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Per-drone (times, positions, controls, has_controls) after merging constant runs."""
-    times = plan.knot_times_s
-    P = plan.knot_positions_m
-    n = plan.drone_count
-    t_parts, p_parts, c_parts, has_parts, move_parts = [], [], [], [], []
-    for k, seg in enumerate(plan.segments):
-        T = times[k + 1] - times[k]
-        if not T > 0:
-            continue
-        dp = P[k + 1] - P[k]
-        lengths = np.linalg.norm(dp, axis=1)
-        moving = lengths > 0
-        m = 1 if seg.kind == "hold" or not moving.any() else pieces_for(float(lengths.max()))
-        ends, ctrl, _ = hermite_pieces(m)
-        t_parts.append(np.broadcast_to(times[k] + T * np.arange(1, m + 1) / m, (n, m)))
-        p_parts.append(P[k][:, None, :] + ends[None, :, None] * dp[:, None, :])  # (n, m, 3)
-        c_parts.append(P[k][:, None, None, :] + ctrl[None, :, :, None] * dp[:, None, None, :])  # (n, m, 2, 3)
-        # A drone at rest in this segment keeps only the segment's last point, without controls.
-        keep = np.ones((n, m), bool)
-        keep[~moving, :-1] = False
-        has_parts.append(np.broadcast_to(moving[:, None], (n, m)))
-        move_parts.append(keep)
-    t_all = np.concatenate(t_parts, axis=1)
-    p_all = np.concatenate(p_parts, axis=1)
-    c_all = np.concatenate(c_parts, axis=1)
-    has_all = np.concatenate(has_parts, axis=1)
-    keep_all = np.concatenate(move_parts, axis=1)
-    out_t, out_p, out_c, out_h = [], [], [], []
-    for i in range(n):
-        kt = keep_all[i]
-        t, p, c, h = t_all[i, kt], p_all[i, kt], c_all[i, kt], has_all[i, kt]
-        # Point j is redundant if it and the next are both constant (no controls): the line stays still.
-        static = ~h
-        drop = np.zeros(len(t), bool)
-        drop[:-1] = static[:-1] & static[1:]
-        sel = ~drop
-        out_t.append(t[sel])
-        out_p.append(p[sel])
-        out_c.append(c[sel])
-        out_h.append(h[sel])
-    return out_t, out_p, out_c, out_h
+    """Per-drone (times, positions, controls, has_controls) of the Bézier points after the home point.
+
+    Every drone's own pieces, split as the module docstring says; constant runs merged.
+    """
+    motion = plan.motion
+    breaks, coeffs = motion.breaks_s, motion.coeffs_m
+    n = motion.drone_count
+    drone, piece = np.nonzero(np.diff(breaks, axis=1) > 0)  # drone by drone, in time order
+    c = coeffs[drone, piece]  # (M, 3, D+1)
+    t0 = breaks[drone, piece]
+    dur = breaks[drone, piece + 1] - t0
+    nonzero = np.any(c != 0.0, axis=1)  # (M, D+1): which powers are used
+    degree = np.where(nonzero.any(axis=1), c.shape[-1] - 1 - np.argmax(nonzero[:, ::-1], axis=1), 0)
+    parts = np.where(degree <= 3, 1, subdivisions(c, dur))
+    # One row per part: its piece, its index in the piece.
+    row = np.repeat(np.arange(len(drone)), parts)
+    j = np.arange(len(row)) - np.repeat(np.cumsum(parts) - parts, parts)
+    h = dur[row] / parts[row]
+    u0, u1 = j * h, (j + 1) * h
+    cr = c[row]
+    p0, v0 = horner(cr, u0[:, None]), horner(_derivative(cr), u0[:, None])
+    p1, v1 = horner(cr, u1[:, None]), horner(_derivative(cr), u1[:, None])
+    controls = np.stack([p0 + h[:, None] * v0 / 3.0, p1 - h[:, None] * v1 / 3.0], axis=1)  # (R, 2, 3)
+    times = np.where(j == parts[row] - 1, t0[row] + dur[row], t0[row] + u1)
+    has = degree[row] >= 2
+    constant = degree[row] == 0
+    d = drone[row]
+    # A constant point followed by another constant point of the same drone is redundant:
+    # the drone stays still across both.
+    same_next = np.r_[d[1:] == d[:-1], False]
+    keep = ~(constant & np.r_[constant[1:], False] & same_next)
+    d, times, p1, controls, has = d[keep], times[keep], p1[keep], controls[keep], has[keep]
+    # Times are written to 1 µs and must increase strictly: a point that would land on
+    # the previous one's time stamp (a sub-microsecond piece) is dropped; the next curve
+    # then starts less than a microsecond of motion early.
+    stamps = np.round(times, _TIME_DECIMALS)
+    first = np.r_[True, d[1:] != d[:-1]]
+    previous = np.where(first, 0.0, np.r_[0.0, stamps[:-1]])
+    keep = stamps > previous
+    d, times, p1, controls, has = d[keep], times[keep], p1[keep], controls[keep], has[keep]
+    cuts = np.cumsum(np.bincount(d, minlength=n))[:-1]
+    return np.split(times, cuts), np.split(p1, cuts), np.split(controls, cuts), np.split(has, cuts)
+
+
+def _derivative(c: np.ndarray) -> np.ndarray:
+    """Coefficients (..., D+1) of the time derivative, same ascending layout (zero-padded)."""
+    k = np.arange(1, c.shape[-1], dtype=np.float64)
+    return np.concatenate([c[..., 1:] * k, np.zeros_like(c[..., :1])], axis=-1)
 
 
 def _segments_meta(plan) -> dict[str, list[float]]:

@@ -11,13 +11,13 @@ equal the local engine's bit for bit (on workers with the same CPU features: num
 compiles for the host CPU). The flown minimum distance needs every drone of a frame,
 so the shards skip it and it is computed once, after merging, over all drones.
 
-What is shipped: the :class:`~sim.plan._plan.ShowPlan` (knots and colours, a few MB even at
-16,000 drones) goes to the cluster once, as the result of a tiny task whose
-specification holds it; the shard tasks depend on it, so each worker fetches it once
-from a peer, and if the worker holding it dies the scheduler simply recomputes it
-(scattered data could not be recovered). Each shard task carries only its drone
-indices and the flight options, and returns positions and colours (float32, 24 bytes
-per drone per frame) plus per-drone statistics.
+What is shipped: the :class:`~sim.plan._plan.ShowPlan` (knots, colours and every drone's
+polynomial pieces, ``plan.motion``: 144 bytes per piece, tens of MB at 16,000 drones) goes
+to the cluster once, as the result of a tiny task whose specification holds it; the shard
+tasks depend on it, so each worker fetches it once from a peer, and if the worker holding
+it dies the scheduler simply recomputes it (scattered data could not be recovered). Each
+shard task carries only its drone indices and the flight options, and returns positions
+and colours (float32, 24 bytes per drone per frame) plus per-drone statistics.
 
 Fault tolerance: a worker that dies mid-task (killed, out of memory, node lost) makes
 the scheduler reschedule its tasks on the remaining workers (up to

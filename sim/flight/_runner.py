@@ -1,8 +1,9 @@
 """Fly a planned show: every drone in the rigid-body model under its controller.
 
-:func:`fly_show` turns a :class:`~sim.plan._plan.ShowPlan` into a tracking reference (the
-plan's knots and shared quintic time law give ``p_ref, v_ref, a_ref`` exactly, no
-sampling), flies it at 1 kHz with one of the engines, and reports what was *flown*:
+:func:`fly_show` turns a :class:`~sim.plan._plan.ShowPlan` into a tracking reference (each
+drone's own polynomial pieces, ``plan.motion``, give ``p_ref, v_ref, a_ref`` exactly, no
+sampling, with every drone on its own timing), flies it at 1 kHz with one of the engines,
+and reports what was *flown*:
 per-drone tracking error, the flown minimum distance between any two drones (per
 output frame, with a k-d tree), and drones that diverged.
 
@@ -155,22 +156,14 @@ def _finite(x: float) -> float | None:
 
 
 def plan_reference(plan: ShowPlan, *, drones: slice | np.ndarray | None = None) -> TrackingReference:
-    """The tracking reference of a plan: its knots and its shared time law, exactly.
+    """The tracking reference of a plan: every drone's own polynomial pieces (``plan.motion``), exactly.
 
     Args:
         plan: The planned show.
         drones: Optional subset (slice or index array) of the plan's drones.
     """
-    knots = plan.knot_positions_m if drones is None else plan.knot_positions_m[:, drones]
-
-    def time_law(times_s: np.ndarray) -> tuple[np.ndarray, ...]:
-        law = plan.time_law(times_s)
-        return law.segment, law.beta, law.beta_d, law.beta_dd
-
-    return TrackingReference(
-        knots_m=np.ascontiguousarray(knots, dtype=np.float64), time_law=time_law,
-        duration_s=plan.duration_s,
-    )
+    motion = plan.motion if drones is None else plan.motion.select(drones)
+    return TrackingReference(motion=motion, duration_s=plan.duration_s)
 
 
 def _frame_min_distance(points: np.ndarray) -> tuple[float, int, int]:
@@ -285,7 +278,7 @@ def fly_show(
     times = np.arange(n_frames) * every * dt_s
     positions = np.zeros((n_frames, n, 3), dtype=np.float32)
     initial = np.zeros((n, STATE_SIZE))
-    initial[:, 0:3] = ref.knots_m[0]
+    initial[:, 0:3] = ref.motion.evaluate(np.zeros(1), derivatives=0).positions_m[0]
 
     best = [float("inf"), -1, -1, float("nan")]  # distance (m), i, j, time (s)
     done_frames = [0]

@@ -11,7 +11,6 @@ from sim.plan._plan import PlanError as PlanError
 from sim.plan._plan import PlanSample as PlanSample
 from sim.plan._plan import Segment as Segment
 from sim.plan._plan import ShowPlan as ShowPlan
-from sim.plan._plan import TimeLaw as TimeLaw
 from sim.plan._plan import TransitionInfo as TransitionInfo
 from sim.plan._plan import plan_show as plan_show
 from sim.plan._quintic import PEAK_ACCEL_FACTOR as PEAK_ACCEL_FACTOR
@@ -23,3 +22,4 @@ from sim.plan._timing import min_transition_duration as min_transition_duration
 from sim.plan._trajectory import Trajectories as Trajectories
 from sim.plan._trajectory import TrajectoryBuilder as TrajectoryBuilder
 from sim.plan._trajectory import TrajectorySample as TrajectorySample
+from sim.plan._trajectory import horner as horner

@@ -27,7 +27,6 @@ from scipy.spatial import cKDTree
 
 from formations import Settings, ShowFile
 from sim.plan._assignment import assign
-from sim.plan._quintic import rest_to_rest
 from sim.plan._timing import min_transition_duration
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
@@ -92,24 +91,6 @@ class TransitionInfo:
         return min(self.start_spacing_m, self.goal_spacing_m) / np.sqrt(2.0)
 
 
-class TimeLaw(NamedTuple):
-    """The shared time law at an array of times.
-
-    For all drones at time t in segment k = ``segment``:
-    p = P[k] + beta·(P[k+1] - P[k]), v = beta_d·(P[k+1] - P[k]), and so on
-    (beta dimensionless; beta_d 1/s; beta_dd 1/s²; beta_ddd 1/s³; beta_dddd 1/s⁴).
-    ``tau`` is the normalised time in the segment (colours fade linearly in it).
-    """
-
-    segment: np.ndarray
-    tau: np.ndarray
-    beta: np.ndarray
-    beta_d: np.ndarray
-    beta_dd: np.ndarray
-    beta_ddd: np.ndarray
-    beta_dddd: np.ndarray
-
-
 class PlanSample(NamedTuple):
     """Plan state at T times for N drones: (T, N, 3) arrays in m, m/s, m/s²; colours in [0, 1]."""
 
@@ -163,27 +144,6 @@ class ShowPlan:
         t = np.asarray(times_s, dtype=np.float64)
         k = np.searchsorted(self.knot_times_s, t, side="right") - 1
         return np.clip(k, 0, len(self.segments) - 1)
-
-    def time_law(self, times_s: ArrayLike) -> TimeLaw:
-        """The shared β(t) and its derivatives at ``times_s`` (seconds; clamped outside the show)."""
-        t = np.asarray(times_s, dtype=np.float64)
-        k = self.segment_index(t)
-        t0 = self.knot_times_s[k]
-        dur = self.knot_times_s[k + 1] - t0
-        tau = np.clip((t - t0) / dur, 0.0, 1.0)
-        law = rest_to_rest(tau, dur)
-        # Outside [0, duration] the drones rest: every derivative is zero there.
-        inside = (t >= self.knot_times_s[0]) & (t <= self.knot_times_s[-1])
-        zero = np.zeros_like(tau)
-        return TimeLaw(
-            segment=k,
-            tau=tau,
-            beta=law.s,
-            beta_d=np.where(inside, law.s_d, zero),
-            beta_dd=np.where(inside, law.s_dd, zero),
-            beta_ddd=np.where(inside, law.s_ddd, zero),
-            beta_dddd=np.where(inside, law.s_dddd, zero),
-        )
 
     def evaluate(self, times_s: ArrayLike, *, drones: slice | np.ndarray | None = None) -> PlanSample:
         """Positions, velocities, accelerations and colours at ``times_s`` for all (or some) drones.
@@ -350,7 +310,6 @@ __all__ = [
     "PlanSample",
     "Segment",
     "ShowPlan",
-    "TimeLaw",
     "TransitionInfo",
     "plan_show",
 ]

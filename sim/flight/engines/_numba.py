@@ -123,14 +123,33 @@ def _ismc_law(
     return unx, uny, unz, sx, sy, sz, wx, wy, wz
 
 
+@nb.njit(inline="always", cache=True)
+def _piece_state(coeffs, i: int, p: int, a: int, u: float, inside: bool) -> tuple:
+    """Position, velocity, acceleration of axis ``a`` of drone i's piece p at local time u (Horner).
+
+    The derivative coefficients are formed as ``Trajectories.evaluate`` forms them (k·c_k, then
+    (k-1)·(k·c_k)), so both engines round alike; velocity and acceleration are 0 outside the show.
+    """
+    c0, c1, c2 = coeffs[i, p, a, 0], coeffs[i, p, a, 1], coeffs[i, p, a, 2]
+    c3, c4, c5 = coeffs[i, p, a, 3], coeffs[i, p, a, 4], coeffs[i, p, a, 5]
+    pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0
+    if not inside:
+        return pos, 0.0, 0.0
+    d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
+    vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1
+    acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2
+    return pos, vel, acc
+
+
 @nb.njit(parallel=True, cache=True, error_model="numpy",
          fastmath={"nsz", "afn", "contract", "reassoc"})
 def _kernel(
-    state, ctrl, stats, dstep, dreason, knots, seg, beta, offset, yaw, dist, step0, every,
+    state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit,
 ):
     n = state.shape[0]
-    steps = seg.shape[0]
+    steps = times.shape[0]
+    last_piece = breaks.shape[1] - 2
     # Controller model (what the controller believes).
     m = prm[0]
     ix, iy, iz = prm[1], prm[2], prm[3]
@@ -169,6 +188,10 @@ def _kernel(
         sdth, scount = stats[i, STAT_DTHRUST], stats[i, STAT_COUNT]
         # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
         next_rec = ((step0 + every - 1) // every) * every
+        # This drone's own pieces: a cursor that only moves forward with time (steps are
+        # increasing), so finding the piece costs one comparison per step, no search.
+        cur = cursor0[i]
+        t_first, t_last = breaks[i, 0], breaks[i, last_piece + 1]
         for j in range(steps):
             k = step0 + j
             rec = k == next_rec
@@ -181,22 +204,30 @@ def _kernel(
             if not alive:
                 continue
 
-            # ---- reference
-            sk = seg[j]
-            k0x, k0y, k0z = knots[sk, i, 0], knots[sk, i, 1], knots[sk, i, 2]
-            dx = knots[sk + 1, i, 0] - k0x
-            dy = knots[sk + 1, i, 1] - k0y
-            dz = knots[sk + 1, i, 2] - k0z
-            b0, b1, b2 = beta[j, 0], beta[j, 1], beta[j, 2]
-            prx = k0x + b0 * dx + offset[j, 0]
-            pry = k0y + b0 * dy + offset[j, 1]
-            prz = k0z + b0 * dz + offset[j, 2]
-            vrx = b1 * dx + offset[j, 3]
-            vry = b1 * dy + offset[j, 4]
-            vrz = b1 * dz + offset[j, 5]
-            arx = b2 * dx + offset[j, 6]
-            ary = b2 * dy + offset[j, 7]
-            arz = b2 * dz + offset[j, 8]
+            # ---- reference: the drone's piece at t (Trajectories.evaluate: clamped to the
+            # show, at rest outside it, the later piece at a break), plus the shared offset
+            t = times[j]
+            inside = t >= t_first and t <= t_last
+            tc = min(max(t, t_first), t_last)
+            while cur < last_piece and breaks[i, cur + 1] <= tc:
+                cur += 1
+            # (Backwards only if the chunk's starting search, done in a row-offset key
+            # space, rounded past a break: then the piece is still this drone's exact one.)
+            while cur > 0 and breaks[i, cur] > tc:
+                cur -= 1
+            u = tc - breaks[i, cur]
+            prx, vrx, arx = _piece_state(coeffs, i, cur, 0, u, inside)
+            pry, vry, ary = _piece_state(coeffs, i, cur, 1, u, inside)
+            prz, vrz, arz = _piece_state(coeffs, i, cur, 2, u, inside)
+            prx += offset[j, 0]
+            pry += offset[j, 1]
+            prz += offset[j, 2]
+            vrx += offset[j, 3]
+            vry += offset[j, 4]
+            vrz += offset[j, 5]
+            arx += offset[j, 6]
+            ary += offset[j, 7]
+            arz += offset[j, 8]
 
             e1x, e1y, e1z = px - prx, py - pry, pz - prz
             err = math.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
@@ -403,7 +434,7 @@ def run_chunk_numba(
         stats: ``(N, STATS_SIZE)`` running statistics, updated in place.
         dstep: ``(N,)`` divergence step (-1 while flying), updated in place.
         dreason: ``(N,)`` divergence reason code, updated in place.
-        ref: The drones' reference (knots in m).
+        ref: The drones' reference (their polynomial pieces, m).
         chunk: The shared reference tables at ``times``.
         dist: ``(T, 9)`` disturbance signals at ``times``.
         step0: Index of the first step of the chunk.
@@ -416,9 +447,14 @@ def run_chunk_numba(
     """
     use_tel = tel is not None
     tel_arr = tel if use_tel else np.zeros((0, 0, TEL_SIZE))
+    motion = ref.motion
+    # Each drone's piece at the chunk's first step (one search per chunk); the kernel
+    # advances from there.
+    cursor0 = np.ascontiguousarray(motion.piece_index(chunk.times[:1])[0], dtype=np.int64)
     _kernel(
-        state, ctrl, stats, dstep, dreason, np.ascontiguousarray(ref.knots_m, dtype=np.float64),
-        chunk.segment, chunk.beta, chunk.offset, chunk.yaw, dist, int(step0), int(every),
+        state, ctrl, stats, dstep, dreason, np.ascontiguousarray(motion.breaks_s, dtype=np.float64),
+        np.ascontiguousarray(motion.coeffs_m, dtype=np.float64), cursor0, chunk.times, chunk.offset,
+        chunk.yaw, dist, int(step0), int(every),
         frames, tel_arr, use_tel, opts["params"].as_vector(), opts["plant"].as_vector(),
         opts["gains"].as_vector(), float(opts["disturbance"].drag_per_s), float(opts["dt_s"]),
         float(opts["divergence_limit_m"]),

@@ -50,6 +50,7 @@ from sim.flight._quadrotor import (
 from sim.flight.control._attitude import resolve_attitude
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching
+from sim.plan._trajectory import DEGREE, Trajectories
 
 __all__ = [
     "CTRL_SIZE",
@@ -91,47 +92,51 @@ TELEMETRY_FIELDS = (
 TEL_SIZE = len(TELEMETRY_FIELDS)
 
 
-def _zero_law(times_s: np.ndarray) -> tuple[np.ndarray, ...]:
-    t = np.asarray(times_s, dtype=np.float64)
-    z = np.zeros_like(t)
-    return np.zeros(t.shape, dtype=np.int64), z, z, z
+def _constant_motion(points_m: np.ndarray, duration_s: float) -> Trajectories:
+    """Every drone at rest at ``points_m`` (N, 3) over [0, duration_s]: one constant piece each."""
+    p = np.asarray(points_m, dtype=np.float64)
+    coeffs = np.zeros((p.shape[0], 1, 3, DEGREE + 1))
+    coeffs[:, 0, :, 0] = p
+    breaks = np.zeros((p.shape[0], 2))
+    breaks[:, 1] = max(float(duration_s), 0.0)
+    return Trajectories(breaks, coeffs)
 
 
 @dataclass(frozen=True)
 class RefChunk:
-    """Reference of every drone at a run of steps, in the compact form the engines take.
+    """The parts of the reference shared by every drone, at a run of steps.
 
-    ``p_ref[i] = K[seg, i] + β (K[seg+1, i] - K[seg, i]) + offset_p``, likewise v and a
-    with β̇ and β̈ (the shared time law of the plan, plus an optional offset common
-    to all drones).
+    Each drone's own motion is not tabulated here: the engines evaluate its
+    polynomial pieces (:class:`~sim.plan.Trajectories`) at ``times`` themselves.
 
     Attributes:
-        segment: ``(T,)`` int64 segment index per step.
-        beta: ``(T, 3)`` β, β̇ (1/s), β̈ (1/s²).
+        times: ``(T,)`` step times (s).
         offset: ``(T, 9)`` common offset p (m), v (m/s), a (m/s²).
         yaw: ``(T, 3)`` ψ_ref (rad), sin ψ_ref, cos ψ_ref.
     """
 
-    segment: np.ndarray
-    beta: np.ndarray
+    times: np.ndarray
     offset: np.ndarray
     yaw: np.ndarray
 
 
 @dataclass(frozen=True)
 class TrackingReference:
-    """Per-drone reference trajectories: knots x a shared time law (+ a shared offset).
+    """Per-drone reference trajectories: each drone's own polynomial pieces (+ a shared offset).
+
+    ``p_ref[i](t) = motion_i(t) + offset_p(t)``, likewise v and a with the piece
+    derivatives; outside ``[motion.start_s, motion.end_s]`` a drone rests at its
+    first / last position (velocity and acceleration zero), as
+    :meth:`~sim.plan.Trajectories.evaluate` defines.
 
     Attributes:
-        knots_m: ``(K+1, N, 3)`` positions at the segment boundaries (m).
-        time_law: ``times (T,) -> (segment, β, β̇, β̈)`` (int64, -, 1/s, 1/s²).
+        motion: Per-drone piecewise polynomials (``breaks_s`` (N, P+1), ``coeffs_m`` (N, P, 3, 6)).
         offset: Optional ``times (T,) -> (T, 9)`` common offset p, v, a.
         yaw: Optional ``times (T,) -> (T,)`` yaw reference (rad); default 0.
         duration_s: Nominal length (s).
     """
 
-    knots_m: np.ndarray
-    time_law: Callable[[np.ndarray], tuple[np.ndarray, ...]] = _zero_law
+    motion: Trajectories
     offset: Callable[[np.ndarray], np.ndarray] | None = None
     yaw: Callable[[np.ndarray], np.ndarray] | None = None
     duration_s: float = 0.0
@@ -139,45 +144,55 @@ class TrackingReference:
     @property
     def drone_count(self) -> int:
         """Number of drones N."""
-        return int(self.knots_m.shape[1])
+        return self.motion.drone_count
 
     def subset(self, drones: slice | np.ndarray) -> TrackingReference:
         """The same reference for a subset of drones (index array or slice)."""
         return TrackingReference(
-            knots_m=np.ascontiguousarray(self.knots_m[:, drones]),
-            time_law=self.time_law, offset=self.offset, yaw=self.yaw,
-            duration_s=self.duration_s,
+            motion=self.motion.select(drones), offset=self.offset, yaw=self.yaw, duration_s=self.duration_s,
         )
 
     def chunk(self, times_s: np.ndarray) -> RefChunk:
         """Evaluate the shared parts at ``(T,)`` times (s)."""
-        t = np.asarray(times_s, dtype=np.float64)
-        seg, b, bd, bdd = self.time_law(t)
-        seg = np.clip(np.asarray(seg, dtype=np.int64), 0, self.knots_m.shape[0] - 2)
+        t = np.ascontiguousarray(times_s, dtype=np.float64)
         off = np.zeros((t.size, 9)) if self.offset is None else np.asarray(self.offset(t))
         psi = np.zeros(t.size) if self.yaw is None else np.asarray(self.yaw(t), dtype=np.float64)
         return RefChunk(
-            segment=np.ascontiguousarray(seg),
-            beta=np.ascontiguousarray(np.stack([b, bd, bdd], axis=1), dtype=np.float64),
+            times=t,
             offset=np.ascontiguousarray(off, dtype=np.float64),
             yaw=np.ascontiguousarray(np.stack([psi, np.sin(psi), np.cos(psi)], axis=1)),
         )
 
     def at_step(self, chunk: RefChunk, j: int) -> tuple[np.ndarray, ...]:
-        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk."""
-        k = int(chunk.segment[j])
-        k0, k1 = self.knots_m[k], self.knots_m[k + 1]
-        d = k1 - k0
-        b = chunk.beta[j]
+        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk.
+
+        :meth:`~sim.plan.Trajectories.evaluate` at one time (each drone on its own piece,
+        clamped to the show, at rest outside it), with the derivative polynomials written
+        out by Horner's rule as the numba kernel writes them.
+        """
+        m = self.motion
+        t = float(chunk.times[j])
+        inside = m.start_s <= t <= m.end_s
+        tc = min(max(t, m.start_s), m.end_s)
+        rows = np.arange(m.drone_count)
+        idx = m.piece_index(np.array([tc]))[0]
+        c = m.coeffs_m[rows, idx]  # (N, 3, 6)
+        u = (tc - m.breaks_s[rows, idx])[:, None]
+        c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
         off = chunk.offset[j]
-        return k0 + b[0] * d + off[0:3], b[1] * d + off[3:6], b[2] * d + off[6:9]
+        pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0 + off[0:3]
+        if not inside:
+            return pos, np.broadcast_to(off[3:6], pos.shape).copy(), np.broadcast_to(off[6:9], pos.shape).copy()
+        d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
+        vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1 + off[3:6]
+        acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2 + off[6:9]
+        return pos, vel, acc
 
     # -- simple references for tests and scenarios ------------------------------------
     @classmethod
     def hover(cls, points_m: np.ndarray, *, duration_s: float = 0.0) -> TrackingReference:
         """Hold each drone at ``points_m`` ``(N, 3)`` (m); a step reference from elsewhere."""
-        p = np.asarray(points_m, dtype=np.float64)
-        return cls(knots_m=np.stack([p, p]), duration_s=duration_s)
+        return cls(motion=_constant_motion(points_m, duration_s), duration_s=duration_s)
 
     @classmethod
     def circle(
@@ -194,8 +209,7 @@ class TrackingReference:
                 axis=1,
             )
 
-        p = np.asarray(centers_m, dtype=np.float64)
-        return cls(knots_m=np.stack([p, p]), offset=offset, duration_s=duration_s)
+        return cls(motion=_constant_motion(centers_m, duration_s), offset=offset, duration_s=duration_s)
 
     @classmethod
     def paper(cls, *, drones: int = 1) -> TrackingReference:
@@ -205,8 +219,7 @@ class TrackingReference:
             s, c = np.sin(t), np.cos(t)
             return np.stack([s, c, s, c, -s, c, -s, -c, -s], axis=1)
 
-        z = np.zeros((2, drones, 3))
-        return cls(knots_m=z, offset=offset, duration_s=20.0)
+        return cls(motion=_constant_motion(np.zeros((drones, 3)), 20.0), offset=offset, duration_s=20.0)
 
 
 def hover_state(points_m: np.ndarray) -> np.ndarray:
@@ -471,7 +484,7 @@ def simulate(
     """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
 
     Args:
-        reference: What each drone tracks (knots + time law + offset + yaw).
+        reference: What each drone tracks (per-drone pieces + offset + yaw).
         duration_s: Flight length (s); ``round(duration/dt) + 1`` control steps are
             taken so that the state at ``duration_s`` is recorded.
         initial_state: ``(N, 12)`` start state; default at rest, level, on the
