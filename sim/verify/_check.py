@@ -381,7 +381,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         moving = not np.array_equal(P[k], P[k + 1]) or seg.kind != "hold"
         closest.append(_closest_pair_distance(P[k + 1]) if moving else closest[-1])
         upper = min(closest[-2], closest[-1])
-        radius = max(limit_d, upper) if math.isfinite(upper) else limit_d
+        # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
+        radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
         pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds)
         if len(pairs.dist_m):
             m = int(np.argmin(pairs.dist_m))
