@@ -177,6 +177,7 @@ export class ReportPanel {
     const groups = Array.isArray(r.by_transition) ? r.by_transition : [];
     const tl = this.parts.timeline;
     tl.setCheck(this.state.show.formations.length, groups, r.transitions || []);
+    tl.render();
 
     if (groups.length) this.body.append(this._groups(groups, segments, count));
     else if (r.violations && r.violations.length) this.body.append(this._violationList(r.violations, segments, count));
