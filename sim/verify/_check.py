@@ -219,19 +219,19 @@ def speed_bounds(motion: Trajectories) -> np.ndarray:
 
 
 def _slices(motion: Trajectories, bounds: np.ndarray, t0: float, t1: float, radius_m: float
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Slice centres (S,) and query radii (S,) covering [t0, t1] (see the module docstring, step 2)."""
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slice centres, widths and query radii (S,) covering [t0, t1] (see the module docstring, step 2)."""
     length = t1 - t0
     b = motion.breaks_s
     overlap = (b[:, :-1] <= t1) & (b[:, 1:] >= t0)
     v_w = float(np.max(bounds.max(axis=2), where=overlap, initial=0.0))
     if length <= 0 or v_w * length <= 0:
-        return np.array([0.5 * (t0 + t1)]), np.array([radius_m])
+        return np.array([0.5 * (t0 + t1)]), np.array([max(length, 0.0)]), np.array([radius_m])
     cells = int(min(_MAX_CELLS, max(1, math.ceil(_CELLS_PER_SLICE * v_w * length / radius_m))))
     cell_s = length / cells
     env = np.empty(cells)
     _poly.envelope_cells(b, bounds, t0, cell_s, cells, env)
-    centres, radii = [], []
+    centres, widths, radii = [], [], []
     s = 0
     while s < cells:
         vmax, e = env[s], s + 1
@@ -240,9 +240,10 @@ def _slices(motion: Trajectories, bounds: np.ndarray, t0: float, t1: float, radi
             e += 1
         h = (e - s) * cell_s
         centres.append(t0 + (s + e) * 0.5 * cell_s)
+        widths.append(h)
         radii.append(radius_m + vmax * h)
         s = e
-    return np.array(centres), np.array(radii)
+    return np.array(centres), np.array(widths), np.array(radii)
 
 
 def window_close_pairs(
@@ -265,13 +266,15 @@ def window_close_pairs(
         return empty
     if bounds is None:
         bounds = speed_bounds(motion)
-    centres, radii = _slices(motion, bounds, t0_s, t1_s, radius_m)
+    centres, _, radii = _slices(motion, bounds, t0_s, t1_s, radius_m)
+    # Each candidate pair is then minimised exactly over the whole window.
     keys: list[np.ndarray] = []
     step = max(1, _EVAL_BUDGET // n)
     for a in range(0, len(centres), step):
         pos = motion.evaluate(centres[a:a + step], derivatives=0).positions_m
         for s in range(len(pos)):
-            pairs = cKDTree(pos[s]).query_pairs(float(radii[a + s]), output_type="ndarray")
+            tree = cKDTree(pos[s], balanced_tree=False, compact_nodes=False)  # faster to build, as exact
+            pairs = tree.query_pairs(float(radii[a + s]), output_type="ndarray")
             if len(pairs):
                 keys.append(pairs[:, 0].astype(np.int64) * n + pairs[:, 1])
         if len(keys) > 64:
@@ -279,10 +282,10 @@ def window_close_pairs(
     if not keys:
         return empty
     k = np.unique(np.concatenate(keys))
-    i, j = np.minimum(k // n, k % n), np.maximum(k // n, k % n)
-    d2 = np.empty(len(k))
-    tm = np.empty(len(k))
+    i, j = k // n, k % n
     m = len(k)
+    d2 = np.empty(m)
+    tm = np.empty(m)
     _poly.pair_minima(i, j, np.full(m, float(t0_s)), np.full(m, float(t1_s)), np.full(m, radius_m**2),
                       motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
     keep = d2 <= radius_m**2
@@ -537,7 +540,9 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
             fixes.append(f"space the home positions at least {limit_m} m apart")
         elif not _get(tr, "resolution", ""):
             # CAPT's guarantee (Turpin et al. 2014): min(start, goal spacing)/√2.
-            fixes.append(f"space formations {src!r} and {dst!r} at least {limit_m * math.sqrt(2):.2f} m apart "
+            a = "the home grid" if src == "takeoff" else f"formation {src!r}"
+            b = "the home grid" if dst == "landing" else f"formation {dst!r}"
+            fixes.append(f"space the points of {a} and {b} at least {limit_m * math.sqrt(2):.2f} m apart "
                          f"(synchronised straight lines keep only spacing/√2)")
     return fixes
 
