@@ -66,7 +66,7 @@ _SPEED_PARTS = 8
 _CELLS_PER_SLICE = 4
 _MAX_CELLS = 8192
 #: Bound on (slice, drone) positions evaluated at once, to bound memory.
-_EVAL_BUDGET = 1 << 21
+_EVAL_BUDGET = 1 << 19
 
 
 class Violation(BaseModel):
