@@ -208,7 +208,8 @@ def _add_violation_points(plan: Any, formations: int, report: dict[str, Any]) ->
     into = sorted(plan.transitions, key=lambda t: t.segment)[:formations]  # one per formation, in order
     if not into:
         return
-    for v in report.get("violations", []):
+    grouped = [v for g in report.get("by_transition", []) for v in g.get("violations", [])]
+    for v in [*report.get("violations", []), *grouped]:
         info = into[0]
         for t in into:
             if t.segment <= v["segment"]:

@@ -207,6 +207,13 @@ def test_check_reports_a_forced_too_short_transition_as_a_violation(client):
     rec = _create(client, doc)
     report = client.post(f"/api/shows/{rec['id']}/check").json()["report"]
     assert report["ok"] is False and report["violations_total"] >= 1
+    # grouped per transition: the forced one fails, names the fix, and its violations carry points to select
+    bad = [g for g in report["by_transition"] if not g["ok"]]
+    assert [g["formation"] for g in bad] == [0] and bad[0]["kind"] == "transition"
+    assert any(v["kind"] == "transition_duration" for v in bad[0]["violations"])
+    assert any("formations[0].transition_s" in f for f in bad[0]["fixes"])
+    assert all("points" in v for v in bad[0]["violations"])
+    assert sum(g["violations_total"] for g in report["by_transition"]) == report["violations_total"]
 
 
 def test_export_show_file(client):

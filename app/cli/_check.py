@@ -52,11 +52,20 @@ def format_report(report) -> str:
             f"cost {t.assignment_cost_m2:.1f} m², exact min {t.capt.exact_min_distance_m:.3f} m "
             f"(CAPT bound {t.capt.guaranteed_min_distance_m:.3f} m)"
         )
+    lines.append("per transition (worst first):")
+    for g in report.worst_transitions():
+        head = (f"  {'✓' if g.ok else '✗'} {g.kind} {g.from_!r} -> {g.to!r}: {g.duration_s:.1f} s"
+                f"{f' (stagger {g.stagger_s:.1f} s)' if g.stagger_s > 0 else ''}"
+                f"{f', min {g.min_distance_m:.3f} m' if g.min_distance_m >= 0 else ''}")
+        if not g.ok:
+            head += f", {g.violations_total} violation(s)"
+        lines.append(head)
+        lines.extend(f"      - {v.message}" for v in g.violations[:3])
+        if g.violations_total > 3:
+            lines.append(f"      ... and {g.violations_total - 3} more in this transition")
+        lines.extend(f"      fix: {f}" for f in g.fixes)
     if report.ok:
         lines.append("OK: no limit is broken")
     else:
-        lines.append(f"UNSAFE: {report.violations_total} violation(s)")
-        lines.extend(f"  - {v.message}" for v in report.violations[:20])
-        if report.violations_total > 20:
-            lines.append(f"  ... and {report.violations_total - 20} more (see --json)")
+        lines.append(f"UNSAFE: {report.violations_total} violation(s) (see --json for all)")
     return "\n".join(lines)

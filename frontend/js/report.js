@@ -41,6 +41,34 @@ function fmt(v, digits = 2) {
   return v == null || !Number.isFinite(v) ? "—" : Number(v).toFixed(digits);
 }
 
+/**
+ * Groups of the check, failing first, then by smallest minimum distance (the CLI's order).
+ * @param {any[]} groups
+ * @returns {any[]}
+ */
+export function worstFirst(groups) {
+  const d = (g) => (g.min_distance_m >= 0 ? g.min_distance_m : Infinity);
+  return [...groups].sort((a, b) => (a.ok - b.ok) || (d(a) - d(b)) || (a.segment - b.segment));
+}
+
+const GROUP_KINDS = { takeoff: "Takeoff", transition: "Transition", landing: "Landing", hold: "Hold" };
+
+/** One line naming a group: its kind, ends, length, stagger and outcome. */
+function groupTitle(g) {
+  const what = g.kind === "transition" ? `${g.from} → ${g.to}` : g.kind === "hold" ? g.to : `${g.from} → ${g.to}`;
+  const timing = `${fmt(g.duration_s, 1)} s${g.stagger_s > 0 ? ` (+${fmt(g.stagger_s, 1)} s stagger)` : ""}`;
+  const closest = g.min_distance_m >= 0 ? `, closest ${fmt(g.min_distance_m)} m` : "";
+  const outcome = g.ok ? "✓" : `✗ ${g.violations_total} violation${g.violations_total === 1 ? "" : "s"}`;
+  return `${outcome} · ${GROUP_KINDS[g.kind] || g.kind} ${what} · ${timing}${closest}`;
+}
+
+/** A violation as a short line (the report's message is the tooltip). */
+function violationText(v) {
+  if (v.kind === "min_distance") return `Drones ${v.drones[0]} & ${v.drones[1]}: ${fmt(v.value)} m at ${fmt(v.time_s, 1)} s`;
+  if (v.kind === "transition_duration") return `Too short: ${fmt(v.value, 1)} s, needs ${fmt(v.limit, 1)} s`;
+  return `${KIND_NAMES[v.kind] || v.kind}: ${fmt(v.value)} (limit ${fmt(v.limit)}) at ${fmt(v.time_s, 1)} s, drone${v.drones.length === 1 ? "" : "s"} ${v.drones.slice(0, 5).join(", ")}`;
+}
+
 /** The check panel. */
 export class ReportPanel {
   /**
@@ -145,40 +173,130 @@ export class ReportPanel {
     }
     this.body.append(table);
 
-    // Planned transition durations on the timeline.
+    // Per-transition timing (length, stagger, whether it is safe) on the timeline.
+    const groups = Array.isArray(r.by_transition) ? r.by_transition : [];
     const tl = this.parts.timeline;
-    tl.transitions = this.state.show.formations.map((_, k) => {
-      const t = (r.transitions || [])[k];
-      return t ? t.duration_s : null;
-    });
-    tl.minDurations = this.state.show.formations.map((_, k) => {
-      const t = (r.transitions || [])[k];
-      return t ? t.min_duration_s : null;
-    });
+    tl.setCheck(this.state.show.formations.length, groups, r.transitions || []);
     tl.render();
 
-    if (r.violations && r.violations.length) {
-      const h = document.createElement("h3");
-      h.textContent = "Violations (click to select)";
+    if (groups.length) this.body.append(this._groups(groups, segments, count));
+    else if (r.violations && r.violations.length) this.body.append(this._violationList(r.violations, segments, count));
+  }
+
+  /**
+   * The violations grouped per transition, worst first (failing first, smallest distance first),
+   * each group collapsible; a failing group lists what would fix it.
+   * @param {any[]} groups `by_transition` of the report
+   * @param {any[]} segments plan segments
+   * @param {number} count number of formations
+   */
+  _groups(groups, segments, count) {
+    const wrap = document.createElement("section");
+    wrap.className = "report-groups";
+    wrap.setAttribute("aria-label", "Check per transition, worst first");
+    const h = document.createElement("h3");
+    h.textContent = "Per transition (worst first)";
+    wrap.append(h);
+    let firstBad = true;
+    for (const g of worstFirst(groups)) {
+      const det = document.createElement("details");
+      det.className = `report-group ${g.ok ? "group-ok" : "group-bad"}`;
+      det.dataset.segment = String(g.segment);
+      if (!g.ok && firstBad) {
+        det.open = true;
+        firstBad = false;
+      }
+      const sum = document.createElement("summary");
+      sum.textContent = groupTitle(g);
+      det.append(sum);
+      if (g.stagger_s > 0 || g.resolution) {
+        det.append(this._p("muted", `${g.resolution ? `Planner: ${g.resolution}. ` : ""}${g.stagger_s > 0 ? `Stagger added: ${fmt(g.stagger_s, 1)} s.` : ""}`));
+      }
+      if (!g.ok) {
+        det.append(this._fixes(g));
+        if (g.violations.length) det.append(this._violationList(g.violations, segments, count));
+        if (g.violations_total > g.violations.length) det.append(this._p("muted", `… and ${g.violations_total - g.violations.length} more in this transition.`));
+      }
+      wrap.append(det);
+    }
+    return wrap;
+  }
+
+  /**
+   * What would fix a failing group: the planner's own fixes (text), and a button only for the
+   * fixes the editor can apply and that change the outcome: letting the planner choose a duration
+   * the designer forced, or repairing a formation's spacing. A longer duration is never offered for
+   * drones that come too close: the planner's lines do not depend on it.
+   * @param {any} g
+   */
+  _fixes(g) {
+    const box = document.createElement("div");
+    box.className = "group-fixes";
+    const texts = (g.fixes || []).filter((f) => f);
+    if (texts.length) {
+      const h = document.createElement("p");
+      h.className = "fix-head";
+      h.textContent = "What would fix it:";
       const ul = document.createElement("ul");
-      ul.className = "violations";
-      ul.setAttribute("aria-label", "Violations");
-      for (const v of r.violations) {
+      ul.className = "fix-list";
+      for (const t of texts) {
         const li = document.createElement("li");
-        const b = document.createElement("button");
-        b.type = "button";
-        const k = formationOfSegment(segments, v.segment, count);
-        const fname = this.state.show.formations[k]?.name ?? "";
-        b.textContent = v.message || `${KIND_NAMES[v.kind] || v.kind}: drones ${v.drones.join(", ")} at ${fmt(v.time_s, 1)} s: ${fmt(v.value)} (limit ${fmt(v.limit)})`;
-        b.title = `Select formation "${fname}" and drones ${v.drones.join(", ")}`;
-        b.setAttribute("aria-label", `${KIND_NAMES[v.kind] || v.kind} at ${fmt(v.time_s, 1)} s, drones ${v.drones.join(", ")}: select them in "${fname}"`);
-        b.addEventListener("click", () => this.select(v, k));
-        li.append(b);
+        li.textContent = t;
         ul.append(li);
       }
-      this.body.append(h, ul);
-      if (r.violations_total > r.violations.length) this.body.append(this._p("muted", `… and ${r.violations_total - r.violations.length} more.`));
+      box.append(h, ul);
+    } else {
+      box.append(this._p("muted", "The planner gave no fix for this transition."));
     }
+    const f = g.formation >= 0 ? this.state.show.formations[g.formation] : null;
+    const kinds = new Set((g.violations || []).map((v) => v.kind));
+    const tooFast = kinds.has("transition_duration") || kinds.has("speed_xy") || kinds.has("speed_z") || kinds.has("acceleration");
+    if (f && g.kind === "transition" && f.transition_s != null && tooFast) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.textContent = "Let the planner choose this duration";
+      b.setAttribute("aria-label", `Let the planner choose the duration of the transition into "${f.name}"`);
+      b.addEventListener("click", () => this.parts.timeline.setTransition(g.formation, null));
+      box.append(b);
+    }
+    if (f && g.kind === "hold" && kinds.has("min_distance")) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.textContent = `Repair spacing of "${f.name}"`;
+      b.setAttribute("aria-label", `Repair the spacing of formation "${f.name}"`);
+      b.addEventListener("click", () => {
+        this.state.setCurrent(g.formation);
+        document.getElementById("btn-repair")?.click();
+      });
+      box.append(b);
+    }
+    return box;
+  }
+
+  /**
+   * A list of violations; clicking one selects its formation and drones.
+   * @param {any[]} violations
+   * @param {any[]} segments
+   * @param {number} count
+   */
+  _violationList(violations, segments, count) {
+    const ul = document.createElement("ul");
+    ul.className = "violations";
+    ul.setAttribute("aria-label", "Violations (click to select the drones)");
+    for (const v of violations) {
+      const li = document.createElement("li");
+      const b = document.createElement("button");
+      b.type = "button";
+      const k = formationOfSegment(segments, v.segment, count);
+      const fname = this.state.show.formations[k]?.name ?? "";
+      b.textContent = violationText(v);
+      b.title = `${v.message || ""}\nSelect formation "${fname}" and drones ${v.drones.join(", ")}`;
+      b.setAttribute("aria-label", `${KIND_NAMES[v.kind] || v.kind} at ${fmt(v.time_s, 1)} s, drones ${v.drones.join(", ")}: select them in "${fname}"`);
+      b.addEventListener("click", () => this.select(v, k));
+      li.append(b);
+      ul.append(li);
+    }
+    return ul;
   }
 
   /**

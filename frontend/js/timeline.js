@@ -58,13 +58,32 @@ export class Timeline {
     this.onTransition = null;
     /** @type {Array<number|null>} shortest admissible transition durations from the last check */
     this.minDurations = [];
+    /** @type {Array<any|null>} the check of the transition into each formation (`by_transition` entry) */
+    this.checks = [];
+    /** @type {any[]} the checks of takeoff and of the way back (landing approach, landing) */
+    this.ends = [];
     state.addEventListener("change", (e) => {
+      if (e.detail.kind === "load") this.setCheck(0, [], []);
       if (e.detail.kind !== "selection" && e.detail.kind !== "live") this.render();
-      if (e.detail.kind === "load") {
-        this.transitions = [];
-        this.minDurations = [];
-      }
     });
+  }
+
+  /**
+   * Take the timing of the last check: each transition's length, the stagger the planner added,
+   * and whether it is safe.
+   * @param {number} count number of formations
+   * @param {any[]} groups the report's `by_transition`
+   * @param {any[]} transitions the report's `transitions` (for the shortest admissible durations)
+   */
+  setCheck(count, groups, transitions) {
+    this.checks = Array.from({ length: count }, (_, k) =>
+      groups.find((g) => g.kind === "transition" && g.formation === k) || null);
+    this.transitions = this.checks.map((g, k) => (g ? g.duration_s : transitions[k] ? transitions[k].duration_s : null));
+    this.minDurations = this.checks.map((g) => {
+      const t = g ? transitions.find((x) => x.segment === g.segment) : null;
+      return t ? t.min_duration_s : null;
+    });
+    this.ends = groups.filter((g) => g.kind === "takeoff" || g.kind === "landing" || (g.kind === "transition" && g.formation < 0));
   }
 
   /** Add a new grid formation after the current one. */
@@ -146,23 +165,34 @@ export class Timeline {
     const holds = st.show.formations.reduce((a, f) => a + f.hold_s, 0);
     const moves = this.transitions.filter((t) => t != null).reduce((a, b) => a + b, 0);
     if (total) total.textContent = `${st.show.formations.length} formations · holds ${holds.toFixed(1)} s${moves ? ` · transitions ${moves.toFixed(1)} s` : ""}`;
+    const before = this.ends.filter((g) => g.kind === "takeoff");
+    const after = this.ends.filter((g) => g.kind !== "takeoff");
+    if (before.length) list.append(this._endItem("↑ takeoff", before));
     st.show.formations.forEach((f, k) => {
       const tr = document.createElement("li");
       tr.className = "tl-transition";
       const b = document.createElement("button");
       b.type = "button";
       const dur = this.transitions[k];
+      const g = this.checks[k];
       const fixed = f.transition_s != null;
+      const stagger = g && g.stagger_s > 0 ? ` +${g.stagger_s.toFixed(1)} s stagger` : "";
       b.classList.toggle("fixed", fixed);
-      b.textContent = fixed ? `→ ${f.transition_s} s fixed` : dur != null ? `→ ${dur.toFixed(1)} s` : "→";
-      b.title = (dur != null ? `Planned transition into "${f.name}": ${dur.toFixed(2)} s. ` : "Check the show to plan transitions. ") +
-        "Click to fix its duration.";
-      b.setAttribute("aria-label", `Transition into formation ${k + 1}${dur != null ? `: ${dur.toFixed(1)} s planned` : ""}${fixed ? `, fixed at ${f.transition_s} s` : ""}; set its duration`);
+      b.classList.toggle("unsafe", !!g && !g.ok);
+      b.textContent = (fixed ? `→ ${f.transition_s} s fixed` : dur != null ? `→ ${dur.toFixed(1)} s` : "→") + stagger + (g && !g.ok ? " ⚠" : "");
+      // A longer duration moves nobody apart (the planner's lines do not depend on it): say so
+      // instead of inviting it when drones come too close.
+      const close = g && (g.violations || []).some((v) => v.kind === "min_distance");
+      b.title = (dur != null ? `Planned transition into "${f.name}": ${dur.toFixed(2)} s${stagger ? `, of which ${g.stagger_s.toFixed(2)} s stagger the planner added` : ""}. ` : "Check the show to plan transitions. ") +
+        (g && !g.ok ? `${g.violations_total} violation(s)${g.fixes && g.fixes.length ? `; would fix it: ${g.fixes.join("; ")}` : ""}. ` : "") +
+        (close ? "A different duration does not separate these drones. " : "") + "Click to set its duration.";
+      b.setAttribute("aria-label", `Transition into formation ${k + 1}${dur != null ? `: ${dur.toFixed(1)} s planned` : ""}${stagger ? `,${stagger}` : ""}${fixed ? `, fixed at ${f.transition_s} s` : ""}${g && !g.ok ? `, ${g.violations_total} violations` : ""}; set its duration`);
       b.addEventListener("click", () => this.onTransition && this.onTransition(k));
       tr.append(b);
       list.append(tr);
       list.append(this._card(f, k));
     });
+    if (after.length) list.append(this._endItem("↓ landing", after));
     if (active) {
       for (const el of list.querySelectorAll("[aria-label]")) {
         if (el.getAttribute("aria-label") === active) {
@@ -171,6 +201,24 @@ export class Timeline {
         }
       }
     }
+  }
+
+  /**
+   * Takeoff or the way back as a plain item: total length, stagger, and whether it is safe.
+   * @param {string} label
+   * @param {any[]} groups
+   */
+  _endItem(label, groups) {
+    const li = document.createElement("li");
+    li.className = "tl-end";
+    const dur = groups.reduce((a, g) => a + g.duration_s, 0);
+    const stagger = groups.reduce((a, g) => a + (g.stagger_s || 0), 0);
+    const bad = groups.filter((g) => !g.ok);
+    li.classList.toggle("unsafe", bad.length > 0);
+    li.textContent = `${label} ${dur.toFixed(1)} s${stagger > 0 ? ` +${stagger.toFixed(1)} s stagger` : ""}${bad.length ? " ⚠" : ""}`;
+    const fixes = bad.flatMap((g) => g.fixes || []);
+    li.title = `${label.slice(2)}: ${dur.toFixed(2)} s${bad.length ? `; ${bad.reduce((a, g) => a + g.violations_total, 0)} violation(s)` : ""}${fixes.length ? `; would fix it: ${fixes.join("; ")}` : ""}`;
+    return li;
   }
 
   _card(f, k) {

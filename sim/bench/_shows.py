@@ -21,7 +21,8 @@ from formations._shapes import generate_shape
 from sim.plan._assignment import assign
 from sim.plan._plan import plan_show
 from sim.plan._timing import min_transition_duration
-from sim.verify._check import check_plan, segment_close_pairs
+from sim.verify._check import check_plan
+from sim.verify._segments import segment_close_pairs
 
 #: Formation spacing used by the benchmark inputs, metres (>= 3·√2 so CAPT guarantees 3 m).
 BENCH_SPACING_M = 4.5

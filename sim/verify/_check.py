@@ -1,36 +1,72 @@
 """Exact verification of a planned show: separation, speeds, acceleration, altitude.
 
-Separation is checked *continuously in time*, not sampled. Within a segment
-every drone follows p_i(β) = A_i + β·D_i with one shared β in [0, 1], so a
-pair's offset is a + β·c (a = A_j - A_i, c = D_j - D_i) and its minimum over
-β has the closed form β* = clip(-a·c / c·c, 0, 1).
+The plan's motion is per-drone piecewise polynomials (:class:`sim.plan.Trajectories`):
+drones do not share a time law, so nothing here assumes one.
 
-Candidate pairs come from ``scipy.spatial.cKDTree`` in β-slices, with a radius
-that provably misses no pair: subtracting the mean motion (which does not change
-any pair's distance), each drone moves at most L_i·h/2 away from its position at
-the centre of a slice of width h, so a pair that comes within r somewhere in the
-slice is within r + L_max·h at its centre. With h = 1/ceil(L_max/r) the query
-radius is at most 2r.
+**Separation** is checked continuously in time, window by window (the plan's
+show-wide segments, at whose boundaries every drone rests). Within a window:
+
+1. *Exact pair minimum.* For a pair (i, j), cut the window at both drones' piece
+   breaks; on each part both drones are on one polynomial piece, so
+   d²(t) = |p_j(t) - p_i(t)|² is one polynomial of degree <= 10. Its minimum
+   on the part is found by certified Bernstein branch and bound
+   (:mod:`sim.verify._poly`): exact to a relative 1e-13, with the time.
+2. *Candidate pairs, provably complete.* Each piece is cut into 8 equal parts
+   and the largest Bernstein coefficient of |v|² on each part bounds the
+   drone's speed there (convex-hull property). Over a grid of cells, V(c) is the
+   largest such bound of any drone on any part overlapping cell c. The window
+   is cut into time slices [a, b] of width h = b - a made of whole cells, with
+   V_s = max V over the slice, greedily so that V_s·h <= R (R the search
+   radius). *Claim:* a pair within R of each other at some t in the slice is
+   within R + V_s·h of each other at the slice centre c = (a + b)/2.
+   *Proof:* |t - c| <= h/2 and every drone's speed on [a, b] is <= V_s, so
+   |p_i(t) - p_i(c)| <= V_s·h/2 for each drone; by the triangle inequality
+   |p_j(c) - p_i(c)| <= |p_j(t) - p_i(t)| + V_s·h <= R + V_s·h. So a
+   ``cKDTree.query_pairs`` at the slice centre with radius R + V_s·h (<= 2R)
+   finds every pair that comes within R anywhere in the slice, and the union
+   over slices every pair that does so in the window; step 1 then gives each
+   candidate's exact minimum over the whole window. Drones at rest contribute
+   speed 0 and so widen nothing; a window where nobody moves is one slice.
+3. *Radius.* R = max(min_distance_m, the closest-pair distance at either window
+   boundary). The window's minimum is <= the latter, so it is always found
+   (the exact per-window minimum is reported even when it is safe), and every
+   pair closer than the limit is found and reported.
+
+**Peaks** (horizontal and vertical speed, acceleration magnitude, altitude max
+and min) are exact per piece: each is the extremum of a polynomial (vx² + vy²,
+vz², |a|², z) on the piece, by the same branch and bound, vectorised over all
+pieces with numba.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, Field
 from scipy.spatial import cKDTree
 
 from sim.plan._plan import ShowPlan
-from sim.plan._quintic import PEAK_ACCEL_FACTOR, PEAK_SPEED_FACTOR, TAU_PEAK_ACCEL, invert_rest_to_rest
+from sim.plan._trajectory import Trajectories
+from sim.verify import _poly
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
 _TOL = 1e-9
 #: Violations listed in a report (all are counted in ``violations_total``).
 MAX_LISTED_VIOLATIONS = 200
+#: Violations listed per transition in ``by_transition`` (all are counted there too).
+MAX_LISTED_PER_TRANSITION = 50
 #: Drones named in one speed / acceleration / altitude violation.
 MAX_DRONES_PER_VIOLATION = 10
+#: Each piece is cut into this many parts for the speed envelope of the candidate search.
+_SPEED_PARTS = 8
+#: Cells per slice (at most) of the speed envelope grid, and a cap on cells per window.
+_CELLS_PER_SLICE = 4
+_MAX_CELLS = 8192
+#: Bound on (slice, drone) positions evaluated at once, to bound memory.
+_EVAL_BUDGET = 1 << 19
 
 
 class Violation(BaseModel):
@@ -67,7 +103,42 @@ class TransitionReport(BaseModel):
     duration_s: float
     min_duration_s: float = Field(description="Shortest duration the limits allow, seconds (0.1 s steps).")
     assignment_cost_m2: float = Field(description="Σ squared distance of the optimal assignment, m².")
+    stagger_s: float = Field(0.0, description="Time the planner added to keep drones apart (staggering), s.")
+    resolution: str = Field("", description="How the planner made the transition safe (empty: not reported).")
     capt: CaptPremise
+
+
+class FixHint(BaseModel):
+    """Something the planner could not resolve, and what would fix it."""
+
+    drones: list[int]
+    time_s: float
+    reason: str
+    fix: str
+
+
+class TransitionCheck(BaseModel):
+    """The check of one show segment that moves (takeoff, a transition, landing), or of a hold that fails."""
+
+    model_config = {"populate_by_name": True}
+
+    segment: int
+    kind: str = Field(description="takeoff, transition, landing or hold.")
+    from_: str = Field(alias="from")
+    to: str
+    formation: int = Field(description="Index of the formation it leads into (a hold: its formation); -1: none.")
+    start_s: float
+    duration_s: float
+    stagger_s: float = Field(description="Time the planner added to keep drones apart, s (0 if none or unknown).")
+    resolution: str = Field(description="How the planner made it safe (empty: not reported by the planner).")
+    ok: bool
+    min_distance_m: float = Field(description="Exact minimum distance in the segment, m (-1: not searched).")
+    min_distance_pair: list[int]
+    min_distance_time_s: float
+    violations_total: int
+    violations: list[Violation] = Field(description="Worst first (smallest distance), at most 50.")
+    unresolved: list[FixHint] = Field(description="What the planner could not make safe, and what would fix it.")
+    fixes: list[str] = Field(description="Changes to the show that would remove these violations.")
 
 
 class CheckReport(BaseModel):
@@ -87,6 +158,9 @@ class CheckReport(BaseModel):
     min_altitude_m: float
     limits: dict[str, float]
     transitions: list[TransitionReport]
+    by_transition: list[TransitionCheck] = Field(
+        description="Per segment that moves (and per failing hold), in show order: its violations worst first."
+    )
     violations: list[Violation]
     violations_total: int
 
@@ -94,12 +168,128 @@ class CheckReport(BaseModel):
         """JSON-ready dict with DESIGN.md's key names (``from``, not ``from_``)."""
         return self.model_dump(mode="json", by_alias=True)
 
+    def worst_transitions(self) -> list[TransitionCheck]:
+        """``by_transition`` with failing ones first, smallest minimum distance first."""
+        def key(g: TransitionCheck) -> tuple:
+            d = g.min_distance_m if g.min_distance_m >= 0 else math.inf
+            return (g.ok, d, g.segment)
+        return sorted(self.by_transition, key=key)
 
-class _PairMinima:
-    """Exact pair minima of one segment: i < j, distance (m), β at the minimum."""
 
-    def __init__(self, i: np.ndarray, j: np.ndarray, dist: np.ndarray, beta: np.ndarray) -> None:
-        self.i, self.j, self.dist, self.beta = i, j, dist, beta
+class ClosePairs(NamedTuple):
+    """Pairs (i < j) whose exact minimum distance in a time window is <= the search radius."""
+
+    i: np.ndarray
+    j: np.ndarray
+    dist_m: np.ndarray
+    time_s: np.ndarray
+
+
+class PieceExtrema(NamedTuple):
+    """Exact per-piece extrema: (N, P) values and times (s) of each quantity."""
+
+    speed_xy_mps: np.ndarray
+    speed_xy_t: np.ndarray
+    speed_z_mps: np.ndarray
+    speed_z_t: np.ndarray
+    accel_mps2: np.ndarray
+    accel_t: np.ndarray
+    z_max_m: np.ndarray
+    z_max_t: np.ndarray
+    z_min_m: np.ndarray
+    z_min_t: np.ndarray
+
+
+def piece_extrema(motion: Trajectories) -> PieceExtrema:
+    """Exact per-piece peaks of horizontal / vertical speed, acceleration and altitude (max, min)."""
+    n, p = motion.drone_count, motion.piece_count
+    v = np.empty((n, p, 5))
+    t = np.empty((n, p, 5))
+    _poly.piece_extrema(motion.breaks_s, motion.coeffs_m, _poly.W, v, t)
+    root = np.sqrt(np.maximum(v[..., :3], 0.0))
+    return PieceExtrema(root[..., 0], t[..., 0], root[..., 1], t[..., 1], root[..., 2], t[..., 2],
+                        v[..., 3], t[..., 3], v[..., 4], t[..., 4])
+
+
+def speed_bounds(motion: Trajectories) -> np.ndarray:
+    """(N, P, 8) upper bounds of each drone's speed on 8 equal parts of each piece, m/s."""
+    out = np.empty((motion.drone_count, motion.piece_count, _SPEED_PARTS))
+    _poly.speed_bounds(motion.breaks_s, motion.coeffs_m, _poly.W, _SPEED_PARTS, out)
+    return out
+
+
+def _slices(motion: Trajectories, bounds: np.ndarray, t0: float, t1: float, radius_m: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slice centres, widths and query radii (S,) covering [t0, t1] (see the module docstring, step 2)."""
+    length = t1 - t0
+    b = motion.breaks_s
+    overlap = (b[:, :-1] <= t1) & (b[:, 1:] >= t0)
+    v_w = float(np.max(bounds.max(axis=2), where=overlap, initial=0.0))
+    if length <= 0 or v_w * length <= 0:
+        return np.array([0.5 * (t0 + t1)]), np.array([max(length, 0.0)]), np.array([radius_m])
+    cells = int(min(_MAX_CELLS, max(1, math.ceil(_CELLS_PER_SLICE * v_w * length / radius_m))))
+    cell_s = length / cells
+    env = np.empty(cells)
+    _poly.envelope_cells(b, bounds, t0, cell_s, cells, env)
+    centres, widths, radii = [], [], []
+    s = 0
+    while s < cells:
+        vmax, e = env[s], s + 1
+        while e < cells and max(vmax, env[e]) * (e + 1 - s) * cell_s <= radius_m:
+            vmax = max(vmax, env[e])
+            e += 1
+        h = (e - s) * cell_s
+        centres.append(t0 + (s + e) * 0.5 * cell_s)
+        widths.append(h)
+        radii.append(radius_m + vmax * h)
+        s = e
+    return np.array(centres), np.array(widths), np.array(radii)
+
+
+def window_close_pairs(
+    motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, *, bounds: np.ndarray | None = None
+) -> ClosePairs:
+    """Every pair whose exact minimum distance during [t0_s, t1_s] is <= ``radius_m``, with where it occurs.
+
+    Args:
+        motion: the per-drone trajectories.
+        t0_s, t1_s: the time window, seconds.
+        radius_m: search radius, metres (> 0).
+        bounds: :func:`speed_bounds` of ``motion`` (computed if not given).
+
+    Returns:
+        The pairs (i < j), their exact minimum distance (m) and its time (s).
+    """
+    n = motion.drone_count
+    empty = ClosePairs(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+    if n < 2:
+        return empty
+    if bounds is None:
+        bounds = speed_bounds(motion)
+    centres, _, radii = _slices(motion, bounds, t0_s, t1_s, radius_m)
+    # Each candidate pair is then minimised exactly over the whole window.
+    keys: list[np.ndarray] = []
+    step = max(1, _EVAL_BUDGET // n)
+    for a in range(0, len(centres), step):
+        pos = motion.evaluate(centres[a:a + step], derivatives=0).positions_m
+        for s in range(len(pos)):
+            tree = cKDTree(pos[s], balanced_tree=False, compact_nodes=False)  # faster to build, as exact
+            pairs = tree.query_pairs(float(radii[a + s]), output_type="ndarray")
+            if len(pairs):
+                keys.append(pairs[:, 0].astype(np.int64) * n + pairs[:, 1])
+        if len(keys) > 64:
+            keys = [np.unique(np.concatenate(keys))]
+    if not keys:
+        return empty
+    k = np.unique(np.concatenate(keys))
+    i, j = k // n, k % n
+    m = len(k)
+    d2 = np.empty(m)
+    tm = np.empty(m)
+    _poly.pair_minima(i, j, np.full(m, float(t0_s)), np.full(m, float(t1_s)), np.full(m, radius_m**2),
+                      motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
+    keep = d2 <= radius_m**2
+    return ClosePairs(i[keep], j[keep], np.sqrt(np.maximum(d2[keep], 0.0)), tm[keep])
 
 
 def _closest_pair_distance(points: np.ndarray) -> float:
@@ -109,44 +299,61 @@ def _closest_pair_distance(points: np.ndarray) -> float:
     return float(d[:, 1].min())
 
 
-def segment_close_pairs(start_m: np.ndarray, end_m: np.ndarray, radius_m: float) -> _PairMinima:
-    """Every pair whose exact minimum distance during the segment is <= ``radius_m``.
+def _get(rec: Any, name: str, default: Any) -> Any:
+    """A field of a planner record that may be an object or a mapping."""
+    if isinstance(rec, dict):
+        return rec.get(name, default)
+    return getattr(rec, name, default)
 
-    Args:
-        start_m, end_m: (N, 3) positions at β = 0 and β = 1, metres.
-        radius_m: search radius, metres (> 0).
 
-    Returns:
-        The pairs (i < j) with their exact minimum distance and the β where it occurs.
-    """
-    n = len(start_m)
-    empty = _PairMinima(*(np.zeros(0, dtype=np.int64),) * 2, np.zeros(0), np.zeros(0))
-    if n < 2:
-        return empty
-    motion = end_m - start_m
-    motion = motion - motion.mean(axis=0)  # a common translation changes no distance
-    l_max = float(np.sqrt((motion**2).sum(axis=1).max()))
-    slices = max(1, math.ceil(l_max / radius_m)) if l_max > 1e-12 else 1
-    h = 1.0 / slices
-    query_r = radius_m + l_max * h
-    found = []
-    for s in range(slices):
-        centre = start_m + ((s + 0.5) * h) * motion
-        pairs = cKDTree(centre).query_pairs(query_r, output_type="ndarray")
-        if len(pairs):
-            found.append(pairs[:, 0].astype(np.int64) * n + pairs[:, 1])
-    if not found:
-        return empty
-    keys = np.unique(np.concatenate(found))
-    i, j = np.minimum(keys // n, keys % n), np.maximum(keys // n, keys % n)
-    a = start_m[j] - start_m[i]
-    c = motion[j] - motion[i]
-    cc = (c * c).sum(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        beta = np.where(cc > 0, np.clip(-(a * c).sum(axis=1) / cc, 0.0, 1.0), 0.0)
-    dist = np.linalg.norm(a + beta[:, None] * c, axis=1)
-    keep = dist <= radius_m
-    return _PairMinima(i[keep], j[keep], dist[keep], beta[keep])
+def _stagger(tr: Any) -> float:
+    s = _get(tr, "stagger_s", None)
+    if s is not None:
+        return float(s)
+    return 0.0
+
+
+def _limit_violations(
+    plan: ShowPlan, ext: PieceExtrema, ground_m: float
+) -> tuple[list[Violation], dict[str, float]]:
+    """Speed / acceleration / altitude violations, one per (segment, kind), and the peaks."""
+    s = plan.settings
+    n, p = ext.speed_xy_mps.shape
+    drone = np.broadcast_to(np.arange(n)[:, None], (n, p)).ravel()
+    out: list[Violation] = []
+    peaks: dict[str, float] = {}
+    checks = (
+        ("speed_xy", ext.speed_xy_mps, ext.speed_xy_t, s.max_speed_xy_mps, 1.0, "m/s", "exceed"),
+        ("speed_z", ext.speed_z_mps, ext.speed_z_t, s.max_speed_z_mps, 1.0, "m/s", "exceed"),
+        ("acceleration", ext.accel_mps2, ext.accel_t, s.max_accel_mps2, 1.0, "m/s²", "exceed"),
+        ("altitude", ext.z_max_m, ext.z_max_t, s.max_altitude_m, 1.0, "m", "rise above"),
+        ("altitude", ext.z_min_m, ext.z_min_t, ground_m, -1.0, "m", "sink below"),
+    )
+    for kind, values, times, limit, sense, unit, verb in checks:
+        vals = values.ravel() * sense  # "larger is worse" in both senses
+        lim = limit * sense
+        key = "min_altitude_m" if sense < 0 else {"altitude": "max_altitude_m"}.get(kind, f"max_{kind}")
+        peaks[key] = float(vals.max() * sense) if len(vals) else 0.0
+        over = np.flatnonzero(vals > lim + abs(limit) * _TOL + (1e-9 if sense < 0 else 0.0))
+        if not len(over):
+            continue
+        seg = plan.segment_index(times.ravel()[over])
+        order = np.lexsort((-vals[over], seg))
+        over, seg = over[order], seg[order]
+        for k in np.unique(seg):
+            rows = over[seg == k]  # worst first within the segment
+            _, first = np.unique(drone[rows], return_index=True)
+            worst = rows[np.sort(first)]
+            top = worst[0]
+            d0, t_v, value = int(drone[top]), float(times.ravel()[top]), float(vals[top] * sense)
+            sg = plan.segments[int(k)]
+            names = [int(drone[q]) for q in worst[:MAX_DRONES_PER_VIOLATION]]
+            out.append(Violation(
+                kind=kind, drones=names, time_s=t_v, value=value, limit=limit, segment=int(k),
+                message=f"{len(worst)} drone(s) {verb} {kind} {limit} {unit} in {sg.kind} {sg.label!r}: "
+                f"drone {d0} reaches {value:.3f} {unit} at t = {t_v:.2f} s",
+            ))
+    return out, peaks
 
 
 def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None) -> CheckReport:
@@ -158,109 +365,70 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
     """
     s = plan.settings
     limit_d = s.min_distance_m
+    motion = plan.motion
     P = plan.knot_positions_m
-    times = plan.knot_times_s
     violations: list[Violation] = []
 
+    ext = piece_extrema(motion)
+    bounds = speed_bounds(motion)
+    ground = min(0.0, float(P[0][:, 2].min()))
+    limit_v, peaks = _limit_violations(plan, ext, ground)
+    violations += limit_v
+    if progress:
+        progress(0.05)
+
     best = (math.inf, (0, 0), 0.0)
-    peak_xy = peak_z = peak_acc = 0.0
-    seg_min: dict[int, float] = {}
-    closest_at_knot = [_closest_pair_distance(P[0])]
-
+    seg_min: dict[int, tuple[float, tuple[int, int], float]] = {}
+    closest = [_closest_pair_distance(P[0])]
     for k, seg in enumerate(plan.segments):
-        A, B, T = P[k], P[k + 1], seg.duration_s
-        closest_at_knot.append(_closest_pair_distance(B) if seg.kind != "hold" else closest_at_knot[-1])
-        upper = min(closest_at_knot[-2], closest_at_knot[-1])
-        radius = max(limit_d, upper) if math.isfinite(upper) else limit_d
-        pairs = segment_close_pairs(A, B, radius)
-        if len(pairs.dist):
-            m = int(np.argmin(pairs.dist))
-            seg_min[k] = float(pairs.dist[m])
-            if pairs.dist[m] < best[0]:
-                t_m = seg.start_s + T * float(invert_rest_to_rest(pairs.beta[m]))
-                best = (float(pairs.dist[m]), (int(pairs.i[m]), int(pairs.j[m])), t_m)
-            bad = np.flatnonzero(pairs.dist < limit_d * (1 - _TOL))
-            bad = bad[np.argsort(pairs.dist[bad], kind="stable")]
-            tau = invert_rest_to_rest(pairs.beta[bad])
-            for q, tq in zip(bad, tau, strict=True):
-                i, j, d = int(pairs.i[q]), int(pairs.j[q]), float(pairs.dist[q])
-                t_q = seg.start_s + T * float(tq)
-                violations.append(
-                    Violation(
-                        kind="min_distance", drones=[i, j], time_s=t_q, value=d, limit=limit_d, segment=k,
-                        message=f"drones {i} and {j} come {d:.3f} m apart at t = {t_q:.2f} s "
-                        f"({seg.kind} {seg.label!r}); the minimum is {limit_d} m",
-                    )
-                )
-
-        D = B - A
-        for kind, per_drone, limit, factor, tau_peak, unit in (
-            ("speed_xy", np.hypot(D[:, 0], D[:, 1]), s.max_speed_xy_mps, PEAK_SPEED_FACTOR / T, 0.5, "m/s"),
-            ("speed_z", np.abs(D[:, 2]), s.max_speed_z_mps, PEAK_SPEED_FACTOR / T, 0.5, "m/s"),
-            ("acceleration", np.linalg.norm(D, axis=1), s.max_accel_mps2, PEAK_ACCEL_FACTOR / T**2,
-             TAU_PEAK_ACCEL, "m/s²"),
-        ):
-            values = per_drone * factor
-            top = float(values.max()) if len(values) else 0.0
-            if kind == "speed_xy":
-                peak_xy = max(peak_xy, top)
-            elif kind == "speed_z":
-                peak_z = max(peak_z, top)
-            else:
-                peak_acc = max(peak_acc, top)
-            if top > limit * (1 + _TOL):
-                over = np.flatnonzero(values > limit * (1 + _TOL))
-                worst = over[np.argsort(-values[over], kind="stable")][:MAX_DRONES_PER_VIOLATION]
-                t_v = seg.start_s + tau_peak * T
-                violations.append(
-                    Violation(
-                        kind=kind, drones=[int(d) for d in worst], time_s=t_v, value=top, limit=limit, segment=k,
-                        message=f"{len(over)} drone(s) exceed {kind} {limit} {unit} in {seg.kind} "
-                        f"{seg.label!r}: drone {int(worst[0])} reaches {top:.3f} {unit} at t = {t_v:.2f} s",
-                    )
-                )
+        moving = not np.array_equal(P[k], P[k + 1]) or seg.kind != "hold"
+        closest.append(_closest_pair_distance(P[k + 1]) if moving else closest[-1])
+        upper = min(closest[-2], closest[-1])
+        # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
+        radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
+        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds)
+        if len(pairs.dist_m):
+            m = int(np.argmin(pairs.dist_m))
+            seg_min[k] = (float(pairs.dist_m[m]), (int(pairs.i[m]), int(pairs.j[m])), float(pairs.time_s[m]))
+            if seg_min[k][0] < best[0]:
+                best = seg_min[k]
+            bad = np.flatnonzero(pairs.dist_m < limit_d * (1 - _TOL))
+            bad = bad[np.argsort(pairs.dist_m[bad], kind="stable")]
+            for q in bad:
+                i, j, d, t_q = int(pairs.i[q]), int(pairs.j[q]), float(pairs.dist_m[q]), float(pairs.time_s[q])
+                violations.append(Violation(
+                    kind="min_distance", drones=[i, j], time_s=t_q, value=d, limit=limit_d, segment=k,
+                    message=f"drones {i} and {j} come {d:.3f} m apart at t = {t_q:.2f} s "
+                    f"({seg.kind} {seg.label!r}); the minimum is {limit_d} m",
+                ))
         if progress:
-            progress((k + 1) / len(plan.segments))
-
-    z = P[:, :, 2]
-    max_alt, min_alt = float(z.max()), float(z.min())
-    if max_alt > s.max_altitude_m * (1 + _TOL):
-        kk, d = np.unravel_index(int(np.argmax(z)), z.shape)
-        violations.append(
-            Violation(
-                kind="altitude", drones=[int(d)], time_s=float(times[kk]), value=max_alt, limit=s.max_altitude_m,
-                segment=max(int(kk) - 1, 0),
-                message=f"drone {int(d)} reaches {max_alt:.3f} m, above max_altitude_m {s.max_altitude_m}",
-            )
-        )
+            progress(0.05 + 0.95 * (k + 1) / len(plan.segments))
 
     transitions = []
     for tr in plan.transitions:
-        exact = seg_min.get(tr.segment, math.inf)
+        exact = seg_min.get(tr.segment, (math.inf,))[0]
         guaranteed = tr.guaranteed_separation_m
-        transitions.append(
-            TransitionReport(
-                **{"from": tr.from_name},
-                to=tr.to_name, segment=tr.segment, start_s=tr.start_s, duration_s=tr.duration_s,
-                min_duration_s=tr.min_duration_s, assignment_cost_m2=tr.assignment_cost_m2,
-                capt=CaptPremise(
-                    start_spacing_m=_finite(tr.start_spacing_m), goal_spacing_m=_finite(tr.goal_spacing_m),
-                    guaranteed_min_distance_m=_finite(guaranteed), exact_min_distance_m=_finite(exact),
-                    holds=bool(exact >= guaranteed - 1e-9),
-                ),
-            )
-        )
+        transitions.append(TransitionReport(
+            **{"from": tr.from_name},
+            to=tr.to_name, segment=tr.segment, start_s=tr.start_s, duration_s=tr.duration_s,
+            min_duration_s=tr.min_duration_s, assignment_cost_m2=tr.assignment_cost_m2,
+            stagger_s=_stagger(tr), resolution=str(_get(tr, "resolution", "") or ""),
+            capt=CaptPremise(
+                start_spacing_m=_finite(tr.start_spacing_m), goal_spacing_m=_finite(tr.goal_spacing_m),
+                guaranteed_min_distance_m=_finite(guaranteed), exact_min_distance_m=_finite(exact),
+                holds=bool(exact >= guaranteed - 1e-9),
+            ),
+        ))
         if tr.duration_s < tr.min_duration_s - 1e-9:
-            violations.append(
-                Violation(
-                    kind="transition_duration", drones=[], time_s=tr.start_s, value=tr.duration_s,
-                    limit=tr.min_duration_s, segment=tr.segment,
-                    message=f"transition {tr.from_name!r} -> {tr.to_name!r} lasts {tr.duration_s} s; "
-                    f"the limits need at least {tr.min_duration_s:.1f} s",
-                )
-            )
+            violations.append(Violation(
+                kind="transition_duration", drones=[], time_s=tr.start_s, value=tr.duration_s,
+                limit=tr.min_duration_s, segment=tr.segment,
+                message=f"transition {tr.from_name!r} -> {tr.to_name!r} lasts {tr.duration_s} s; "
+                f"the limits need at least {tr.min_duration_s:.1f} s",
+            ))
 
     violations.sort(key=lambda v: (v.time_s, v.kind))
+    groups = _by_transition(plan, violations, seg_min)
     min_d, pair, t_min = best
     return CheckReport(
         ok=not violations,
@@ -270,11 +438,11 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         min_distance_m=_finite(min_d),
         min_distance_pair=list(pair),
         min_distance_time_s=t_min,
-        max_speed_xy_mps=peak_xy,
-        max_speed_z_mps=peak_z,
-        max_accel_mps2=peak_acc,
-        max_altitude_m=max_alt,
-        min_altitude_m=min_alt,
+        max_speed_xy_mps=peaks["max_speed_xy"],
+        max_speed_z_mps=peaks["max_speed_z"],
+        max_accel_mps2=peaks["max_acceleration"],
+        max_altitude_m=peaks["max_altitude_m"],
+        min_altitude_m=peaks["min_altitude_m"],
         limits={
             "min_distance_m": s.min_distance_m,
             "max_speed_xy_mps": s.max_speed_xy_mps,
@@ -283,9 +451,100 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
             "max_altitude_m": s.max_altitude_m,
         },
         transitions=transitions,
+        by_transition=groups,
         violations=violations[:MAX_LISTED_VIOLATIONS],
         violations_total=len(violations),
     )
+
+
+def _worst_first(v: Violation) -> tuple:
+    """Distance violations first, smallest distance first; then the others by how far over the limit."""
+    if v.kind == "min_distance":
+        return (0, v.value, v.time_s)
+    over = abs(v.value - v.limit) / max(abs(v.limit), 1e-9)
+    return (1, -over, v.time_s)
+
+
+def _by_transition(plan: ShowPlan, violations: list[Violation],
+                   seg_min: dict[int, tuple[float, tuple[int, int], float]]) -> list[TransitionCheck]:
+    """One :class:`TransitionCheck` per segment that moves (and per hold with a violation), in show order."""
+    s = plan.settings
+    per_seg: dict[int, list[Violation]] = {}
+    for v in violations:
+        per_seg.setdefault(v.segment, []).append(v)
+    info = {tr.segment: tr for tr in plan.transitions}
+    segs = plan.segments
+    out: list[TransitionCheck] = []
+    holds_before = 0
+    for k, seg in enumerate(segs):
+        vs = sorted(per_seg.get(k, []), key=_worst_first)
+        if seg.kind == "hold":
+            formation = holds_before
+            holds_before += 1
+            if not vs:
+                continue
+        else:
+            nxt = segs[k + 1] if k + 1 < len(segs) else None
+            formation = holds_before if (seg.kind == "transition" and nxt is not None and nxt.kind == "hold") else -1
+        tr = info.get(k)
+        if tr is not None:
+            src, dst = tr.from_name, tr.to_name
+        elif seg.kind == "takeoff":
+            src, dst = "home", "takeoff"
+        elif seg.kind == "landing":
+            src, dst = "landing", "home"
+        else:
+            src = dst = seg.label
+        unresolved = [
+            FixHint(drones=[int(d) for d in _get(u, "drones", ())], time_s=float(_get(u, "time_s", seg.start_s)),
+                    reason=str(_get(u, "reason", "")), fix=str(_get(u, "fix", "")))
+            for u in (_get(tr, "unresolved", ()) if tr is not None else ())
+        ]
+        resolution = str(_get(tr, "resolution", "") or "") if tr is not None else ""
+        dmin = seg_min.get(k)
+        out.append(TransitionCheck(
+            segment=k, kind=seg.kind, **{"from": src}, to=dst, formation=formation, start_s=seg.start_s,
+            duration_s=seg.duration_s, stagger_s=_stagger(tr) if tr is not None else 0.0, resolution=resolution,
+            ok=not vs, min_distance_m=_finite(dmin[0]) if dmin else -1.0,
+            min_distance_pair=list(dmin[1]) if dmin else [], min_distance_time_s=dmin[2] if dmin else seg.start_s,
+            violations_total=len(vs), violations=vs[:MAX_LISTED_PER_TRANSITION], unresolved=unresolved,
+            fixes=_fixes(seg.kind, formation, src, dst, vs, tr, unresolved, s.min_distance_m),
+        ))
+    return out
+
+
+def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], tr: Any,
+           unresolved: list[FixHint], limit_m: float) -> list[str]:
+    """What would remove these violations: the planner's own fixes first, then ones that provably work.
+
+    Only changes that change the outcome are named: a longer transition does not move
+    CAPT's straight lines apart (the geometry is the same at any duration), so it is
+    offered for speed, acceleration and duration violations only.
+    """
+    fixes: list[str] = []
+    for u in unresolved:
+        if u.fix and u.fix not in fixes:
+            fixes.append(u.fix)
+    kinds = {v.kind for v in vs}
+    # A duration the designer forced (the planner would have chosen min_duration_s): freeing it
+    # lets the planner fit the limits again.
+    forced = tr is not None and abs(tr.duration_s - tr.min_duration_s) > 1e-9
+    too_fast = "transition_duration" in kinds or (forced and kinds & {"speed_xy", "speed_z", "acceleration"})
+    if too_fast and formation >= 0:
+        fixes.append(f"let the planner choose the duration of the transition into {dst!r} "
+                     f"(remove formations[{formation}].transition_s)")
+    if "min_distance" in kinds and not unresolved:
+        if kind == "hold":
+            fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")
+        elif kind in ("takeoff", "landing"):
+            fixes.append(f"space the home positions at least {limit_m} m apart")
+        elif not _get(tr, "resolution", ""):
+            # CAPT's guarantee (Turpin et al. 2014): min(start, goal spacing)/√2.
+            a = "the home grid" if src == "takeoff" else f"formation {src!r}"
+            b = "the home grid" if dst == "landing" else f"formation {dst!r}"
+            fixes.append(f"space the points of {a} and {b} at least {limit_m * math.sqrt(2):.2f} m apart "
+                         f"(synchronised straight lines keep only spacing/√2)")
+    return fixes
 
 
 def _finite(x: float) -> float:
