@@ -26,9 +26,9 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from formations import Settings, ShowFile
-from sim.plan._assignment import assign
+from sim.plan._assignment import assign, assignment_cost
 from sim.plan._quintic import rest_to_rest
-from sim.plan._timing import min_transition_duration
+from sim.plan._schedule import Limits, Schedule, round_up, schedule_transition, sync_min_duration
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
@@ -65,6 +65,16 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class UnresolvedConflict:
+    """A conflict the planner could not resolve: the drones, when (show time, s), why, and what would fix it."""
+
+    drones: tuple[int, ...]
+    time_s: float
+    reason: str
+    fix: str
+
+
+@dataclass(frozen=True)
 class TransitionInfo:
     """A CAPT transition: its timing, assignment and the premise of the collision guarantee.
 
@@ -73,6 +83,12 @@ class TransitionInfo:
     approach). ``start_spacing_m`` / ``goal_spacing_m`` are the closest-pair
     distances of the starts and of the assigned goals; CAPT then guarantees a
     separation of at least min(start, goal spacing) / √2 throughout.
+
+    Per-drone timing: drone i leaves its start at ``depart_s[i]`` and reaches its goal
+    at ``arrive_s[i]`` (absolute seconds, inside [start_s, start_s + duration_s]);
+    ``stagger_s`` is the window length added beyond the synchronised minimum,
+    ``resolution`` how conflicts were resolved ("none", "delays" or "unresolved") and
+    ``unresolved`` what could not be made safe (empty when the transition is safe).
     """
 
     segment: int
@@ -85,6 +101,16 @@ class TransitionInfo:
     goal_index: np.ndarray = field(repr=False)
     start_spacing_m: float
     goal_spacing_m: float
+    depart_s: np.ndarray | None = field(default=None, repr=False)
+    arrive_s: np.ndarray | None = field(default=None, repr=False)
+    stagger_s: float = 0.0
+    resolution: str = "none"
+    unresolved: tuple[UnresolvedConflict, ...] = ()
+
+    @property
+    def safe(self) -> bool:
+        """True when the planner certified every pair of this transition (nothing unresolved)."""
+        return not self.unresolved
 
     @property
     def guaranteed_separation_m(self) -> float:
@@ -242,8 +268,19 @@ def _closest_distance(points: np.ndarray) -> float:
     return float(dist[:, 1].min())
 
 
+def _limits(s: Settings) -> Limits:
+    return Limits(
+        v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, a=s.max_accel_mps2, j=s.max_jerk_mps3, law=s.time_law,
+        v_down=s.max_descent_speed_mps,
+    )
+
+
 def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: ProgressFn | None = None) -> ShowPlan:
-    """Plan a whole show: takeoff, CAPT transitions and holds, landing approach, landing.
+    """Plan a whole show: takeoff, CAPT transitions with per-drone timing and holds, landing approach, landing.
+
+    Every transition starts from CAPT's optimal assignment; :func:`sim.plan._schedule.schedule_transition`
+    then gives each drone its departure and profile so that every pair provably keeps
+    ``min_distance_m`` (or reports in ``TransitionInfo.unresolved`` what could not be made safe).
 
     Args:
         show: a validated show file.
@@ -256,11 +293,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         PlanError: a forced transition duration is below the minimum (names it).
     """
     s = show.settings
-    limits = {
-        "max_speed_xy_mps": s.max_speed_xy_mps,
-        "max_speed_z_mps": s.max_speed_z_mps,
-        "max_accel_mps2": s.max_accel_mps2,
-    }
+    lim = _limits(s)
     lift = np.array([0.0, 0.0, s.takeoff_altitude_m])
     home = np.array(show.home_positions_m)
     n_steps = len(show.formations) + 2
@@ -270,6 +303,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     colors = [np.zeros_like(home)]
     segments: list[Segment] = []
     transitions: list[TransitionInfo] = []
+    builder = TrajectoryBuilder(home, 0.0)
 
     def add(kind: SegmentKind, label: str, duration_s: float, pos: np.ndarray, col: np.ndarray) -> int:
         segments.append(Segment(len(segments), kind, label, times[-1], float(duration_s)))
@@ -278,59 +312,95 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def capt(from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None, where: str):
-        start = positions[-1]
-        a = assign(start, goals)
-        end = goals[a.goal_index]
-        t_min = min_transition_duration(start, end, **limits)
+    def fly(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> Schedule:
+        """Schedule the legs start -> end, append them to the trajectories (window from times[-1])."""
+        t_min = round_up(sync_min_duration(end - start, lim))
         duration = t_min
         if forced_s is not None:
             if forced_s < t_min - 1e-9 and enforce_limits:
                 raise PlanError(
                     f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
-                    f"acceleration limits allow for the transition {from_name!r} -> {to_name!r}",
+                    f"acceleration limits allow for the transition {label}",
                     path=where,
                     minimum_s=t_min,
                 )
             duration = float(forced_s)
+        sched = schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, duration_s=duration,
+                                    label=label)
+        t0 = times[-1]
+        prof = sched.drone_profiles()
+        builder.hold_until(t0 + sched.depart_s)
+        d = end - start
+        for k in range(prof.coeffs.shape[1]):
+            c3 = d[:, :, None] * prof.coeffs[:, k][:, None, :]
+            c3[:, :, 0] += start
+            builder.append(prof.breaks_s[:, k + 1] - prof.breaks_s[:, k], c3)
+        builder.hold_until(t0 + sched.window_s)
+        return sched
+
+    def transition(from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None, where: str,
+                   goal_index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+        start = positions[-1]
+        if goal_index is None:
+            a = assign(start, goals)
+            goal_index, cost = a.goal_index, a.cost_m2
+        else:
+            cost = assignment_cost(start, goals, goal_index)
+        end = goals[goal_index]
+        t0 = times[-1]
+        sched = fly(start, end, forced_s, where, f"{from_name!r} -> {to_name!r}")
         info = dict(
             from_name=from_name,
             to_name=to_name,
-            start_s=times[-1],
-            duration_s=duration,
-            min_duration_s=t_min,
-            assignment_cost_m2=a.cost_m2,
-            goal_index=a.goal_index,
+            start_s=t0,
+            duration_s=sched.window_s,
+            min_duration_s=round_up(sync_min_duration(end - start, lim)),
+            assignment_cost_m2=cost,
+            goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
+            depart_s=t0 + sched.depart_s,
+            arrive_s=t0 + sched.arrive_s,
+            stagger_s=sched.stagger_s,
+            resolution=sched.resolution,
+            unresolved=tuple(
+                UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in sched.unresolved
+            ),
         )
-        return end, a.goal_index, info
+        return end, goal_index, info
 
-    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance.
+    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
+    # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
     up = home + lift
-    add("takeoff", "takeoff", min_transition_duration(home, up, **limits), up, colors[-1])
+    sched = fly(home, up, None, "takeoff", "takeoff")
+    add("takeoff", "takeoff", sched.window_s, up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
     previous = "takeoff"
     for k, f in enumerate(show.formations):
-        end, goal_index, info = capt(previous, f.name, f.points_m, f.transition_s, f"formations[{k}].transition_s")
+        end, goal_index, info = transition(previous, f.name, f.points_m, f.transition_s,
+                                           f"formations[{k}].transition_s")
         col = f.colors_rgb[goal_index]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         add("hold", f.name, f.hold_s, end, col)
+        builder.hold_until(times[-1])
         previous = f.name
         if progress:
             progress((k + 2) / n_steps)
 
-    # Landing approach: CAPT onto the home positions lifted to takeoff altitude (any
-    # drone may land on any home), then a vertical descent.
+    # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
+    # ("any_home"), or each drone onto its own ("own_home", crossings resolved by the scheduler);
+    # then a vertical descent.
     homes_up = np.array(show.all_home_positions_m) + lift
-    end, goal_index, info = capt(previous, "landing", homes_up, None, "landing")
+    own = np.arange(len(home)) if s.landing == "own_home" else None
+    end, goal_index, info = transition(previous, "landing", homes_up, None, "landing", goal_index=own)
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
     down = end - lift
-    add("landing", "landing", min_transition_duration(end, down, **limits), down, np.zeros_like(end))
+    sched = fly(end, down, None, "landing", "landing")
+    add("landing", "landing", sched.window_s, down, np.zeros_like(end))
     if progress:
         progress(1.0)
 
@@ -342,6 +412,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         transitions=tuple(transitions),
         settings=s,
         show_name=show.name,
+        trajectories=builder.build(),
     )
 
 
@@ -352,5 +423,6 @@ __all__ = [
     "ShowPlan",
     "TimeLaw",
     "TransitionInfo",
+    "UnresolvedConflict",
     "plan_show",
 ]

@@ -1,0 +1,370 @@
+"""Per-drone timing of one transition, safe by construction (prioritised delay scheduling).
+
+Input: every drone's straight leg A_i -> B_i from CAPT's optimal assignment (spec eq. 11)
+and the limits. Output: each drone's departure, profile and arrival, such that every pair
+provably keeps ``required_m`` (certified by :mod:`sim.plan._pairs`), or a list of what
+could not be made safe.
+
+Reasoning (why this order of means):
+
+1. **Synchronised first.** All drones share one normalised profile β over the minimum time
+   of the slowest drone (normalised limits V = min_i v_i/L_i, A = a/max L_i, J = j/max L_i,
+   so no drone exceeds its limits). CAPT's guarantee (Turpin, Michael & Kumar 2014)
+   holds for *any* shared monotone β: pairs stay >= min(start, goal spacing)/√2. With
+   formations drawn at Δ this is Δ/√2, so some pairs may come closer; for those pairs the
+   check is exact (one shared s, closed form).
+2. **Prioritised delays** (Gravell & Summers 2021, "Centralized collision-free polynomial
+   trajectories and goal assignment for aerial swarms"; the prioritised scheduling of
+   arXiv 2512.19914). Drones are placed one by one; each takes the smallest departure
+   delay from a grid (``DELAY_STEP_S``) at which it keeps the distance from every drone
+   placed before it, over the whole window including their rest before departure and after
+   arrival. Earlier drones never move again, so every pair is certified once, when its
+   second drone is placed. A delayed drone flies its *own* minimum-time profile, slowed
+   (time-scaled) to arrive with the synchronised ones when its slack allows: delays then
+   cost no show time.
+3. **Precedence order.** Delays only push drones later, so order matters: if i's path
+   passes within Δ of j's goal, i must pass before j parks there (i placed first); if it
+   passes within Δ of j's start, j must leave first (j placed first). Kahn's topological
+   order over these edges, ready drones by longest own move first (long movers keep the
+   window short; short movers have slack to wait); a cycle is broken at the drone with the
+   fewest unplaced predecessors.
+4. A drone that no delay up to ``max_delay`` makes safe (a cycle, a path through a parked
+   drone) is reported in ``unresolved`` with the drone it meets, when, why and a fix, and
+   flown synchronised (never silently: the plan says it is unsafe).
+
+Considered and not used by default: min-max (bottleneck) assignment (MacAlpine, Price &
+Stone, SCRAM, AAAI 2015) shortens the longest leg but gives up CAPT's Σd² optimality,
+whose sub-assignments keep paths from crossing; since the window is set by the slowest
+drone's minimum time under per-axis limits, the bottleneck gain on dense shows is small
+(see ``benchmarks/bench_dense.py``'s lower bound, which is the bottleneck assignment).
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
+from sim.plan._timelaw import (
+    Profiles,
+    double_s_phases,
+    double_s_profiles,
+    double_s_stretched,
+    path_speed_limit,
+    quintic_leg_duration,
+    quintic_profiles,
+)
+
+#: Departure delays are multiples of this, seconds.
+DELAY_STEP_S = 0.2
+#: Candidate timings tried per drone before it is reported unresolved.
+MAX_TRIALS = 4000
+#: Certified separation is required to this much below min_distance_m, metres (rounding only;
+#: points drawn exactly at min_distance_m pass, the verifier's relative tolerance is 1e-9).
+SEPARATION_SLACK_M = 1e-7
+#: Window durations are rounded up to this step, seconds.
+WINDOW_STEP_S = 0.1
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Scalar limits of one plan: speeds (m/s), acceleration (m/s²), jerk (m/s³), time law."""
+
+    v_xy: float
+    v_z: float
+    a: float
+    j: float
+    law: str = "min_time"
+    v_down: float | None = None
+
+
+@dataclass(frozen=True)
+class Unresolved:
+    """What could not be made safe: drones, when (s, window-local until shifted), why, and a fix."""
+
+    drones: tuple[int, ...]
+    time_s: float
+    reason: str
+    fix: str
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Per-drone timing of one transition (times local to the window start).
+
+    ``profiles`` rows: 0 is the shared synchronised profile, 1 + i drone i's own
+    minimum-time profile; drone i flies row ``prof_row[i]`` slowed by ``scale[i]``,
+    departing at ``depart_s[i]`` and arriving at ``arrive_s[i]``.
+    """
+
+    depart_s: np.ndarray
+    arrive_s: np.ndarray
+    prof_row: np.ndarray
+    scale: np.ndarray
+    profiles: Profiles
+    sync_s: float
+    window_s: float
+    unresolved: tuple[Unresolved, ...]
+
+    @property
+    def stagger_s(self) -> float:
+        """Window length added beyond the synchronised minimum, seconds."""
+        return max(0.0, self.window_s - self.sync_s)
+
+    @property
+    def resolution(self) -> str:
+        """'none' (synchronised), 'delays' (some drones wait or fly their own profile), 'unresolved'."""
+        if self.unresolved:
+            return "unresolved"
+        if np.any(self.prof_row != 0) or np.any(self.depart_s != 0):
+            return "delays"
+        return "none"
+
+    def drone_profiles(self) -> Profiles:
+        """(N, 8) breaks and (N, 7, 6) coefficients of each drone's profile, scaled, local to its departure."""
+        rows = self.prof_row
+        k = self.scale
+        powers = k[:, None, None] ** -np.arange(self.profiles.coeffs.shape[-1])[None, None, :]
+        return Profiles(self.profiles.breaks_s[rows] * k[:, None], self.profiles.coeffs[rows] * powers)
+
+
+def round_up(t: float, step: float = WINDOW_STEP_S) -> float:
+    """Round up to a multiple of ``step`` (at least one step)."""
+    return round(max(1, int(np.ceil(t / step - 1e-9))) * step, 10)
+
+
+def own_profiles(d_m: np.ndarray, lim: Limits) -> tuple[Profiles, np.ndarray]:
+    """Each drone's own minimum-time profile of its leg d (N, 3) and (N,) peak |σ''| (1/s²)."""
+    length = np.linalg.norm(d_m, axis=1)
+    if lim.law == "quintic":
+        dur = quintic_leg_duration(d_m, v_xy=lim.v_xy, v_z=lim.v_z, a=lim.a, v_down=lim.v_down)
+        return quintic_profiles(dur), _quintic_peak(dur)
+    v = path_speed_limit(d_m, lim.v_xy, lim.v_z, lim.v_down)
+    ph = double_s_phases(length, v, lim.a, lim.j)
+    peak = np.where(length > 0, ph.jerk * ph.tj / np.where(length > 0, length, 1.0), 0.0)
+    return double_s_profiles(ph, length), peak
+
+
+def _quintic_peak(dur: np.ndarray) -> np.ndarray:
+    safe = np.where(dur > 0, dur, 1.0)
+    return np.where(dur > 0, 10.0 / np.sqrt(3.0) / safe**2, 0.0)
+
+
+def sync_min_duration(d_m: np.ndarray, lim: Limits) -> float:
+    """Unrounded minimum duration of the shared profile β for legs d (N, 3), seconds."""
+    length = np.linalg.norm(d_m, axis=1)
+    moving = length > 0
+    if not moving.any():
+        return 0.0
+    if lim.law == "quintic":
+        return float(quintic_leg_duration(d_m[moving], v_xy=lim.v_xy, v_z=lim.v_z, a=lim.a,
+                                          v_down=lim.v_down).max())
+    v = path_speed_limit(d_m[moving], lim.v_xy, lim.v_z, lim.v_down)
+    big = float(length.max())
+    return float(double_s_phases(1.0, float((v / length[moving]).min()), lim.a / big, lim.j / big).duration_s)
+
+
+def sync_profile(d_m: np.ndarray, lim: Limits, duration_s: float) -> tuple[Profiles, float]:
+    """The shared normalised profile lasting ``duration_s`` and its peak |β''|."""
+    length = np.linalg.norm(d_m, axis=1)
+    moving = length > 0
+    if lim.law == "quintic" or duration_s <= 0 or not moving.any():
+        return quintic_profiles([duration_s]), float(_quintic_peak(np.array([duration_s]))[0])
+    v = path_speed_limit(d_m[moving], lim.v_xy, lim.v_z, lim.v_down)
+    big = float(length.max())
+    vn, an, jn = float((v / length[moving]).min()), lim.a / big, lim.j / big
+    fast = double_s_phases(1.0, vn, an, jn)
+    if duration_s >= float(fast.duration_s):
+        ph = double_s_stretched(np.array([1.0]), vn, an, jn, duration_s)
+        prof = double_s_profiles(ph, np.array([1.0]))
+        return prof, float(ph.jerk[0] * ph.tj[0])
+    # Forced shorter than the limits allow (enforce_limits=False): the minimum-time shape, time-compressed.
+    prof = double_s_profiles(double_s_phases(np.array([1.0]), vn, an, jn), np.array([1.0]))
+    k = duration_s / float(fast.duration_s)
+    powers = k ** -np.arange(prof.coeffs.shape[-1])
+    return Profiles(prof.breaks_s * k, prof.coeffs * powers), float(jn * fast.tj / k**2)
+
+
+def precedence_order(a_m: np.ndarray, b_m: np.ndarray, pairs: np.ndarray, own_s: np.ndarray,
+                     radius_m: float) -> np.ndarray:
+    """Placement order (see the module docstring, point 3)."""
+    n = len(a_m)
+    if len(pairs) == 0:
+        return np.argsort(-own_s, kind="stable")
+    i, j = pairs[:, 0], pairs[:, 1]
+    # Edge u -> v: u placed before v.
+    near_goal_ij = point_seg_dists(b_m, a_m, b_m, j, i) < radius_m  # i's path near j's goal: i first
+    near_goal_ji = point_seg_dists(b_m, a_m, b_m, i, j) < radius_m  # j's path near i's goal: j first
+    near_start_ij = point_seg_dists(a_m, a_m, b_m, j, i) < radius_m  # i's path near j's start: j first
+    near_start_ji = point_seg_dists(a_m, a_m, b_m, i, j) < radius_m  # j's path near i's start: i first
+    src = np.concatenate([i[near_goal_ij], j[near_goal_ji], j[near_start_ij], i[near_start_ji]])
+    dst = np.concatenate([j[near_goal_ij], i[near_goal_ji], i[near_start_ij], j[near_start_ji]])
+    keep = src != dst
+    src, dst = src[keep], dst[keep]
+    order_edges = np.argsort(src, kind="stable")
+    src, dst = src[order_edges], dst[order_edges]
+    starts = np.searchsorted(src, np.arange(n + 1))
+    indeg = np.bincount(dst, minlength=n).astype(np.int64)
+    placed = np.zeros(n, dtype=bool)
+    ready = [(-float(own_s[k]), int(k)) for k in np.flatnonzero(indeg == 0)]
+    heapq.heapify(ready)
+    out: list[int] = []
+    while len(out) < n:
+        if ready:
+            _, u = heapq.heappop(ready)
+            if placed[u]:
+                continue
+        else:
+            # A cycle: break it at the unplaced drone with the fewest unplaced predecessors (then longest move).
+            key = np.where(placed, np.inf, indeg * 1e6 - own_s)
+            u = int(np.argmin(key))
+        placed[u] = True
+        out.append(u)
+        for v in dst[starts[u]:starts[u + 1]]:
+            indeg[v] -= 1
+            if indeg[v] == 0 and not placed[v]:
+                heapq.heappush(ready, (-float(own_s[v]), int(v)))
+    return np.array(out, dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2, length,
+         required_m, hint):  # pragma: no cover - numba
+    """(conflicting neighbour or -1, its time); checks the last conflicting neighbour first."""
+    if hint >= 0:
+        c, t = pair_conflict(i, hint, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2, length, required_m)
+        if c:
+            return hint, t
+    for q in range(indptr[i], indptr[i + 1]):
+        j = nbrs[q]
+        if not placed[j] or j == hint:
+            continue
+        c, t = pair_conflict(i, j, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2, length, required_m)
+        if c:
+            return j, t
+    return -1, 0.0
+
+
+@numba.njit(cache=True)
+def _place_all(order, indptr, nbrs, a_m, d_m, breaks, coeffs, peak_s2, length, own_dur, sync_s,
+               step, max_extra, max_trials, required_m):  # pragma: no cover - numba
+    """Place drones in ``order``; each takes the first safe (arrival, departure) candidate.
+
+    Candidates, by increasing arrival: the synchronised profile (depart 0, arrive sync_s);
+    its own minimum-time profile departing at 0 (arrives early); then for arrivals
+    sync_s + m·step (m = 0..max_extra/step) every departure k·step with room for its
+    own profile, slowed to arrive exactly then, and the latest departure (own minimum time).
+    """
+    n = len(order)
+    dep = np.zeros(n)
+    row = np.zeros(n, dtype=np.int64)
+    scale = np.ones(n)
+    arr = np.full(n, sync_s)
+    placed = np.zeros(n, dtype=np.bool_)
+    failed = np.zeros(n, dtype=np.bool_)
+    fail_other = np.full(n, -1, dtype=np.int64)
+    fail_time = np.zeros(n)
+    m_max = int(max_extra / step + 1e-9)
+    for idx in range(n):
+        i = order[idx]
+        # 1. synchronised.
+        dep[i], row[i], scale[i], arr[i] = 0.0, 0, 1.0, sync_s
+        hint, t_first = _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2,
+                             length, required_m, -1)
+        ok = hint < 0
+        if not ok:
+            fail_other[i] = hint
+            fail_time[i] = t_first
+            # 2. own minimum time, departing at once.
+            dep[i], row[i], scale[i], arr[i] = 0.0, 1 + i, 1.0, own_dur[i]
+            hint, _ = _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2,
+                           length, required_m, hint)
+            ok = hint < 0
+        trials = 0
+        m = 0
+        while not ok and m <= m_max and trials < max_trials:
+            a = sync_s + m * step
+            k = 0
+            while not ok and trials < max_trials:
+                d = k * step
+                last = d + own_dur[i] >= a - 1e-12
+                if last:
+                    d = a - own_dur[i]
+                    if d < 0.0:
+                        break
+                dep[i], row[i], arr[i] = d, 1 + i, a
+                scale[i] = (a - d) / own_dur[i] if own_dur[i] > 0.0 else 1.0
+                trials += 1
+                hint, _ = _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2,
+                               length, required_m, hint)
+                ok = hint < 0
+                if last:
+                    break
+                k += 1
+            m += 1
+        if not ok:
+            failed[i] = True
+            dep[i], row[i], scale[i], arr[i] = 0.0, 0, 1.0, sync_s
+        placed[i] = True
+    return dep, row, scale, arr, failed, fail_other, fail_time
+
+
+def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_distance_m: float,
+                        duration_s: float | None = None, max_delay_s: float | None = None,
+                        label: str = "") -> Schedule:
+    """Per-drone timing of the legs A (N, 3) -> B (N, 3), certified to keep ``min_distance_m``.
+
+    Args:
+        a_m, b_m: starts and assigned goals, metres.
+        lim: the limits and time law.
+        min_distance_m: Δ, metres.
+        duration_s: the synchronised duration (>= the minimum; None: the rounded minimum).
+        max_delay_s: longest departure delay tried (default: the synchronised duration + 10 s).
+        label: transition name for the fixes suggested in ``unresolved``.
+    """
+    n = len(a_m)
+    d_m = b_m - a_m
+    length = np.linalg.norm(d_m, axis=1)
+    sync_s = round_up(sync_min_duration(d_m, lim)) if duration_s is None else float(duration_s)
+    shared, shared_peak = sync_profile(d_m, lim, sync_s)
+    own, own_peak = own_profiles(d_m, lim)
+    breaks = np.concatenate([shared.breaks_s, own.breaks_s])
+    coeffs = np.concatenate([shared.coeffs, own.coeffs])
+    peak = np.concatenate([[shared_peak], own_peak])
+    required = min_distance_m - SEPARATION_SLACK_M
+    pairs = close_path_pairs(a_m, b_m, required) if n > 1 else np.zeros((0, 2), dtype=np.int64)
+    own_dur = own.breaks_s[:, -1].copy()
+    order = precedence_order(a_m, b_m, pairs, own_dur, required)
+    # CSR neighbour lists (both directions).
+    src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    o = np.argsort(src, kind="stable")
+    nbrs = dst[o].astype(np.int64)
+    indptr = np.searchsorted(src[o], np.arange(n + 1)).astype(np.int64)
+    max_delay = 0.5 * sync_s + 5.0 if max_delay_s is None else max_delay_s
+    dep, row, scale, arr, failed, fail_other, fail_time = _place_all(
+        order, indptr, nbrs, a_m, d_m, breaks, coeffs, peak, length, own_dur, sync_s, DELAY_STEP_S, max_delay,
+        MAX_TRIALS, required,
+    )
+    window = round_up(max(sync_s, float(arr.max()) if n else 0.0))
+    unresolved = tuple(
+        Unresolved(
+            drones=(int(i), int(fail_other[i])) if fail_other[i] >= 0 else (int(i),),
+            time_s=float(fail_time[i]),
+            reason=f"drone {int(i)} cannot keep {min_distance_m:g} m from drone {int(fail_other[i])} by waiting "
+            f"or arriving up to {max_delay:.0f} s later: their paths cross a parked or waiting position",
+            fix=f"space the formations of {label or 'this transition'} wider (>= {min_distance_m * np.sqrt(2):.2f} m "
+            f"makes CAPT's straight lines safe) or move the points the two drones meet at",
+        )
+        for i in np.flatnonzero(failed)
+    )
+    return Schedule(
+        depart_s=dep, arrive_s=arr, prof_row=row, scale=scale, profiles=Profiles(breaks, coeffs),
+        sync_s=sync_s, window_s=window, unresolved=unresolved,
+    )
+
+
+__all__ = ["Limits", "Schedule", "Unresolved", "schedule_transition", "sync_min_duration"]
