@@ -28,7 +28,14 @@ from scipy.spatial import cKDTree
 from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._quintic import rest_to_rest
-from sim.plan._schedule import Limits, Schedule, round_up, schedule_transition, sync_min_duration
+from sim.plan._schedule import (
+    Limits,
+    Schedule,
+    plan_transition,
+    round_up,
+    schedule_transition,
+    sync_min_duration,
+)
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
@@ -312,59 +319,65 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def fly(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> Schedule:
-        """Schedule the legs start -> end, append them to the trajectories (window from times[-1])."""
-        t_min = round_up(sync_min_duration(end - start, lim))
-        duration = t_min
-        if forced_s is not None:
-            if forced_s < t_min - 1e-9 and enforce_limits:
-                raise PlanError(
-                    f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
-                    f"acceleration limits allow for the transition {label}",
-                    path=where,
-                    minimum_s=t_min,
-                )
-            duration = float(forced_s)
-        sched = schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, duration_s=duration,
-                                    label=label)
+    def fly(legs: tuple[Schedule, ...]) -> None:
+        """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
         t0 = times[-1]
-        prof = sched.drone_profiles()
-        builder.hold_until(t0 + sched.depart_s)
-        d = end - start
-        for k in range(prof.coeffs.shape[1]):
-            c3 = d[:, :, None] * prof.coeffs[:, k][:, None, :]
-            c3[:, :, 0] += start
-            builder.append(prof.breaks_s[:, k + 1] - prof.breaks_s[:, k], c3)
-        builder.hold_until(t0 + sched.window_s)
-        return sched
+        for sched in legs:
+            prof = sched.drone_profiles()
+            builder.hold_until(t0 + sched.depart_s)
+            d = sched.b_m - sched.a_m
+            for k in range(prof.coeffs.shape[1]):
+                c3 = d[:, :, None] * prof.coeffs[:, k][:, None, :]
+                c3[:, :, 0] += sched.a_m
+                builder.append(prof.breaks_s[:, k + 1] - prof.breaks_s[:, k], c3)
+            t0 += sched.window_s
+            builder.hold_until(t0)
+
+    def forced(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> float | None:
+        t_min = round_up(sync_min_duration(end - start, lim))
+        if forced_s is not None and forced_s < t_min - 1e-9 and enforce_limits:
+            raise PlanError(
+                f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
+                f"acceleration limits allow for the transition {label}",
+                path=where,
+                minimum_s=t_min,
+            )
+        return forced_s
+
+    def vertical(start: np.ndarray, end: np.ndarray, label: str) -> float:
+        sched = schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
+        fly((sched,))
+        return sched.window_s
 
     def transition(from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None, where: str,
                    goal_index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
         start = positions[-1]
         if goal_index is None:
-            a = assign(start, goals)
-            goal_index, cost = a.goal_index, a.cost_m2
-        else:
-            cost = assignment_cost(start, goals, goal_index)
+            goal_index = assign(start, goals).goal_index
+        label = f"{from_name!r} -> {to_name!r}"
+        duration = forced(start, goals[goal_index], forced_s, where, label)
+        tp = plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                             ceiling_m=s.max_altitude_m, duration_s=duration, label=label)
+        goal_index = tp.goal_index
         end = goals[goal_index]
         t0 = times[-1]
-        sched = fly(start, end, forced_s, where, f"{from_name!r} -> {to_name!r}")
+        fly(tp.legs)
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=sched.window_s,
+            duration_s=tp.window_s,
             min_duration_s=round_up(sync_min_duration(end - start, lim)),
-            assignment_cost_m2=cost,
+            assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
-            depart_s=t0 + sched.depart_s,
-            arrive_s=t0 + sched.arrive_s,
-            stagger_s=sched.stagger_s,
-            resolution=sched.resolution,
+            depart_s=t0 + tp.depart_s,
+            arrive_s=t0 + tp.arrive_s,
+            stagger_s=tp.stagger_s,
+            resolution=tp.resolution,
             unresolved=tuple(
-                UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in sched.unresolved
+                UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in tp.unresolved
             ),
         )
         return end, goal_index, info
@@ -372,8 +385,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
     up = home + lift
-    sched = fly(home, up, None, "takeoff", "takeoff")
-    add("takeoff", "takeoff", sched.window_s, up, colors[-1])
+    add("takeoff", "takeoff", vertical(home, up, "takeoff"), up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
@@ -399,8 +411,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
     down = end - lift
-    sched = fly(end, down, None, "landing", "landing")
-    add("landing", "landing", sched.window_s, down, np.zeros_like(end))
+    add("landing", "landing", vertical(end, down, "landing"), down, np.zeros_like(end))
     if progress:
         progress(1.0)
 

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
+from sim.plan._pairs import close_path_pairs, pair_conflict, pairs_conflicts, point_seg_dists
 from sim.plan._timelaw import (
     Profiles,
     double_s_phases,
@@ -60,6 +60,8 @@ from sim.plan._timelaw import (
 
 #: Departure delays are multiples of this, seconds.
 DELAY_STEP_S = 0.2
+#: Rounds of priority adaptation before the remaining conflicts are reported.
+PRIORITY_ROUNDS = 8
 #: Candidate timings tried per drone before it is reported unresolved.
 MAX_TRIALS = 4000
 #: Certified separation is required to this much below min_distance_m, metres (rounding only;
@@ -100,6 +102,8 @@ class Schedule:
     departing at ``depart_s[i]`` and arriving at ``arrive_s[i]``.
     """
 
+    a_m: np.ndarray
+    b_m: np.ndarray
     depart_s: np.ndarray
     arrive_s: np.ndarray
     prof_row: np.ndarray
@@ -345,10 +349,24 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
     nbrs = dst[o].astype(np.int64)
     indptr = np.searchsorted(src[o], np.arange(n + 1)).astype(np.int64)
     max_delay = 0.5 * sync_s + 5.0 if max_delay_s is None else max_delay_s
-    dep, row, scale, arr, failed, fail_other, fail_time = _place_all(
-        order, indptr, nbrs, a_m, d_m, breaks, coeffs, peak, length, own_dur, sync_s, DELAY_STEP_S, max_delay,
-        MAX_TRIALS, required,
-    )
+    # Priority adaptation (Bennewitz, Burgard & Thrun 2002, "Finding and optimizing solvable priority
+    # schemes for decoupled path planning"): drones that found no safe timing move to the front of the
+    # order and the placement is repeated, a bounded number of rounds.
+    best = None
+    for _ in range(PRIORITY_ROUNDS):
+        dep, row, scale, arr, failed, fail_other, fail_time = _place_all(
+            order, indptr, nbrs, a_m, d_m, breaks, coeffs, peak, length, own_dur, sync_s, DELAY_STEP_S,
+            max_delay, MAX_TRIALS, required,
+        )
+        n_failed = int(failed.sum())
+        if best is None or n_failed < best[0] or (n_failed == best[0] and arr.max() < best[1][3].max()):
+            best = (n_failed, (dep, row, scale, arr, failed, fail_other, fail_time))
+        if n_failed == 0:
+            break
+        first = failed[order]
+        order = np.concatenate([order[first], order[~first]])
+    assert best is not None
+    dep, row, scale, arr, failed, fail_other, fail_time = best[1]
     window = round_up(max(sync_s, float(arr.max()) if n else 0.0))
     unresolved = tuple(
         Unresolved(
@@ -362,9 +380,142 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
         for i in np.flatnonzero(failed)
     )
     return Schedule(
-        depart_s=dep, arrive_s=arr, prof_row=row, scale=scale, profiles=Profiles(breaks, coeffs),
+        a_m=a_m, b_m=b_m, depart_s=dep, arrive_s=arr, prof_row=row, scale=scale, profiles=Profiles(breaks, coeffs),
         sync_s=sync_s, window_s=window, unresolved=unresolved,
     )
 
 
-__all__ = ["Limits", "Schedule", "Unresolved", "schedule_transition", "sync_min_duration"]
+def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.ndarray:
+    """(K, 2) pairs that come closer than ``required_m`` when all drones share one profile (exact)."""
+    n = len(a_m)
+    pairs = close_path_pairs(a_m, b_m, required_m) if n > 1 else np.zeros((0, 2), dtype=np.int64)
+    if len(pairs) == 0:
+        return pairs
+    d_m = b_m - a_m
+    # One shared profile: any monotone one gives the same pairs (the distance depends on s only).
+    prof = Profiles(np.array([[0.0] + [1.0] * 7]), np.zeros((1, 7, 6)))
+    prof.coeffs[0, 0, 1] = 1.0
+    prof.coeffs[0, 1:, 0] = 1.0
+    flags, _ = pairs_conflicts(pairs, a_m, d_m, prof.breaks_s, prof.coeffs, np.zeros(n, dtype=np.int64),
+                               np.zeros(n), np.ones(n), np.ones(n), np.zeros(1), np.linalg.norm(d_m, axis=1),
+                               required_m)
+    return pairs[flags]
+
+
+@dataclass(frozen=True)
+class TransitionPlan:
+    """How one transition is flown: consecutive legs (each a :class:`Schedule`) and the final assignment.
+
+    ``resolution``: "none" (CAPT's synchronised straight lines are safe), "delays" (per-drone
+    departures and profiles), "layers" (expand the start formation, CAPT between the expanded
+    formations, contract into the goal) or "unresolved".
+    """
+
+    legs: tuple[Schedule, ...]
+    goal_index: np.ndarray
+    resolution: str
+    sync_s: float
+    expansion: float = 1.0
+
+    @property
+    def window_s(self) -> float:
+        return float(sum(leg.window_s for leg in self.legs))
+
+    @property
+    def stagger_s(self) -> float:
+        """Window length added beyond the synchronised single-leg minimum, seconds."""
+        return max(0.0, self.window_s - self.sync_s)
+
+    @property
+    def unresolved(self) -> tuple[Unresolved, ...]:
+        out: list[Unresolved] = []
+        t0 = 0.0
+        for leg in self.legs:
+            out += [Unresolved(u.drones, t0 + u.time_s, u.reason, u.fix) for u in leg.unresolved]
+            t0 += leg.window_s
+        return tuple(out)
+
+    @property
+    def depart_s(self) -> np.ndarray:
+        """(N,) departure from the start (window-local), seconds."""
+        return self.legs[0].depart_s
+
+    @property
+    def arrive_s(self) -> np.ndarray:
+        """(N,) arrival at the goal (window-local), seconds."""
+        return self.window_s - self.legs[-1].window_s + self.legs[-1].arrive_s
+
+
+#: Expansion factors tried by the "layers" fallback (√2 makes CAPT's guarantee reach Δ).
+EXPANSIONS = (1.15, 1.28, float(np.sqrt(2.0)))
+
+
+def _expand(points: np.ndarray, k: float, ceiling_m: float) -> np.ndarray | None:
+    """Points scaled by k about (centroid x, centroid y, anchor z), staying within [0, ceiling]; None if impossible.
+
+    A similarity: every pairwise distance is multiplied by k, and along the straight legs
+    p + s·(k - 1)(p - c) every distance grows monotonically (factor 1 + s(k - 1)).
+    """
+    lo_z, hi_z = float(points[:, 2].min()), float(points[:, 2].max())
+    # anchor a keeps lo' = a + k(lo - a) >= 0 and hi' = a + k(hi - a) <= ceiling.
+    a_min = (k * hi_z - ceiling_m) / (k - 1.0)
+    a_max = k * lo_z / (k - 1.0)
+    if a_min > a_max + 1e-9:
+        return None
+    a = min(max(lo_z, a_min), a_max)
+    c = np.array([points[:, 0].mean(), points[:, 1].mean(), a])
+    return c + k * (points - c)
+
+
+def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,
+                    min_distance_m: float, ceiling_m: float, duration_s: float | None = None,
+                    label: str = "", allow_layers: bool = True) -> TransitionPlan:
+    """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely (module docstring), or report what is unsafe.
+
+    Args:
+        a_m: (N, 3) starts, metres.
+        goals_m: (M, 3) all goal points; ``goal_index`` (N,) CAPT's assignment into them.
+        lim: limits and time law.
+        min_distance_m: Δ, metres.
+        ceiling_m: highest altitude the "layers" fallback may use, metres.
+        duration_s: forced synchronised duration (None: the minimum).
+        label: transition name for messages.
+        allow_layers: try the expansion fallback when delays leave conflicts.
+    """
+    b_m = goals_m[goal_index]
+    required = min_distance_m - SEPARATION_SLACK_M
+    sync_s = round_up(sync_min_duration(b_m - a_m, lim)) if duration_s is None else float(duration_s)
+    direct = schedule_transition(a_m, b_m, lim, min_distance_m=min_distance_m, duration_s=sync_s, label=label)
+    if not direct.unresolved or not allow_layers or duration_s is not None:
+        return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
+    from sim.plan._assignment import assign
+
+    for k in EXPANSIONS:
+        a_x = _expand(a_m, k, ceiling_m)
+        g_x = _expand(goals_m, k, ceiling_m)
+        if a_x is None or g_x is None:
+            continue
+        mid = assign(a_x, g_x).goal_index
+        if len(sync_conflicts(a_x, g_x[mid], required)):
+            continue
+        legs = []
+        for start, end in ((a_m, a_x), (a_x, g_x[mid]), (g_x[mid], goals_m[mid])):
+            legs.append(schedule_transition(start, end, lim, min_distance_m=min_distance_m, label=label))
+        plan = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
+        if not plan.unresolved:
+            # Keep per-drone delays if they are shorter than going through the expanded formations.
+            return plan if plan.window_s < direct.window_s or direct.unresolved else TransitionPlan(
+                (direct,), goal_index, direct.resolution, sync_s)
+    return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
+
+
+__all__ = [
+    "Limits",
+    "Schedule",
+    "TransitionPlan",
+    "Unresolved",
+    "plan_transition",
+    "schedule_transition",
+    "sync_conflicts",
+    "sync_min_duration",
+]
