@@ -33,8 +33,8 @@ from sim.plan._schedule import (
     Schedule,
     plan_transition,
     round_up,
-    schedule_transition,
     sync_min_duration,
+    synchronised,
 )
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
@@ -344,8 +344,9 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             )
         return forced_s
 
-    def vertical(start: np.ndarray, end: np.ndarray, label: str) -> float:
-        sched = schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
+    def vertical(start: np.ndarray, end: np.ndarray) -> float:
+        # A rigid translation: every pair keeps its distance, so the shared profile is safe.
+        sched = synchronised(start, end, lim, round_up(sync_min_duration(end - start, lim)))
         fly((sched,))
         return sched.window_s
 
@@ -385,7 +386,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
     up = home + lift
-    add("takeoff", "takeoff", vertical(home, up, "takeoff"), up, colors[-1])
+    add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
@@ -411,7 +412,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
     down = end - lift
-    add("landing", "landing", vertical(end, down, "landing"), down, np.zeros_like(end))
+    add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     if progress:
         progress(1.0)
 

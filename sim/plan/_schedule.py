@@ -46,8 +46,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
-from sim.plan._pairs import close_path_pairs, pair_conflict, pairs_conflicts, point_seg_dists
+from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
 from sim.plan._timelaw import (
     Profiles,
     double_s_phases,
@@ -61,9 +62,12 @@ from sim.plan._timelaw import (
 #: Departure delays are multiples of this, seconds.
 DELAY_STEP_S = 0.2
 #: Rounds of priority adaptation before the remaining conflicts are reported.
-PRIORITY_ROUNDS = 8
+PRIORITY_ROUNDS = 3
 #: Candidate timings tried per drone before it is reported unresolved.
-MAX_TRIALS = 4000
+MAX_TRIALS = 400
+#: Per-drone delays are tried when at most this many drones (or this fraction) conflict when synchronised.
+DELAYS_MAX_DRONES = 20
+DELAYS_MAX_FRACTION = 0.05
 #: Certified separation is required to this much below min_distance_m, metres (rounding only;
 #: points drawn exactly at min_distance_m pass, the verifier's relative tolerance is 1e-9).
 SEPARATION_SLACK_M = 1e-7
@@ -386,20 +390,43 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
 
 
 def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.ndarray:
-    """(K, 2) pairs that come closer than ``required_m`` when all drones share one profile (exact)."""
+    """(K, 2) pairs i < j that come closer than ``required_m`` when all drones share one profile (exact).
+
+    With one shared s the offset of a pair is a + s·c (a = A_j - A_i, c = D_j - D_i) and its
+    minimum over s in [0, 1] is closed form. Candidates come from k-d trees in s-slices, as in
+    the verifier: after subtracting the mean motion (which changes no distance) each drone moves
+    at most L_max·h/2 from its position at the centre of a slice of width h, so a pair within r
+    somewhere in the slice is within r + L_max·h at the centre; with h = 1/ceil(L_max/r) the
+    query radius is at most 2r.
+    """
     n = len(a_m)
-    pairs = close_path_pairs(a_m, b_m, required_m) if n > 1 else np.zeros((0, 2), dtype=np.int64)
-    if len(pairs) == 0:
-        return pairs
-    d_m = b_m - a_m
-    # One shared profile: any monotone one gives the same pairs (the distance depends on s only).
-    prof = Profiles(np.array([[0.0] + [1.0] * 7]), np.zeros((1, 7, 6)))
-    prof.coeffs[0, 0, 1] = 1.0
-    prof.coeffs[0, 1:, 0] = 1.0
-    flags, _ = pairs_conflicts(pairs, a_m, d_m, prof.breaks_s, prof.coeffs, np.zeros(n, dtype=np.int64),
-                               np.zeros(n), np.ones(n), np.ones(n), np.zeros(1), np.linalg.norm(d_m, axis=1),
-                               required_m)
-    return pairs[flags]
+    empty = np.zeros((0, 2), dtype=np.int64)
+    if n < 2:
+        return empty
+    motion = b_m - a_m
+    motion = motion - motion.mean(axis=0)
+    l_max = float(np.sqrt((motion**2).sum(axis=1).max()))
+    slices = max(1, int(np.ceil(l_max / required_m))) if l_max > 1e-12 else 1
+    h = 1.0 / slices
+    found = []
+    for k in range(slices):
+        centre = a_m + ((k + 0.5) * h) * motion
+        pairs = cKDTree(centre).query_pairs(required_m + l_max * h, output_type="ndarray")
+        if len(pairs):
+            lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+            found.append(lo.astype(np.int64) * n + hi)
+    if not found:
+        return empty
+    keys = np.unique(np.concatenate(found))
+    i, j = keys // n, keys % n
+    a = a_m[j] - a_m[i]
+    c = motion[j] - motion[i]
+    cc = (c * c).sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(cc > 0, np.clip(-(a * c).sum(axis=1) / cc, 0.0, 1.0), 0.0)
+    dist = np.linalg.norm(a + s[:, None] * c, axis=1)
+    bad = dist < required_m
+    return np.stack([i[bad], j[bad]], axis=1)
 
 
 @dataclass(frozen=True)
@@ -447,69 +474,160 @@ class TransitionPlan:
 
 
 #: Expansion factors tried by the "layers" fallback (√2 makes CAPT's guarantee reach Δ).
-EXPANSIONS = (1.15, 1.28, float(np.sqrt(2.0)))
+EXPANSIONS = (1.28, float(np.sqrt(2.0)))
 
 
-def _expand(points: np.ndarray, k: float, ceiling_m: float) -> np.ndarray | None:
-    """Points scaled by k about (centroid x, centroid y, anchor z), staying within [0, ceiling]; None if impossible.
+def _greedy_colours(points: np.ndarray, radius_m: float) -> np.ndarray:
+    """(n,) colours such that points closer than ``radius_m`` differ (greedy in lexicographic order)."""
+    from scipy.spatial import cKDTree
 
-    A similarity: every pairwise distance is multiplied by k, and along the straight legs
-    p + s·(k - 1)(p - c) every distance grows monotonically (factor 1 + s(k - 1)).
+    n = len(points)
+    pairs = cKDTree(points).query_pairs(radius_m, output_type="ndarray")
+    src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    o = np.argsort(src, kind="stable")
+    nbrs, starts = dst[o], np.searchsorted(src[o], np.arange(n + 1))
+    colour = np.full(n, -1, dtype=np.int64)
+    for i in np.lexsort(points.T[::-1]):
+        used = {int(c) for c in colour[nbrs[starts[i]:starts[i + 1]]] if c >= 0}
+        c = 0
+        while c in used:
+            c += 1
+        colour[i] = c
+    return colour
+
+
+def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float,
+           similar: bool = False) -> np.ndarray | None:
+    """The points moved apart so that every pair ends >= k·(its spacing) and no pair ever comes closer.
+
+    Three ways, by the shape of the set (each moves all points along straight lines with one
+    shared profile, and each pair's distance is nondecreasing along the way):
+
+    * **flat and horizontal** (e.g. the lifted home grid): scaled by k about the centroid within
+      its plane (a similarity of the set: every distance grows by the factor 1 + s(k - 1));
+    * **flat and tilted/vertical** (text, walls, discs drawn in x-z): split into *layers*
+      offset along the plane's normal n: points closer than k·Δ get different colours (greedy),
+      colour c moves by (c - (C-1)/2)·λΔ·n with λ = √(k² - 1). Offsets are along n and every
+      in-plane offset d is ⟂ n, so |d + s·Δo·n|² = |d|² + s²Δo² grows, and pairs in different
+      layers end >= Δ·√(1 + λ²) = kΔ apart while same-colour pairs already were >= kΔ apart;
+    * **3-D** (or ``similar``): scaled by k about (centroid x, centroid y, anchor z), the anchor
+      keeping the set within [0, ceiling] (None if it cannot). Scaling both sets of a transition
+      by the same k keeps CAPT's assignment optimal when every goal is used (Σ|kx - kg|² = k²Σ|x - g|²
+      up to a translation, which shifts every complete assignment's cost equally).
     """
+    c = points.mean(axis=0)
+    centred = points - c
+    if len(points) >= 3:
+        _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+        normal = vt[-1]
+        flat = sv[-1] <= 1e-9 * max(float(sv[0]), 1.0)
+    else:
+        normal, flat = np.array([0.0, 0.0, 1.0]), True
+    if flat and abs(normal[2]) > 0.9 and not similar:
+        proj = centred - np.outer(centred @ normal, normal)
+        return points + (k - 1.0) * proj
+    if flat and not similar:
+        lam = float(np.sqrt(max(k * k - 1.0, 0.0)))
+        colour = _greedy_colours(points, k * min_distance_m * (1.0 + 1e-9))
+        offset = (colour - 0.5 * colour.max()) * lam * min_distance_m
+        out = points + offset[:, None] * normal[None, :]
+        if out[:, 2].min() < 0 or out[:, 2].max() > ceiling_m:
+            return None
+        return out
     lo_z, hi_z = float(points[:, 2].min()), float(points[:, 2].max())
     # anchor a keeps lo' = a + k(lo - a) >= 0 and hi' = a + k(hi - a) <= ceiling.
     a_min = (k * hi_z - ceiling_m) / (k - 1.0)
     a_max = k * lo_z / (k - 1.0)
     if a_min > a_max + 1e-9:
         return None
-    a = min(max(lo_z, a_min), a_max)
-    c = np.array([points[:, 0].mean(), points[:, 1].mean(), a])
-    return c + k * (points - c)
+    anchor = np.array([c[0], c[1], min(max(lo_z, a_min), a_max)])
+    return anchor + k * (points - anchor)
 
 
 def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,
                     min_distance_m: float, ceiling_m: float, duration_s: float | None = None,
                     label: str = "", allow_layers: bool = True) -> TransitionPlan:
-    """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely (module docstring), or report what is unsafe.
+    """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely, or report what is unsafe.
+
+    In order: CAPT's synchronised straight lines if the exact pair check passes ("none");
+    else the cheapest safe way among per-drone delays ("delays", tried when few drones
+    conflict) and spreading the start and/or the goal formation apart (:func:`spread`) with
+    CAPT between the spread sets ("layers": safe by CAPT's guarantee once both sets are
+    >= √2·Δ apart, and often already at smaller factors, which the exact check decides);
+    else the delays' result with its unresolved conflicts.
 
     Args:
         a_m: (N, 3) starts, metres.
         goals_m: (M, 3) all goal points; ``goal_index`` (N,) CAPT's assignment into them.
         lim: limits and time law.
         min_distance_m: Δ, metres.
-        ceiling_m: highest altitude the "layers" fallback may use, metres.
-        duration_s: forced synchronised duration (None: the minimum).
+        ceiling_m: highest altitude the spread formations may use, metres.
+        duration_s: forced synchronised duration (None: the minimum). A forced duration is
+            flown as one leg (the designer asked for that transition time).
         label: transition name for messages.
-        allow_layers: try the expansion fallback when delays leave conflicts.
+        allow_layers: try spreading when the synchronised lines conflict.
     """
-    b_m = goals_m[goal_index]
-    required = min_distance_m - SEPARATION_SLACK_M
-    sync_s = round_up(sync_min_duration(b_m - a_m, lim)) if duration_s is None else float(duration_s)
-    direct = schedule_transition(a_m, b_m, lim, min_distance_m=min_distance_m, duration_s=sync_s, label=label)
-    if not direct.unresolved or not allow_layers or duration_s is not None:
-        return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
     from sim.plan._assignment import assign
 
-    for k in EXPANSIONS:
-        a_x = _expand(a_m, k, ceiling_m)
-        g_x = _expand(goals_m, k, ceiling_m)
-        if a_x is None or g_x is None:
+    b_m = goals_m[goal_index]
+    n = len(a_m)
+    required = min_distance_m - SEPARATION_SLACK_M
+    sync_s = round_up(sync_min_duration(b_m - a_m, lim)) if duration_s is None else float(duration_s)
+    conflicts = sync_conflicts(a_m, b_m, required)
+    if len(conflicts) == 0:
+        return TransitionPlan((synchronised(a_m, b_m, lim, sync_s),), goal_index, "none", sync_s)
+    involved = len(np.unique(conflicts))
+    direct = None
+    if duration_s is not None or not allow_layers or involved <= max(DELAYS_MAX_DRONES, DELAYS_MAX_FRACTION * n):
+        direct = schedule_transition(a_m, b_m, lim, min_distance_m=min_distance_m, duration_s=sync_s, label=label)
+        if duration_s is not None or not allow_layers:
+            return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
+    best: TransitionPlan | None = None
+    if direct is not None and not direct.unresolved:
+        best = TransitionPlan((direct,), goal_index, "delays", sync_s)
+    # Spread both formations (module docstring of :func:`spread`); the smaller factor first. The
+    # exact check decides: first with CAPT's assignment as it is, then re-assigned between the spread sets.
+    # Spread both formations (see :func:`spread`); the exact check decides which variant is safe.
+    # Cheapest first: layers with CAPT's assignment as it is, then re-assigned between the spread
+    # sets (one more assignment), then similarities by √2 (CAPT's guarantee when all goals are used).
+    root2 = float(np.sqrt(2.0))
+    tries = [(k, False, False) for k in EXPANSIONS] + [(root2, False, True), (root2, True, False)]
+    for k, similar, reassign in tries:
+        sa = spread(a_m, k, min_distance_m, ceiling_m, similar=similar)
+        sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar)
+        if sa is None or sg is None:
             continue
-        mid = assign(a_x, g_x).goal_index
-        if len(sync_conflicts(a_x, g_x[mid], required)):
+        mid = assign(sa, sg).goal_index if reassign else goal_index
+        if len(sync_conflicts(sa, sg[mid], required)):
             continue
         legs = []
-        for start, end in ((a_m, a_x), (a_x, g_x[mid]), (g_x[mid], goals_m[mid])):
-            legs.append(schedule_transition(start, end, lim, min_distance_m=min_distance_m, label=label))
-        plan = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
-        if not plan.unresolved:
-            # Keep per-drone delays if they are shorter than going through the expanded formations.
-            return plan if plan.window_s < direct.window_s or direct.unresolved else TransitionPlan(
-                (direct,), goal_index, direct.resolution, sync_s)
+        for start, end in ((a_m, sa), (sa, sg[mid]), (sg[mid], goals_m[mid])):
+            if np.any(start != end):
+                legs.append(synchronised(start, end, lim, round_up(sync_min_duration(end - start, lim))))
+        cand = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
+        if best is None or cand.window_s < best.window_s:
+            best = cand
+        break
+    if best is not None:
+        return best
+    if direct is None:
+        direct = schedule_transition(a_m, b_m, lim, min_distance_m=min_distance_m, duration_s=sync_s, label=label)
     return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
 
 
+def synchronised(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, duration_s: float) -> Schedule:
+    """Every drone on the shared profile, departing at once (a leg already known to be safe)."""
+    n = len(a_m)
+    shared, _ = sync_profile(b_m - a_m, lim, duration_s)
+    return Schedule(
+        a_m=a_m, b_m=b_m, depart_s=np.zeros(n), arrive_s=np.full(n, duration_s), prof_row=np.zeros(n, dtype=np.int64),
+        scale=np.ones(n), profiles=shared, sync_s=duration_s, window_s=duration_s, unresolved=(),
+    )
+
+
 __all__ = [
+    "EXPANSIONS",
     "Limits",
     "Schedule",
     "TransitionPlan",
@@ -518,4 +636,5 @@ __all__ = [
     "schedule_transition",
     "sync_conflicts",
     "sync_min_duration",
+    "synchronised",
 ]
