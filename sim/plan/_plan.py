@@ -18,7 +18,7 @@ holds are segments whose two knots coincide. Colours fade linearly in time.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -29,10 +29,13 @@ from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._quintic import rest_to_rest
 from sim.plan._schedule import (
+    SEPARATION_SLACK_M,
     Limits,
     Schedule,
+    TransitionPlan,
     plan_transition,
     round_up,
+    sync_conflicts,
     sync_min_duration,
     synchronised,
 )
@@ -350,17 +353,21 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         fly((sched,))
         return sched.window_s
 
-    def transition(from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None, where: str,
-                   goal_index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-        start = positions[-1]
+    def prepare(start: np.ndarray, from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None,
+                where: str, goal_index: np.ndarray | None = None) -> TransitionPlan:
+        fixed = goal_index is not None
         if goal_index is None:
             goal_index = assign(start, goals).goal_index
         label = f"{from_name!r} -> {to_name!r}"
         duration = forced(start, goals[goal_index], forced_s, where, label)
-        tp = plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
-                             ceiling_m=s.max_altitude_m, duration_s=duration, label=label)
+        return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                               ceiling_m=s.max_altitude_m, duration_s=duration, label=label,
+                               fixed_assignment=fixed)
+
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray) -> tuple[np.ndarray, dict]:
+        start = positions[-1]
         goal_index = tp.goal_index
-        end = goals[goal_index]
+        end = tp.legs[-1].b_m
         t0 = times[-1]
         fly(tp.legs)
         info = dict(
@@ -368,7 +375,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             to_name=to_name,
             start_s=t0,
             duration_s=tp.window_s,
-            min_duration_s=round_up(sync_min_duration(end - start, lim)),
+            min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
@@ -381,20 +388,47 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                 UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in tp.unresolved
             ),
         )
-        return end, goal_index, info
+        return end, info
+
+    def fold_first(tp: TransitionPlan, before: np.ndarray) -> tuple[TransitionPlan, np.ndarray]:
+        """Fly ``before`` -> the first leg's end directly if that is safe (saves one stop)."""
+        if tp.resolution != "layers" or len(tp.legs) < 2:
+            return tp, tp.legs[0].a_m
+        target = tp.legs[0].b_m
+        if len(sync_conflicts(before, target, s.min_distance_m - SEPARATION_SLACK_M)):
+            return tp, tp.legs[0].a_m
+        return replace(tp, legs=tp.legs[1:]), target
+
+    def fold_last(tp: TransitionPlan, after: np.ndarray) -> tuple[TransitionPlan, np.ndarray]:
+        """Fly the last leg's start -> ``after`` directly if that is safe (saves one stop)."""
+        if tp.resolution != "layers" or len(tp.legs) < 2:
+            return tp, tp.legs[-1].b_m
+        source = tp.legs[-1].a_m
+        if len(sync_conflicts(source, after, s.min_distance_m - SEPARATION_SLACK_M)):
+            return tp, tp.legs[-1].b_m
+        return replace(tp, legs=tp.legs[:-1]), source
 
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
+    # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
+    # into the spread grid instead (a similarity plus a common lift: distances only grow).
     up = home + lift
+    first = show.formations[0]
+    tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+    tp, up = fold_first(tp, home)
     add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
     previous = "takeoff"
+    homes_up = np.array(show.all_home_positions_m) + lift
+    own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
-        end, goal_index, info = transition(previous, f.name, f.points_m, f.transition_s,
-                                           f"formations[{k}].transition_s")
-        col = f.colors_rgb[goal_index]
+        if k > 0:
+            tp = prepare(positions[-1], previous, f.name, f.points_m, f.transition_s,
+                         f"formations[{k}].transition_s")
+        end, info = commit(tp, previous, f.name, f.points_m)
+        col = f.colors_rgb[tp.goal_index]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         add("hold", f.name, f.hold_s, end, col)
@@ -404,14 +438,14 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             progress((k + 2) / n_steps)
 
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
-    # ("any_home"), or each drone onto its own ("own_home", crossings resolved by the scheduler);
-    # then a vertical descent.
-    homes_up = np.array(show.all_home_positions_m) + lift
-    own = np.arange(len(home)) if s.landing == "own_home" else None
-    end, goal_index, info = transition(previous, "landing", homes_up, None, "landing", goal_index=own)
+    # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
+    # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
+    tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
+    down = homes_up[tp.goal_index] - lift
+    tp, _ = fold_last(tp, down)
+    end, info = commit(tp, previous, "landing", homes_up)
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
-    down = end - lift
     add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     if progress:
         progress(1.0)

@@ -547,7 +547,7 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
 
 def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,
                     min_distance_m: float, ceiling_m: float, duration_s: float | None = None,
-                    label: str = "", allow_layers: bool = True) -> TransitionPlan:
+                    label: str = "", allow_layers: bool = True, fixed_assignment: bool = False) -> TransitionPlan:
     """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely, or report what is unsafe.
 
     In order: CAPT's synchronised straight lines if the exact pair check passes ("none");
@@ -567,6 +567,7 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
             flown as one leg (the designer asked for that transition time).
         label: transition name for messages.
         allow_layers: try spreading when the synchronised lines conflict.
+        fixed_assignment: the assignment must stay (e.g. landing on one's own home): no re-assignment.
     """
     from sim.plan._assignment import assign
 
@@ -593,6 +594,8 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
     # sets (one more assignment), then similarities by √2 (CAPT's guarantee when all goals are used).
     root2 = float(np.sqrt(2.0))
     tries = [(k, False, False) for k in EXPANSIONS] + [(root2, False, True), (root2, True, False)]
+    if fixed_assignment:
+        tries = [t for t in tries if not t[2]]
     for k, similar, reassign in tries:
         sa = spread(a_m, k, min_distance_m, ceiling_m, similar=similar)
         sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar)
