@@ -580,7 +580,8 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         return TransitionPlan((synchronised(a_m, b_m, lim, sync_s),), goal_index, "none", sync_s)
     involved = len(np.unique(conflicts))
     direct = None
-    if duration_s is not None or not allow_layers or involved <= max(DELAYS_MAX_DRONES, DELAYS_MAX_FRACTION * n):
+    few = involved <= max(DELAYS_MAX_DRONES, DELAYS_MAX_FRACTION * n)
+    if duration_s is not None or not allow_layers or few or fixed_assignment:
         direct = schedule_transition(a_m, b_m, lim, min_distance_m=min_distance_m, duration_s=sync_s, label=label)
         if duration_s is not None or not allow_layers:
             return TransitionPlan((direct,), goal_index, direct.resolution, sync_s)
@@ -602,11 +603,20 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         if sa is None or sg is None:
             continue
         mid = assign(sa, sg).goal_index if reassign else goal_index
+        middle: Schedule | None = None
         if len(sync_conflicts(sa, sg[mid], required)):
-            continue
+            if not fixed_assignment:
+                continue
+            # A prescribed assignment (own homes) has no CAPT guarantee: per-drone delays between the
+            # spread sets, where waiting drones have √2·Δ of room.
+            middle = schedule_transition(sa, sg[mid], lim, min_distance_m=min_distance_m, label=label)
+            if middle.unresolved:
+                continue
         legs = []
         for start, end in ((a_m, sa), (sa, sg[mid]), (sg[mid], goals_m[mid])):
-            if np.any(start != end):
+            if middle is not None and start is sa:
+                legs.append(middle)
+            elif np.any(start != end):
                 legs.append(synchronised(start, end, lim, round_up(sync_min_duration(end - start, lim))))
         cand = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
         if best is None or cand.window_s < best.window_s:
