@@ -1,18 +1,20 @@
-"""The whole-show plan: CAPT transitions with a shared quintic time law.
+"""The whole-show plan: CAPT transitions made safe with per-drone timing, exact holds.
 
-A show is a sequence of *segments* shared by every drone: vertical takeoff,
-then for each formation a CAPT transition and a hold, then a CAPT transition to
-a grid above the home positions and a vertical landing. All drones of a segment
-share its start time and duration (CAPT's collision guarantee needs this), so
-the plan is stored compactly as knots:
+A show is a sequence of show-wide *windows* (segments): vertical takeoff, then for each
+formation a transition and a hold, then a transition to a grid above the home positions and
+a vertical landing. The window boundaries are stored as knots, where every drone rests:
 
-* ``knot_times_s``: (K+1,) segment boundaries, seconds;
+* ``knot_times_s``: (K+1,) window boundaries, seconds;
 * ``knot_positions_m``: (K+1, N, 3) every drone's position at each boundary;
 * ``knot_colors_rgb``: (K+1, N, 3) LED colours in [0, 1] at each boundary.
 
-Within segment k every drone flies the straight line between its two knots with
-the common rest-to-rest law β(t) = s((t - t_k)/T_k), s(τ) = 10τ³ - 15τ⁴ + 6τ⁵;
-holds are segments whose two knots coincide. Colours fade linearly in time.
+Inside a transition window each drone has its own motion (``trajectories``, per-drone
+piecewise polynomials): :func:`sim.plan._schedule.plan_transition` starts from CAPT's optimal
+assignment (eq. 11) and makes the window safe by construction (synchronised straight lines,
+per-drone delays, or spreading the formations apart), along straight legs flown with the time
+law of ``settings.time_law`` (the jerk-limited minimum-time S-curve, or the paper's quintic
+s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, which reproduces the shared-segment plans exactly). Holds are
+windows in which every drone rests on its formation point. Colours fade linearly in time.
 """
 
 from __future__ import annotations
@@ -97,7 +99,8 @@ class TransitionInfo:
     Per-drone timing: drone i leaves its start at ``depart_s[i]`` and reaches its goal
     at ``arrive_s[i]`` (absolute seconds, inside [start_s, start_s + duration_s]);
     ``stagger_s`` is the window length added beyond the synchronised minimum,
-    ``resolution`` how conflicts were resolved ("none", "delays" or "unresolved") and
+    ``resolution`` how conflicts were resolved ("none": CAPT's synchronised lines; "delays":
+    per-drone departures and profiles; "layers": through spread formations; "unresolved") and
     ``unresolved`` what could not be made safe (empty when the transition is safe).
     """
 
@@ -327,14 +330,22 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         t0 = times[-1]
         for sched in legs:
             prof = sched.drone_profiles()
-            builder.hold_until(t0 + sched.depart_s)
+            wait(t0 + sched.depart_s)
             d = sched.b_m - sched.a_m
             for k in range(prof.coeffs.shape[1]):
+                dur = prof.breaks_s[:, k + 1] - prof.breaks_s[:, k]
+                if not np.any(dur > 0):
+                    continue  # a phase no drone has (e.g. the quintic's unused six): no piece at all
                 c3 = d[:, :, None] * prof.coeffs[:, k][:, None, :]
                 c3[:, :, 0] += sched.a_m
-                builder.append(prof.breaks_s[:, k + 1] - prof.breaks_s[:, k], c3)
+                builder.append(dur, c3)
             t0 += sched.window_s
-            builder.hold_until(t0)
+            wait(t0)
+
+    def wait(until_s: np.ndarray | float) -> None:
+        """Rest until ``until_s`` (no piece when nobody has to wait)."""
+        if np.any(np.broadcast_to(until_s, (len(home),)) > builder.times_s + 1e-12):
+            builder.hold_until(until_s)
 
     def forced(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> float | None:
         t_min = round_up(sync_min_duration(end - start, lim))
@@ -432,7 +443,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         add("hold", f.name, f.hold_s, end, col)
-        builder.hold_until(times[-1])
+        wait(times[-1])
         previous = f.name
         if progress:
             progress((k + 2) / n_steps)
