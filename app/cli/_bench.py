@@ -135,13 +135,14 @@ def _format_plan(r: dict) -> str:
         lines = [
             "bench plan --dense: 6 formations drawn at exactly min_distance_m (disc, star, ball, text, image, wall)",
             f"  {'drones':>6} {'violations':>10} {'unresolved':>10} {'show s':>8} {'bound s':>8} {'ratio':>6} "
-            f"{'plan s':>7} {'check s':>7} {'peak MB':>8}",
+            f"{'plan s':>7} {'check s':>7} {'peak MB':>8} {'sampled min m':>13}",
         ]
         for f in r["shows"]:
             lines.append(
                 f"  {f['drones']:>6} {f['violations']:>10} {f['unresolved']:>10} {f['show_duration_s']:>8.1f} "
                 f"{f['lower_bound_s']:>8.1f} {f['ratio_to_bound']:>6.3f} {f['plan_s']:>7.2f} {f['check_s']:>7.2f} "
-                f"{f['peak_traced_memory_mb']:>8.0f}"
+                f"{f['peak_traced_memory_mb']:>8.0f} "
+                + (f"{f['sampled_min_distance_m']:>13.6f}" if "sampled_min_distance_m" in f else f"{'-':>13}")
             )
         return "\n".join(lines)
     lines = [
