@@ -275,7 +275,8 @@ def lattice_formation(rng: np.random.Generator, n: int, delta: float, kind: int)
         uv = uv[np.argsort(np.hypot(*(uv - uv.mean(0)).T), kind="stable")[:n]]
         yaw = rng.uniform(0, np.pi)
         pts = np.c_[uv[:, 0] * np.cos(yaw), uv[:, 0] * np.sin(yaw), uv[:, 1]]
-    return pts - pts.mean(0) + np.array([rng.uniform(-10, 10), rng.uniform(-10, 10), 0]) + [0, 0, 25 + np.ptp(pts[:, 2])]
+    shift = np.array([rng.uniform(-10, 10), rng.uniform(-10, 10), 25 + np.ptp(pts[:, 2])])
+    return pts - pts.mean(0) + shift
 
 
 @settings(max_examples=10, deadline=None)
