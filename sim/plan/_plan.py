@@ -31,11 +31,11 @@ from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._quintic import rest_to_rest
 from sim.plan._schedule import (
-    SEPARATION_SLACK_M,
     Limits,
     Schedule,
     TransitionPlan,
     plan_transition,
+    required_distance,
     round_up,
     sync_conflicts,
     sync_min_duration,
@@ -406,7 +406,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         if tp.resolution != "layers" or len(tp.legs) < 2:
             return tp, tp.legs[0].a_m
         target = tp.legs[0].b_m
-        if len(sync_conflicts(before, target, s.min_distance_m - SEPARATION_SLACK_M)):
+        if len(sync_conflicts(before, target, required_distance(s.min_distance_m))):
             return tp, tp.legs[0].a_m
         return replace(tp, legs=tp.legs[1:]), target
 
@@ -415,7 +415,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         if tp.resolution != "layers" or len(tp.legs) < 2:
             return tp, tp.legs[-1].b_m
         source = tp.legs[-1].a_m
-        if len(sync_conflicts(source, after, s.min_distance_m - SEPARATION_SLACK_M)):
+        if len(sync_conflicts(source, after, required_distance(s.min_distance_m))):
             return tp, tp.legs[-1].b_m
         return replace(tp, legs=tp.legs[:-1]), source
 

@@ -68,9 +68,14 @@ MAX_TRIALS = 400
 #: Per-drone delays are tried when at most this many drones (or this fraction) conflict when synchronised.
 DELAYS_MAX_DRONES = 20
 DELAYS_MAX_FRACTION = 0.05
-#: Certified separation is required to this much below min_distance_m, metres (rounding only;
-#: points drawn exactly at min_distance_m pass, the verifier's relative tolerance is 1e-9).
-SEPARATION_SLACK_M = 1e-7
+#: Certified separation is required down to min_distance_m·(1 - this): rounding only, half the
+#: verifier's relative tolerance (1e-9), so points drawn exactly at min_distance_m pass both.
+SEPARATION_SLACK = 5e-10
+
+
+def required_distance(min_distance_m: float) -> float:
+    """The separation the planner certifies, metres."""
+    return min_distance_m * (1.0 - SEPARATION_SLACK)
 #: Window durations are rounded up to this step, seconds.
 WINDOW_STEP_S = 0.1
 
@@ -342,7 +347,7 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
     breaks = np.concatenate([shared.breaks_s, own.breaks_s])
     coeffs = np.concatenate([shared.coeffs, own.coeffs])
     peak = np.concatenate([[shared_peak], own_peak])
-    required = min_distance_m - SEPARATION_SLACK_M
+    required = required_distance(min_distance_m)
     pairs = close_path_pairs(a_m, b_m, required) if n > 1 else np.zeros((0, 2), dtype=np.int64)
     own_dur = own.breaks_s[:, -1].copy()
     order = precedence_order(a_m, b_m, pairs, own_dur, required)
@@ -573,7 +578,7 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
 
     b_m = goals_m[goal_index]
     n = len(a_m)
-    required = min_distance_m - SEPARATION_SLACK_M
+    required = required_distance(min_distance_m)
     sync_s = round_up(sync_min_duration(b_m - a_m, lim)) if duration_s is None else float(duration_s)
     conflicts = sync_conflicts(a_m, b_m, required)
     if len(conflicts) == 0:
