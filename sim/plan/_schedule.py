@@ -28,9 +28,19 @@ Reasoning (why this order of means):
    order over these edges, ready drones by longest own move first (long movers keep the
    window short; short movers have slack to wait); a cycle is broken at the drone with the
    fewest unplaced predecessors.
-4. A drone that no delay up to ``max_delay`` makes safe (a cycle, a path through a parked
-   drone) is reported in ``unresolved`` with the drone it meets, when, why and a fix, and
-   flown synchronised (never silently: the plan says it is unsafe).
+4. A drone that no timing makes safe (a cycle, a path through a parked drone) is reported in
+   ``unresolved`` with the drone it meets, when, why and a fix, and flown synchronised (never
+   silently: the plan says it is unsafe). Drones that found no timing move to the front of the
+   order for another round (priority adaptation, a few rounds).
+5. **Spreading** (:func:`plan_transition`, :func:`spread`). On formations drawn at exactly Δ
+   nearly every drone conflicts under CAPT (measured: all 100 drones of a grid -> filled disc),
+   and delays cannot help neighbours that converge on each other's start. Then both formations
+   are spread apart so that CAPT between the spread sets keeps Δ (its guarantee needs both
+   >= √2·Δ apart; the exact check accepts smaller factors when they suffice), and the drones
+   contract into the goal. Each of the three legs is synchronised and provably safe: spreading
+   and contracting only ever increase / decrease every distance monotonically towards values
+   >= Δ, the middle leg is checked exactly. Flat formations split into layers along their
+   normal (short, fast horizontal moves for vertical shapes), 3-D ones scale.
 
 Considered and not used by default: min-max (bottleneck) assignment (MacAlpine, Price &
 Stone, SCRAM, AAAI 2015) shortens the longest leg but gives up CAPT's Σd² optimality,
@@ -335,7 +345,7 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
         lim: the limits and time law.
         min_distance_m: Δ, metres.
         duration_s: the synchronised duration (>= the minimum; None: the rounded minimum).
-        max_delay_s: longest departure delay tried (default: the synchronised duration + 10 s).
+        max_delay_s: latest arrival tried beyond the synchronised one (default: half of it + 5 s).
         label: transition name for the fixes suggested in ``unresolved``.
     """
     n = len(a_m)
