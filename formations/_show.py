@@ -99,6 +99,22 @@ class Settings(BaseModel):
     max_accel_mps2: float = Field(4.0, gt=0, le=100, description="Peak acceleration magnitude, m/s^2.")
     max_altitude_m: float = Field(150.0, gt=0, le=10_000, description="Highest allowed altitude, metres.")
     takeoff_altitude_m: float = Field(10.0, gt=0, le=10_000, description="Altitude of the vertical takeoff, metres.")
+    max_jerk_mps3: float = Field(
+        10.0, gt=0, le=1000,
+        description="Peak jerk of the minimum-time time law, m/s^3 (PX4's auto-mission jerk is 4-8 m/s^3).",
+    )
+    max_descent_speed_mps: float | None = Field(
+        None, gt=0, le=100, description="Peak descent speed, m/s (default: max_speed_z_mps, as for climbing).",
+    )
+    time_law: Literal["min_time", "quintic"] = Field(
+        "min_time",
+        description="'min_time': jerk-limited minimum-time S-curve per drone (default); "
+        "'quintic': the paper's shared rest-to-rest quintic.",
+    )
+    landing: Literal["any_home", "own_home"] = Field(
+        "any_home", description="'any_home': each drone lands on the nearest free home (CAPT); "
+        "'own_home': every drone lands where it took off.",
+    )
 
     @model_validator(mode="after")
     def _takeoff_below_ceiling(self) -> Settings:

@@ -131,7 +131,10 @@ def test_forced_short_duration_names_the_minimum(small_show) -> None:
 
 def test_takeoff_timing_is_exact() -> None:
     show = make_show([{"name": "s", "hold_s": 1.0, "points": fibonacci_sphere(4, 5.0)}], drones=4, rows=2, cols=2,
-                     spacing_m=4.5, takeoff_altitude_m=10.0)
+                     spacing_m=4.5, takeoff_altitude_m=10.0, time_law="quintic")
     plan = plan_show(show)
     # 1.875 * 10 m / 2 m/s = 9.375 s -> 9.4 s
     assert plan.segments[0].duration_s == pytest.approx(9.4)
+    # Minimum time (the default), 4 m/s², 10 m/s³: 0.4 s of jerk, 0.9 s accelerating, 4.1 s at 2 m/s, 0.9 s braking.
+    fast = plan_show(show.model_copy(update={"settings": show.settings.model_copy(update={"time_law": "min_time"})}))
+    assert fast.segments[0].duration_s == pytest.approx(5.9)

@@ -109,15 +109,42 @@ def _check_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--formations", type=int, default=5, help="formations in the synthetic show (default 5)")
 
 
+def _plan_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--dense", action="store_true",
+                   help="the dense suite: 6 formations at exactly min_distance_m, 100/300/1000/5000 drones "
+                        "(or --drones N), planned + checked, show length vs a lower bound")
+
+
 def _bench_plan(args: argparse.Namespace) -> dict:
     from sim.bench._shows import bench_transition
 
+    if args.dense:
+        from sim.bench._dense import DENSE_SIZES, bench_dense
+
+        sizes = DENSE_SIZES if args.drones is None else (_check_drones(args),)
+        return {"kind": "plan-dense", "shows": [bench_dense(n, formations=6) for n in sizes]}
+    if args.drones is None:
+        args.drones = 2000
     n = _check_drones(args)
     # Dense scipy needs an N x N float64 matrix and minutes beyond ~5000 drones.
     return {"kind": "plan", **bench_transition(n, dense_baseline=n <= 5000)}
 
 
 def _format_plan(r: dict) -> str:
+    if r["kind"] == "plan-dense":
+        lines = [
+            "bench plan --dense: 6 formations drawn at exactly min_distance_m (disc, star, ball, text, image, wall)",
+            f"  {'drones':>6} {'violations':>10} {'unresolved':>10} {'show s':>8} {'bound s':>8} {'ratio':>6} "
+            f"{'plan s':>7} {'check s':>7} {'peak MB':>8} {'sampled min m':>13}",
+        ]
+        for f in r["shows"]:
+            lines.append(
+                f"  {f['drones']:>6} {f['violations']:>10} {f['unresolved']:>10} {f['show_duration_s']:>8.1f} "
+                f"{f['lower_bound_s']:>8.1f} {f['ratio_to_bound']:>6.3f} {f['plan_s']:>7.2f} {f['check_s']:>7.2f} "
+                f"{f['peak_traced_memory_mb']:>8.0f} "
+                + (f"{f['sampled_min_distance_m']:>13.6f}" if "sampled_min_distance_m" in f else f"{'-':>13}")
+            )
+        return "\n".join(lines)
     lines = [
         f"bench plan: one ground-grid -> sphere CAPT transition, {r['drones']} drones",
         f"  assign {r['assign_s']:.3f} s, timing {r['timing_s'] * 1e3:.2f} ms, exact verify {r['verify_s']:.3f} s "
@@ -153,8 +180,9 @@ def _format_check(r: dict) -> str:
 BENCH_KINDS: dict[str, tuple[str, Callable, Callable, Callable]] = {
     "sim": ("flight engines: numba kernel vs numpy reference, drone-steps per second",
             _sim_args, _bench_sim, _format_sim),
-    "plan": ("CAPT planning + exact verification of one grid -> sphere transition vs scipy dense LSA",
-             _no_args, _bench_plan, _format_plan),
+    "plan": ("CAPT planning + exact verification of one grid -> sphere transition vs scipy dense LSA; "
+             "--dense: the dense-show suite",
+             _plan_args, _bench_plan, _format_plan),
     "check": ("plan + exact check of a whole synthetic show vs a 10 Hz sampled check",
               _check_args, _bench_check, _format_check),
 }
@@ -167,7 +195,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     kinds.required = True
     for name, (help_text, add_args, run, fmt) in BENCH_KINDS.items():
         k = kinds.add_parser(name, help=help_text)
-        k.add_argument("--drones", type=int, default=2000, help="number of drones (default 2000)")
+        k.add_argument("--drones", type=int, default=None if name == "plan" else 2000,
+                       help="number of drones (default 2000; plan --dense: the whole suite)")
         k.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
         add_args(k)
         k.set_defaults(func=_make_runner(run, fmt))

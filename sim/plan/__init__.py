@@ -12,6 +12,7 @@ from sim.plan._plan import PlanSample as PlanSample
 from sim.plan._plan import Segment as Segment
 from sim.plan._plan import ShowPlan as ShowPlan
 from sim.plan._plan import TransitionInfo as TransitionInfo
+from sim.plan._plan import UnresolvedConflict as UnresolvedConflict
 from sim.plan._plan import plan_show as plan_show
 from sim.plan._quintic import PEAK_ACCEL_FACTOR as PEAK_ACCEL_FACTOR
 from sim.plan._quintic import PEAK_SPEED_FACTOR as PEAK_SPEED_FACTOR

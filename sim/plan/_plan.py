@@ -1,24 +1,26 @@
-"""The whole-show plan: CAPT transitions with a shared quintic time law.
+"""The whole-show plan: CAPT transitions made safe with per-drone timing, exact holds.
 
-A show is a sequence of *segments* shared by every drone: vertical takeoff,
-then for each formation a CAPT transition and a hold, then a CAPT transition to
-a grid above the home positions and a vertical landing. All drones of a segment
-share its start time and duration (CAPT's collision guarantee needs this), so
-the plan is stored compactly as knots:
+A show is a sequence of show-wide *windows* (segments): vertical takeoff, then for each
+formation a transition and a hold, then a transition to a grid above the home positions and
+a vertical landing. The window boundaries are stored as knots, where every drone rests:
 
-* ``knot_times_s``: (K+1,) segment boundaries, seconds;
+* ``knot_times_s``: (K+1,) window boundaries, seconds;
 * ``knot_positions_m``: (K+1, N, 3) every drone's position at each boundary;
 * ``knot_colors_rgb``: (K+1, N, 3) LED colours in [0, 1] at each boundary.
 
-Within segment k every drone flies the straight line between its two knots with
-the common rest-to-rest law β(t) = s((t - t_k)/T_k), s(τ) = 10τ³ - 15τ⁴ + 6τ⁵;
-holds are segments whose two knots coincide. Colours fade linearly in time.
+Inside a transition window each drone has its own motion (``trajectories``, per-drone
+piecewise polynomials): :func:`sim.plan._schedule.plan_transition` starts from CAPT's optimal
+assignment (eq. 11) and makes the window safe by construction (synchronised straight lines,
+per-drone delays, or spreading the formations apart), along straight legs flown with the time
+law of ``settings.time_law`` (the jerk-limited minimum-time S-curve, or the paper's quintic
+s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, which reproduces the shared-segment plans exactly). Holds are
+windows in which every drone rests on its formation point. Colours fade linearly in time.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -26,8 +28,18 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from formations import Settings, ShowFile
-from sim.plan._assignment import assign
-from sim.plan._timing import min_transition_duration
+from sim.plan._assignment import assign, assignment_cost
+from sim.plan._schedule import (
+    Limits,
+    Schedule,
+    TransitionPlan,
+    plan_transition,
+    required_distance,
+    round_up,
+    sync_conflicts,
+    sync_min_duration,
+    synchronised,
+)
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
@@ -64,6 +76,16 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class UnresolvedConflict:
+    """A conflict the planner could not resolve: the drones, when (show time, s), why, and what would fix it."""
+
+    drones: tuple[int, ...]
+    time_s: float
+    reason: str
+    fix: str
+
+
+@dataclass(frozen=True)
 class TransitionInfo:
     """A CAPT transition: its timing, assignment and the premise of the collision guarantee.
 
@@ -72,6 +94,13 @@ class TransitionInfo:
     approach). ``start_spacing_m`` / ``goal_spacing_m`` are the closest-pair
     distances of the starts and of the assigned goals; CAPT then guarantees a
     separation of at least min(start, goal spacing) / √2 throughout.
+
+    Per-drone timing: drone i leaves its start at ``depart_s[i]`` and reaches its goal
+    at ``arrive_s[i]`` (absolute seconds, inside [start_s, start_s + duration_s]);
+    ``stagger_s`` is the window length added beyond the synchronised minimum,
+    ``resolution`` how conflicts were resolved ("none": CAPT's synchronised lines; "delays":
+    per-drone departures and profiles; "layers": through spread formations; "unresolved") and
+    ``unresolved`` what could not be made safe (empty when the transition is safe).
     """
 
     segment: int
@@ -84,6 +113,16 @@ class TransitionInfo:
     goal_index: np.ndarray = field(repr=False)
     start_spacing_m: float
     goal_spacing_m: float
+    depart_s: np.ndarray | None = field(default=None, repr=False)
+    arrive_s: np.ndarray | None = field(default=None, repr=False)
+    stagger_s: float = 0.0
+    resolution: str = "none"
+    unresolved: tuple[UnresolvedConflict, ...] = ()
+
+    @property
+    def safe(self) -> bool:
+        """True when the planner certified every pair of this transition (nothing unresolved)."""
+        return not self.unresolved
 
     @property
     def guaranteed_separation_m(self) -> float:
@@ -202,8 +241,19 @@ def _closest_distance(points: np.ndarray) -> float:
     return float(dist[:, 1].min())
 
 
+def _limits(s: Settings) -> Limits:
+    return Limits(
+        v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, a=s.max_accel_mps2, j=s.max_jerk_mps3, law=s.time_law,
+        v_down=s.max_descent_speed_mps,
+    )
+
+
 def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: ProgressFn | None = None) -> ShowPlan:
-    """Plan a whole show: takeoff, CAPT transitions and holds, landing approach, landing.
+    """Plan a whole show: takeoff, CAPT transitions with per-drone timing and holds, landing approach, landing.
+
+    Every transition starts from CAPT's optimal assignment; :func:`sim.plan._schedule.schedule_transition`
+    then gives each drone its departure and profile so that every pair provably keeps
+    ``min_distance_m`` (or reports in ``TransitionInfo.unresolved`` what could not be made safe).
 
     Args:
         show: a validated show file.
@@ -216,11 +266,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         PlanError: a forced transition duration is below the minimum (names it).
     """
     s = show.settings
-    limits = {
-        "max_speed_xy_mps": s.max_speed_xy_mps,
-        "max_speed_z_mps": s.max_speed_z_mps,
-        "max_accel_mps2": s.max_accel_mps2,
-    }
+    lim = _limits(s)
     lift = np.array([0.0, 0.0, s.takeoff_altitude_m])
     home = np.array(show.home_positions_m)
     n_steps = len(show.formations) + 2
@@ -230,6 +276,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     colors = [np.zeros_like(home)]
     segments: list[Segment] = []
     transitions: list[TransitionInfo] = []
+    builder = TrajectoryBuilder(home, 0.0)
 
     def add(kind: SegmentKind, label: str, duration_s: float, pos: np.ndarray, col: np.ndarray) -> int:
         segments.append(Segment(len(segments), kind, label, times[-1], float(duration_s)))
@@ -238,59 +285,139 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def capt(from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None, where: str):
+    def fly(legs: tuple[Schedule, ...]) -> None:
+        """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
+        t0 = times[-1]
+        for sched in legs:
+            prof = sched.drone_profiles()
+            wait(t0 + sched.depart_s)
+            d = sched.b_m - sched.a_m
+            for k in range(prof.coeffs.shape[1]):
+                dur = prof.breaks_s[:, k + 1] - prof.breaks_s[:, k]
+                if not np.any(dur > 0):
+                    continue  # a phase no drone has (e.g. the quintic's unused six): no piece at all
+                c3 = d[:, :, None] * prof.coeffs[:, k][:, None, :]
+                c3[:, :, 0] += sched.a_m
+                builder.append(dur, c3)
+            t0 += sched.window_s
+            wait(t0)
+
+    def wait(until_s: np.ndarray | float) -> None:
+        """Rest until ``until_s`` (no piece when nobody has to wait)."""
+        if np.any(np.broadcast_to(until_s, (len(home),)) > builder.times_s + 1e-12):
+            builder.hold_until(until_s)
+
+    def forced(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> float | None:
+        t_min = round_up(sync_min_duration(end - start, lim))
+        if forced_s is not None and forced_s < t_min - 1e-9 and enforce_limits:
+            raise PlanError(
+                f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
+                f"acceleration limits allow for the transition {label}",
+                path=where,
+                minimum_s=t_min,
+            )
+        return forced_s
+
+    def vertical(start: np.ndarray, end: np.ndarray) -> float:
+        # A rigid translation: every pair keeps its distance, so the shared profile is safe.
+        sched = synchronised(start, end, lim, round_up(sync_min_duration(end - start, lim)))
+        fly((sched,))
+        return sched.window_s
+
+    def prepare(start: np.ndarray, from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None,
+                where: str, goal_index: np.ndarray | None = None) -> TransitionPlan:
+        fixed = goal_index is not None
+        if goal_index is None:
+            goal_index = assign(start, goals).goal_index
+        label = f"{from_name!r} -> {to_name!r}"
+        duration = forced(start, goals[goal_index], forced_s, where, label)
+        return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                               ceiling_m=s.max_altitude_m, duration_s=duration, label=label,
+                               fixed_assignment=fixed)
+
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray) -> tuple[np.ndarray, dict]:
         start = positions[-1]
-        a = assign(start, goals)
-        end = goals[a.goal_index]
-        t_min = min_transition_duration(start, end, **limits)
-        duration = t_min
-        if forced_s is not None:
-            if forced_s < t_min - 1e-9 and enforce_limits:
-                raise PlanError(
-                    f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
-                    f"acceleration limits allow for the transition {from_name!r} -> {to_name!r}",
-                    path=where,
-                    minimum_s=t_min,
-                )
-            duration = float(forced_s)
+        goal_index = tp.goal_index
+        end = tp.legs[-1].b_m
+        t0 = times[-1]
+        fly(tp.legs)
         info = dict(
             from_name=from_name,
             to_name=to_name,
-            start_s=times[-1],
-            duration_s=duration,
-            min_duration_s=t_min,
-            assignment_cost_m2=a.cost_m2,
-            goal_index=a.goal_index,
+            start_s=t0,
+            duration_s=tp.window_s,
+            min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
+            assignment_cost_m2=assignment_cost(start, goals, goal_index),
+            goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
+            depart_s=t0 + tp.depart_s,
+            arrive_s=t0 + tp.arrive_s,
+            stagger_s=tp.stagger_s,
+            resolution=tp.resolution,
+            unresolved=tuple(
+                UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in tp.unresolved
+            ),
         )
-        return end, a.goal_index, info
+        return end, info
 
-    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance.
+    def fold_first(tp: TransitionPlan, before: np.ndarray) -> tuple[TransitionPlan, np.ndarray]:
+        """Fly ``before`` -> the first leg's end directly if that is safe (saves one stop)."""
+        if tp.resolution != "layers" or len(tp.legs) < 2:
+            return tp, tp.legs[0].a_m
+        target = tp.legs[0].b_m
+        if len(sync_conflicts(before, target, required_distance(s.min_distance_m))):
+            return tp, tp.legs[0].a_m
+        return replace(tp, legs=tp.legs[1:]), target
+
+    def fold_last(tp: TransitionPlan, after: np.ndarray) -> tuple[TransitionPlan, np.ndarray]:
+        """Fly the last leg's start -> ``after`` directly if that is safe (saves one stop)."""
+        if tp.resolution != "layers" or len(tp.legs) < 2:
+            return tp, tp.legs[-1].b_m
+        source = tp.legs[-1].a_m
+        if len(sync_conflicts(source, after, required_distance(s.min_distance_m))):
+            return tp, tp.legs[-1].b_m
+        return replace(tp, legs=tp.legs[:-1]), source
+
+    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
+    # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
+    # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
+    # into the spread grid instead (a similarity plus a common lift: distances only grow).
     up = home + lift
-    add("takeoff", "takeoff", min_transition_duration(home, up, **limits), up, colors[-1])
+    first = show.formations[0]
+    tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+    tp, up = fold_first(tp, home)
+    add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
     previous = "takeoff"
+    homes_up = np.array(show.all_home_positions_m) + lift
+    own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
-        end, goal_index, info = capt(previous, f.name, f.points_m, f.transition_s, f"formations[{k}].transition_s")
-        col = f.colors_rgb[goal_index]
+        if k > 0:
+            tp = prepare(positions[-1], previous, f.name, f.points_m, f.transition_s,
+                         f"formations[{k}].transition_s")
+        end, info = commit(tp, previous, f.name, f.points_m)
+        col = f.colors_rgb[tp.goal_index]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         add("hold", f.name, f.hold_s, end, col)
+        wait(times[-1])
         previous = f.name
         if progress:
             progress((k + 2) / n_steps)
 
-    # Landing approach: CAPT onto the home positions lifted to takeoff altitude (any
-    # drone may land on any home), then a vertical descent.
-    homes_up = np.array(show.all_home_positions_m) + lift
-    end, goal_index, info = capt(previous, "landing", homes_up, None, "landing")
+    # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
+    # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
+    # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
+    tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
+    down = homes_up[tp.goal_index] - lift
+    tp, _ = fold_last(tp, down)
+    end, info = commit(tp, previous, "landing", homes_up)
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
-    down = end - lift
-    add("landing", "landing", min_transition_duration(end, down, **limits), down, np.zeros_like(end))
+    add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     if progress:
         progress(1.0)
 
@@ -302,6 +429,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         transitions=tuple(transitions),
         settings=s,
         show_name=show.name,
+        trajectories=builder.build(),
     )
 
 
@@ -311,5 +439,6 @@ __all__ = [
     "Segment",
     "ShowPlan",
     "TransitionInfo",
+    "UnresolvedConflict",
     "plan_show",
 ]
