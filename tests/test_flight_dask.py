@@ -40,7 +40,7 @@ def client():
 
 
 def _warm() -> None:
-    from sim.flight.engines._numba import warm_up
+    from sim.flight.engines import warm_up
 
     warm_up()
 

@@ -5,7 +5,7 @@ controller, same mixer and saturation, same semi-implicit Euler step, same diver
 rules), but with the loops the other way round: ``prange`` over drones, and for each
 drone a serial loop over the steps of the chunk with the whole state in registers.
 Drones are independent (disturbances depend on time only), so no synchronisation is
-needed inside a chunk; the driver (:func:`sim.flight.engines._numpy.simulate`) calls the
+needed inside a chunk; the driver (:func:`sim.flight.engines._driver.simulate`) calls the
 kernel once per chunk of steps, which bounds the memory of the reference and
 disturbance tables and gives progress granularity.
 
@@ -40,7 +40,7 @@ import numba as nb
 import numpy as np
 
 from sim.flight.control._ismc import SWITCH_EPS
-from sim.flight.engines._numpy import (
+from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
     C_IATT,
@@ -63,7 +63,7 @@ from sim.flight.engines._numpy import (
     TrackingReference,
 )
 
-__all__ = ["run_chunk_numba", "warm_up"]
+__all__ = ["run_chunk_numba"]
 
 
 @nb.njit(inline="always", cache=True)
@@ -423,18 +423,3 @@ def run_chunk_numba(
         opts["gains"].as_vector(), float(opts["disturbance"].drag_per_s), float(opts["dt_s"]),
         float(opts["divergence_limit_m"]),
     )
-
-
-def warm_up() -> None:
-    """Compile (or load from the on-disk cache) both kernel variants on a tiny problem.
-
-    One variant records float64 frames (``simulate``), the other float32 frames
-    (``fly_show``); call this at image build or server start to move the first-run
-    compile time (several seconds each) out of the first request.
-    """
-    from sim.flight.engines._numpy import TrackingReference as _Ref
-    from sim.flight.engines._numpy import simulate
-
-    ref = _Ref.hover(np.zeros((1, 3)))
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1)
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1, frames_out=np.zeros((3, 1, 3), np.float32))

@@ -38,7 +38,8 @@ import numpy as np
 
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
-from sim.flight.engines._numpy import TELEMETRY_FIELDS, TrackingReference, simulate
+from sim.flight.engines._driver import simulate
+from sim.flight.engines._state import TELEMETRY_FIELDS, TrackingReference
 
 __all__ = [
     "PAPER_ATT_THRESHOLD_RAD",
