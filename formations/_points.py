@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import cKDTree
 
 #: Most points one formation source returns.
 MAX_POINTS = 20_000
@@ -67,7 +66,7 @@ class PointSet:
 
     def hex_colors(self) -> list[str]:
         """Return the colours as ``"#rrggbb"`` strings."""
-        return rgb_to_hex(self.colors_rgb)
+        return rgb_to_hex(self.colors_rgb / 255.0)
 
     def min_spacing_m(self) -> float:
         """Return the exact nearest-pair distance in metres (``inf`` for fewer than 2 points)."""
@@ -86,19 +85,35 @@ class PointSet:
         }
 
 
-def nearest_pair_distance(points: ArrayLike) -> float:
-    """Exact nearest-pair distance of an (N, d) array in metres (``inf`` for N < 2)."""
+def closest_pair(points: ArrayLike) -> tuple[int, int, float]:
+    """Indices (i < j) and distance (m) of the closest pair of an (N, d) array; ``(-1, -1, inf)`` for N < 2.
+
+    The show file's and the point sources' one-off spacing checks use this k-d tree
+    search; the per-frame search of playback and the flown-distance check is the
+    O(N) cell hash :func:`sim.geometry.closest_pair` (the tests hold both to brute force).
+    """
+    from scipy.spatial import cKDTree  # scipy.spatial costs ~0.4 s to import; only spacing checks need it
+
     pts = np.asarray(points, dtype=np.float64)
     if pts.shape[0] < 2:
-        return math.inf
-    d, _ = cKDTree(pts).query(pts, k=2)
-    return float(d[:, 1].min())
+        return -1, -1, math.inf
+    dist, idx = cKDTree(pts).query(pts, k=2)
+    i = int(np.argmin(dist[:, 1]))
+    j = int(idx[i, 1])
+    if j == i:  # exact duplicates tie at distance 0 and the tree may list the point itself second
+        j = int(idx[i, 0])
+    return min(i, j), max(i, j), float(dist[i, 1])
+
+
+def nearest_pair_distance(points: ArrayLike) -> float:
+    """Exact nearest-pair distance of an (N, d) array in metres (``inf`` for N < 2)."""
+    return closest_pair(points)[2]
 
 
 def rgb_to_hex(rgb: ArrayLike) -> list[str]:
-    """(N, 3) uint8 colours -> ``"#rrggbb"`` strings."""
-    arr = np.asarray(rgb, dtype=np.int64).reshape(-1, 3)
-    return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in arr.tolist()]
+    """(N, 3) floats in [0, 1] -> ``"#rrggbb"`` strings (rounded to the nearest 1/255)."""
+    u8 = np.clip(np.rint(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+    return ["#" + row.tobytes().hex() for row in u8.reshape(-1, 3)]
 
 
 def parse_color(color: str, *, name: str = "color") -> np.ndarray:
