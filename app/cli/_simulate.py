@@ -98,7 +98,7 @@ def _engine(args: argparse.Namespace) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim import PlanError, plan_show
+    from sim import PlanError, cached_plan_show
     from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
 
     dask = _dask_options(args)
@@ -112,7 +112,7 @@ def _show(args: argparse.Namespace) -> int:
             except SchedulerUnreachableError as exc:
                 raise CliError(" ".join(str(exc).split())) from None
         try:
-            plan = plan_show(show)
+            plan = cached_plan_show(show)
         except PlanError as exc:
             raise CliError(f"{args.show}: {exc}") from exc
         with progress_bar("simulate") as update:

@@ -144,10 +144,10 @@ class ExportContext:
     def plan(self) -> ShowPlan:
         """The show's plan (planned on first use; a show that cannot be planned raises :class:`ExportError`)."""
         if self._plan is None:
-            from sim import PlanError, plan_show
+            from sim import PlanError, cached_plan_show
 
             try:
-                self._plan = plan_show(self.show, progress=lambda f: self.progress(0.1 * f))
+                self._plan = cached_plan_show(self.show, progress=lambda f: self.progress(0.1 * f))
             except PlanError as exc:
                 raise ExportError(f"the show cannot be planned: {exc}") from exc
         return self._plan
