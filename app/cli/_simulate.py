@@ -30,14 +30,16 @@ import sys
 
 from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
 
-#: ``local`` (DESIGN.md's name for the in-process engine) is the numba kernel.
-ENGINES = ("numba", "numpy", "local", "dask")
+#: ``local`` (an alias for the in-process engine) is the numba kernel.
+LOCAL_ALIAS = "local"
 #: Environment variable giving the default ``--scheduler`` (shared with the server setting).
 SCHEDULER_ENV = "SWARMSHOW_DASK_SCHEDULER"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``simulate`` command."""
+    from sim.flight import CONTROLLERS, DISTURBANCES, ENGINES
+
     p = sub.add_parser(
         "simulate",
         help="fly every drone of a show with the quadrotor model and ISMC controllers at 1 kHz "
@@ -48,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenario", choices=("paper",), help="run a built-in scenario instead of a show")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.add_argument("--plot", metavar="PNG", help="with --scenario paper: write the error/input figure")
-    p.add_argument("--engine", choices=ENGINES, default="numba",
+    p.add_argument("--engine", choices=(*ENGINES, LOCAL_ALIAS), default="numba",
                    help="numba (alias local): fused parallel kernel (default); numpy: the readable reference; "
                    "dask: numba on shards of drones on a Dask cluster (needs --scheduler)")
     p.add_argument("--scheduler", metavar="ADDR",
@@ -56,9 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    f"cluster (default ${SCHEDULER_ENV})")
     p.add_argument("--scheduler-timeout", metavar="S", type=float, default=10.0,
                    help="with --engine dask: seconds to reach the scheduler and a worker (default 10)")
-    p.add_argument("--controller", choices=("ismc", "baseline"), default="ismc",
+    p.add_argument("--controller", choices=CONTROLLERS, default="ismc",
                    help="ismc: the paper's controllers (default); baseline: cascaded PD")
-    p.add_argument("--disturbance", choices=("none", "paper", "wind"), default="none",
+    p.add_argument("--disturbance", choices=DISTURBANCES, default="none",
                    help="external disturbance for a show flight (default none)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind gusts (default 0)")
@@ -94,12 +96,12 @@ def _dask_options(args: argparse.Namespace) -> dict:
 
 
 def _engine(args: argparse.Namespace) -> str:
-    return "numba" if args.engine == "local" else args.engine
+    return "numba" if args.engine == LOCAL_ALIAS else args.engine
 
 
 def _show(args: argparse.Namespace) -> int:
     from sim import PlanError, cached_plan_show
-    from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
+    from sim.flight import FlightOptions, SchedulerUnreachableError, connect_scheduler, fly_show
 
     dask = _dask_options(args)
     show = load_show_arg(args.show)
@@ -116,10 +118,11 @@ def _show(args: argparse.Namespace) -> int:
         except PlanError as exc:
             raise CliError(f"{args.show}: {exc}") from exc
         with progress_bar("simulate") as update:
-            result = fly_show(
-                plan, engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
-                output_hz=args.output_hz, seed=args.seed, progress=update, **dask,
+            options = FlightOptions(
+                engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
+                output_hz=args.output_hz, seed=args.seed, **dask,
             )
+            result = fly_show(plan, options, progress=update)
     summary = result.summary()
     summary["show"] = show.name
     if args.json:

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.flight._options import CONTROLLERS
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
 from sim.flight.engines._driver import simulate
@@ -129,8 +130,8 @@ def run_paper_scenario(
         duration_s: Length (s), default 20 s as in the paper.
         integrator: ``"euler"`` (both engines) or ``"rk4"`` (numpy engine only).
     """
-    if controller not in ("ismc", "baseline"):
-        raise ValueError(f"unknown controller {controller!r} (expected ismc or baseline)")
+    if controller not in CONTROLLERS:
+        raise ValueError(f"unknown controller {controller!r} (expected {' or '.join(CONTROLLERS)})")
     x0 = np.zeros((1, 12))
     x0[0, 0:3] = PAPER_P0_M
     x0[0, 6:9] = PAPER_THETA0_RAD
