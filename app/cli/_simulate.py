@@ -17,8 +17,8 @@ with a one-line message when the scheduler or a worker cannot be reached within
 ``--scheduler-timeout`` seconds.
 
 ``swarmshow simulate --scenario paper [--json] [--plot PNG] [--controller ...]`` runs
-spec section 7 for 20 s with the chosen controller and the other one for comparison;
-exit 1 if the chosen controller misses the spec's thresholds.
+method.md §7 for 20 s with the chosen controller and the other one for comparison;
+exit 1 if the chosen controller misses the paper scenario's thresholds.
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ def _paper(args: argparse.Namespace) -> int:
     else:
         print(format_paper(report))
     if not report["meets_thresholds"]:
-        print(f"swarmshow: {args.controller} misses the spec's thresholds", file=sys.stderr)
+        print(f"swarmshow: {args.controller} misses the paper scenario's thresholds", file=sys.stderr)
     return EXIT_OK if report["meets_thresholds"] else EXIT_FAILED
 
 
@@ -188,7 +188,7 @@ def format_paper(r: dict) -> str:
     th = r["thresholds"]
     settle = "never" if r["settle_time_s"] is None else f"{r['settle_time_s']:.3f} s"
     return "\n".join([
-        f"paper scenario (spec section 7), {r['controller']} controller, 20 s at 1 ms:",
+        f"paper scenario (docs/method.md §7), {r['controller']} controller, 20 s at 1 ms:",
         f"  position error  max(t>=8 s) {r['pos_err_m']['max_t_ge_8s']:.3e} m, at 20 s "
         f"{r['pos_err_m']['at_20s']:.3e} m   (required < {th['pos_err_m']:g})",
         f"  attitude error  max(t>=8 s) {r['att_err_rad']['max_t_ge_8s']:.3e} rad, at 20 s "
@@ -201,5 +201,5 @@ def format_paper(r: dict) -> str:
         f"  baseline / ismc steady error: position {r['baseline_over_ismc']['pos_err']:.0f}x, attitude "
         f"{r['baseline_over_ismc']['att_err']:.1f}x (to the filtered command "
         f"{r['baseline_over_ismc']['att_err_tracked']:.0f}x)",
-        "OK: meets the spec's thresholds" if r["meets_thresholds"] else "FAILED: misses the spec's thresholds",
+        "OK: meets the paper scenario's thresholds" if r["meets_thresholds"] else "FAILED: misses the paper scenario's thresholds",
     ])

@@ -284,14 +284,14 @@ export async function exportShow(id, format, options = {}) {
   return { blob, filename, warnings };
 }
 
-/** Formats named by DESIGN.md, used when the OpenAPI schema does not list them. */
+/** The export formats the server registers (app.exports.EXPORT_FORMATS), used when the OpenAPI schema does not list them. */
 export const DEFAULT_EXPORT_FORMATS = [
   "show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html",
 ];
 
 /**
  * Export formats the server offers: the enum of the format path parameter in its OpenAPI schema,
- * else the list the server gives when asked for an unknown format, else DESIGN.md's list.
+ * else the list the server gives when asked for an unknown format, else this built-in list.
  * @returns {Promise<string[]>}
  */
 export async function exportFormats() {

@@ -3,7 +3,7 @@
 
 const MAX_UNDO = 100;
 
-/** Skybrush's defaults (DESIGN.md). */
+/** Skybrush's defaults (a de facto standard for show settings). */
 export const DEFAULT_SETTINGS = Object.freeze({
   min_distance_m: 3.0,
   max_speed_xy_mps: 10.0,

@@ -33,7 +33,7 @@ __all__ = [
 EngineName = Literal["numba", "numpy", "dask"]
 #: ``ismc`` (the paper's controllers) or ``baseline`` (cascaded PD).
 ControllerName = Literal["ismc", "baseline"]
-#: ``none``, ``paper`` (the paper's disturbance, Li et al. 2024 section 5) or ``wind`` (seeded gusts).
+#: ``none``, ``paper`` (the paper's disturbance, docs/method.md §7) or ``wind`` (seeded gusts).
 DisturbanceName = Literal["none", "paper", "wind"]
 
 ENGINES: tuple[str, ...] = get_args(EngineName)

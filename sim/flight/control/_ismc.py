@@ -1,4 +1,4 @@
-"""Finite-time multivariable integral sliding-mode control (spec sections 4 and 6).
+"""Finite-time multivariable integral sliding-mode control (docs/method.md §4 and §6).
 
 Both loops share one structure, for an error pair ``(e, ė)`` with ``ë = u + f + d``::
 
@@ -8,7 +8,7 @@ Both loops share one structure, for an error pair ``(e, ė)`` with ``ë = u + f 
     u_d = ∫ ω̃ dt                                          (eq. 36, continuous)
     u   = u_n + u_d
 
-Discrete implementation at the control step ``dt`` (textbook sampled form, the spec is
+Discrete implementation at the control step ``dt`` (textbook sampled form, the paper is
 silent on it):
 
 * ``ṡ``'s direction is taken from the backward difference ``s_k - s_{k-1}`` (no

@@ -15,7 +15,7 @@ one model evaluation per step, which is what makes the fused kernel fast. The
 switching terms never meet an adaptive solver: the inputs are held over the step.
 Classical RK4 with the inputs held (disturbances at the stage times) is available
 here as ``integrator="rk4"`` to measure the discretisation error; on the paper
-scenario both meet the spec's thresholds (``run_paper_scenario(engine="numpy",
+scenario both meet the paper scenario's thresholds (docs/method.md §7) (``run_paper_scenario(engine="numpy",
 integrator="rk4")``).
 
 Divergence: before a step, a drone whose position error exceeds ``divergence_limit_m``

@@ -1,4 +1,4 @@
-"""The paper's single-drone scenario (spec section 7), its metrics and its figure.
+"""The paper's single-drone scenario (docs/method.md §7), its metrics and its figure.
 
 Reference ``p_ref = [sin t, cos t, sin t]`` (m), ψ_ref = 0; disturbances
 ``Δ1 = Δ2 = [0.1 sin t, 0.1 cos t, 0.1 (sin t + cos t)]`` with Δ1 in m/s² and Δ2 an
@@ -15,7 +15,7 @@ Errors reported:
   command ``Θ_c`` that the attitude ISMC actually tracks (its e3).
 
 ``settle_time_s`` is the first time after which the position error stays below
-1e-3 m and the attitude error below 1e-2 rad until the end (the spec's thresholds).
+1e-3 m and the attitude error below 1e-2 rad until the end (the scenario's thresholds).
 ``max_thrust_step_n`` is the largest change of the thrust between consecutive steps
 over the whole run; ``max_thrust_step_after_settle_n`` the same after settling.
 
@@ -122,7 +122,7 @@ def run_paper_scenario(
     *, controller: str = "ismc", engine: str = "numba", duration_s: float = PAPER_DURATION_S,
     integrator: str = "euler",
 ) -> PaperRun:
-    """Fly spec section 7 with the paper's gains (or the baseline PD) and record every step.
+    """Fly the scenario of docs/method.md §7 with the paper's gains (or the baseline PD) and record every step.
 
     Args:
         controller: ``"ismc"`` or ``"baseline"``.
@@ -228,6 +228,6 @@ def plot_paper(runs: list[PaperRun], path: str) -> None:
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
-    fig.suptitle("Paper scenario (spec section 7): ISMC tracking under Δ1, Δ2")
+    fig.suptitle("Paper scenario (docs/method.md §7): ISMC tracking under Δ1, Δ2")
     fig.savefig(path, dpi=110)
     plt.close(fig)
