@@ -8,7 +8,7 @@ spacing/√2 during a transition, so 4.5 m keeps the flown separation above the 
 from __future__ import annotations
 
 from importlib import resources
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,7 +41,7 @@ def _gradient(z: np.ndarray, low: tuple[int, int, int], high: tuple[int, int, in
     return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in rgb.tolist()]
 
 
-def _formation(name: str, points: np.ndarray, colors: list[str], hold_s: float = 6.0) -> dict:
+def _formation(name: str, points: np.ndarray, colors: list[str], hold_s: float = 6.0) -> dict[str, Any]:
     return {"name": name, "hold_s": hold_s, "points": points.tolist(), "colors": colors}
 
 

@@ -201,5 +201,6 @@ def format_paper(r: dict) -> str:
         f"  baseline / ismc steady error: position {r['baseline_over_ismc']['pos_err']:.0f}x, attitude "
         f"{r['baseline_over_ismc']['att_err']:.1f}x (to the filtered command "
         f"{r['baseline_over_ismc']['att_err_tracked']:.0f}x)",
-        "OK: meets the paper scenario's thresholds" if r["meets_thresholds"] else "FAILED: misses the paper scenario's thresholds",
+        "OK: meets the paper scenario's thresholds" if r["meets_thresholds"]
+        else "FAILED: misses the paper scenario's thresholds",
     ])

@@ -298,7 +298,7 @@ def _run_shards(
     """Submit one task per shard, report progress as events arrive, gather in shard order."""
     token = uuid.uuid4().hex
     wake = threading.Event()
-    events: queue.SimpleQueue = queue.SimpleQueue()
+    events: queue.SimpleQueue[tuple[int, float]] = queue.SimpleQueue()
 
     def on_event(shard: int, fraction: float) -> None:
         events.put((shard, fraction))

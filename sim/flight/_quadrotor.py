@@ -100,10 +100,11 @@ class QuadrotorParams:
                 10 % harder to rotate than the controller believes (dimensionless).
         """
         scale = 1.0 + float(fraction)
+        ix, iy, iz = (float(i) for i in self.inertia_kgm2)
         return replace(
             self,
             mass_kg=self.mass_kg * scale,
-            inertia_kgm2=tuple(float(i) * scale for i in self.inertia_kgm2),
+            inertia_kgm2=(ix * scale, iy * scale, iz * scale),
             omega_max_rad_s=float(np.sqrt(self.omega_max_sq)),
         )
 

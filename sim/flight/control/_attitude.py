@@ -63,7 +63,8 @@ class CommandFilter:
     ) -> np.ndarray:
         """Filter output Θ̈_c (rad/s²) for the raw reference and the filter state."""
         wn = self.omega_n_rad_s
-        return wn * wn * (theta_ref - theta_c) - 2.0 * self.zeta * wn * theta_c_dot
+        out: np.ndarray = wn * wn * (theta_ref - theta_c) - 2.0 * self.zeta * wn * theta_c_dot
+        return out
 
 
 def resolve_attitude(accel_mps2: np.ndarray, psi_ref_rad: np.ndarray) -> np.ndarray:

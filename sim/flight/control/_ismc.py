@@ -154,7 +154,8 @@ def ismc_nominal(
     r_a: float, r_b: float,
 ) -> np.ndarray:
     """Nominal finite-time control ``u_n = -k_a sig(e, r_a) - k_b sig(ė, r_b) - f`` (eq. 28)."""
-    return -k_a * sig(e, r_a) - k_b * sig(e_dot, r_b) - f
+    out: np.ndarray = -k_a * sig(e, r_a) - k_b * sig(e_dot, r_b) - f
+    return out
 
 
 def ismc_switching(s: np.ndarray, s_prev: np.ndarray, *, gain: float) -> np.ndarray:

@@ -148,12 +148,12 @@ def simulate(
         if progress is not None:
             progress(step / steps)
 
-    count = np.maximum(stats[:, STAT_COUNT], 1.0)
+    counted = np.maximum(stats[:, STAT_COUNT], 1.0)
     return SimResult(
         frame_times_s=np.arange(n_frames) * every * dt_s,
         positions_m=frames,
         telemetry=tel,
-        rms_error_m=np.sqrt(stats[:, STAT_SUMSQ] / count),
+        rms_error_m=np.sqrt(stats[:, STAT_SUMSQ] / counted),
         max_error_m=stats[:, STAT_MAX].copy(),
         max_thrust_step_n=stats[:, STAT_DTHRUST].copy(),
         diverged_step=dstep,

@@ -35,6 +35,7 @@ bit-identical.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -94,7 +95,7 @@ def _ismc_law(
     ex: float, ey: float, ez: float, edx: float, edy: float, edz: float, fx: float, fy: float, fz: float,
     ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
     ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float,
-) -> tuple:
+) -> tuple[float, ...]:
     """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim.flight.control._ismc``.
 
     Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
@@ -393,7 +394,7 @@ def run_chunk_numba(
     state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
     dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
-    opts: dict,
+    opts: dict[str, Any],
 ) -> None:
     """Advance ``len(times)`` steps in place with the fused kernel (same contract as the numpy chunk).
 

@@ -31,6 +31,8 @@ numpy and numba engines share them without importing each other. The run driver
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from sim.flight._disturbance import Disturbance
@@ -225,7 +227,7 @@ def run_chunk_numpy(
     state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
     dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
-    opts: dict,
+    opts: dict[str, Any],
 ) -> None:
     """Advance ``len(times)`` steps in place (the numpy engine's chunk)."""
     limit = opts["divergence_limit_m"]

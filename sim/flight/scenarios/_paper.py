@@ -33,6 +33,7 @@ lets the lag break the 1e-3 m position requirement (table in ``sim.flight.contro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -85,7 +86,7 @@ class PaperRun:
     torque_nm: np.ndarray
     saturated: np.ndarray
 
-    def metrics(self) -> dict:
+    def metrics(self) -> dict[str, Any]:
         """The scalar figures of the run (JSON-safe)."""
         t = self.times_s
         pe = np.linalg.norm(self.pos_err_m, axis=1)
@@ -141,6 +142,7 @@ def run_paper_scenario(
         disturbance="paper", output_every=1, telemetry=True, engine=engine, integrator=integrator,
         chunk_steps=5000,
     )
+    assert res.telemetry is not None  # asked for with telemetry=True
     tel = res.telemetry[:, 0]
     return PaperRun(
         controller=controller,
@@ -154,7 +156,7 @@ def run_paper_scenario(
     )
 
 
-def paper_report(*, controller: str = "ismc", engine: str = "numba") -> tuple[dict, PaperRun, PaperRun]:
+def paper_report(*, controller: str = "ismc", engine: str = "numba") -> tuple[dict[str, Any], PaperRun, PaperRun]:
     """Run the scenario with ``controller`` and with the other one for comparison.
 
     Returns:
