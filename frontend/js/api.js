@@ -1,3 +1,4 @@
+// @ts-check
 // Fetch wrapper for the swarmshow REST API: JSON in and out, errors as ApiError with
 // per-field messages taken from FastAPI's 422 `detail` (its `path`, or `loc` turned into a path).
 
@@ -27,7 +28,7 @@ export class ApiError extends Error {
  */
 export function locToPath(loc) {
   const parts = [...loc];
-  while (parts.length && ["body", "query", "path", "show"].includes(parts[0])) parts.shift();
+  while (parts.length && ["body", "query", "path", "show"].includes(String(parts[0]))) parts.shift();
   let out = "";
   for (const p of parts) {
     if (typeof p === "number" || /^\d+$/.test(String(p))) out += `[${p}]`;

@@ -1,3 +1,4 @@
+// @ts-check
 // The open show: the document, which formation and points are selected, undo/redo, dirty flag.
 // Undo stores per-formation diffs: an undo step keeps, as JSON text, only the formations the
 // edit replaced and the ones it put in their place (one splice of the formation list), plus the
