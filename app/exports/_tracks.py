@@ -9,11 +9,12 @@ between calls.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 
-from sim import ShowPlan
+if TYPE_CHECKING:  # annotations only: importing app.exports stays cheap (no numba, no scipy)
+    from sim import ShowPlan
 
 Source = Literal["planned", "simulated"]
 
