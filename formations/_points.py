@@ -85,18 +85,64 @@ class PointSet:
         }
 
 
+#: Largest point set :func:`closest_pair` sweeps; larger ones use scipy's k-d tree.
+SWEEP_MAX_POINTS = 4096
+#: Sweep direction of :func:`closest_pair` (normalised per dimension): irrational ratios, so
+#: no lattice direction of a formation is parallel or perpendicular to it.
+_SWEEP_DIRECTION = np.array([1.0, (math.sqrt(5.0) - 1.0) / 2.0, math.sqrt(2.0) - 1.0])
+
+
 def closest_pair(points: ArrayLike) -> tuple[int, int, float]:
-    """Indices (i < j) and distance (m) of the closest pair of an (N, d) array; ``(-1, -1, inf)`` for N < 2.
+    """The closest pair of an (N, d) array: ``(i, j, distance_m)``, i < j; ``(-1, -1, inf)`` for N < 2.
 
-    The show file's and the point sources' one-off spacing checks use this k-d tree
-    search; the per-frame search of playback and the flown-distance check is the
-    O(N) cell hash :func:`sim.geometry.closest_pair` (the tests hold both to brute force).
+    Exact, by a sweep along a fixed generic direction u: after sorting the projections
+    on u, shift s pairs every point with the s-th next one, and a shift whose projected
+    gaps all exceed the best distance so far ends the search (a pair's gap is at most its
+    distance, and gaps only grow with s). A generic u, not a coordinate axis, keeps the
+    grids and planes of formations from lining up along the sweep. Every step is
+    vectorised over the points; a k-d tree would cost a scipy.spatial import (~0.3 s),
+    which ``swarmshow validate`` avoids. The sweep costs about N times the number of points
+    in a slab of the closest distance's width (a dense grid of N points: ~sqrt(N) shifts),
+    so above :data:`SWEEP_MAX_POINTS` the k-d tree (N log N) takes over, where its import
+    is small next to the work. Among equally close pairs the sweep returns the smallest
+    ``(i, j)`` and the k-d tree the one of the smallest i, so messages naming them are
+    stable. The per-frame search of playback and of the flown-distance check is the O(N)
+    cell hash :func:`sim.geometry.closest_pair`.
     """
-    from scipy.spatial import cKDTree  # scipy.spatial costs ~0.4 s to import; only spacing checks need it
-
     pts = np.asarray(points, dtype=np.float64)
-    if pts.shape[0] < 2:
+    n = pts.shape[0]
+    if n < 2:
         return -1, -1, math.inf
+    if n > SWEEP_MAX_POINTS:
+        return _closest_pair_kdtree(pts)
+    direction = _SWEEP_DIRECTION[: pts.shape[1]] / np.linalg.norm(_SWEEP_DIRECTION[: pts.shape[1]])
+    proj = pts @ direction
+    order = np.argsort(proj, kind="stable")
+    p = pts[order]
+    x = proj[order]
+    best2, bi, bj = math.inf, -1, -1
+    for s in range(1, n):
+        # <=, not <: a pair exactly as close as the best may still be the smaller (i, j).
+        idx = np.flatnonzero(x[s:] - x[:-s] <= math.sqrt(best2) if math.isfinite(best2) else np.ones(n - s, bool))
+        if idx.size == 0:
+            break
+        d2 = np.sum((p[idx + s] - p[idx]) ** 2, axis=1)
+        m = float(d2.min())
+        if m > best2:
+            continue
+        hit = idx[d2 == m]
+        a, b = order[hit], order[hit + s]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        k = int(np.lexsort((hi, lo))[0])
+        if m < best2 or (int(lo[k]), int(hi[k])) < (bi, bj):
+            best2, bi, bj = m, int(lo[k]), int(hi[k])
+    return bi, bj, math.sqrt(best2)
+
+
+def _closest_pair_kdtree(pts: np.ndarray) -> tuple[int, int, float]:
+    """:func:`closest_pair` for large sets by a k-d tree's 2-nearest query (ties: the smallest i)."""
+    from scipy.spatial import cKDTree  # ~0.3 s to import, paid only by shows with large formations
+
     dist, idx = cKDTree(pts).query(pts, k=2)
     i = int(np.argmin(dist[:, 1]))
     j = int(idx[i, 1])
