@@ -31,7 +31,9 @@ import numpy as np
 from sim.flight._disturbance import make_disturbance
 from sim.flight._options import FlightOptions
 from sim.flight._quadrotor import STATE_SIZE
-from sim.flight._result import FlightResult, fold_flown_distance, ordered_pair
+from sim.flight._result import FLOWN_DISTANCE_TOLERANCE_M as FLOWN_DISTANCE_TOLERANCE_M  # moved; old path kept
+from sim.flight._result import FlightResult as FlightResult  # moved to _result; old import path kept
+from sim.flight._result import fold_flown_distance, ordered_pair
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
 from sim.flight.engines._driver import simulate
