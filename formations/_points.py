@@ -115,6 +115,15 @@ def closest_pair(points: ArrayLike) -> tuple[int, int, float]:
         return -1, -1, math.inf
     if n > SWEEP_MAX_POINTS:
         return _closest_pair_kdtree(pts)
+    # Coincident points first (O(N log N)): the sweep would otherwise pair every copy of a
+    # repeated point with every other, since their gaps (0) never exceed the best (0).
+    _, first, inverse, counts = np.unique(pts, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    if counts.max() > 1:
+        inverse = inverse.reshape(-1)
+        dup = np.flatnonzero(counts[inverse] > 1)  # points that have a copy, in index order
+        i = int(dup[0])
+        j = int(np.flatnonzero(inverse == inverse[i])[1])
+        return i, j, 0.0
     direction = _SWEEP_DIRECTION[: pts.shape[1]] / np.linalg.norm(_SWEEP_DIRECTION[: pts.shape[1]])
     proj = pts @ direction
     order = np.argsort(proj, kind="stable")
