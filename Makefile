@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench soak chromium clean
+.PHONY: run test test-fast typecheck lint bench soak chromium clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -21,7 +21,20 @@ run: $(STAMP)
 ## Install everything the tests need (Debian's chromium included) and run the suite.
 test: $(STAMP) chromium
 	$(BIN)/ruff check .
+	$(MAKE) typecheck
 	$(BIN)/python -m pytest
+
+## The fast tests only (no browser, no cluster or server process, no long flights): under a minute.
+test-fast: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest -m "not slow and not browser and not integration" -q
+
+## mypy (strict on sim/ and formations/, see pyproject.toml) and tsc on the editor's // @ts-check modules.
+## tsc comes from the npm registry through npx; without node/npm it is skipped with a note.
+typecheck: $(STAMP)
+	$(BIN)/mypy
+	@if command -v npx >/dev/null 2>&1; then npx --yes -p typescript@5 tsc --noEmit -p .; \
+	else echo "typecheck: npx not found, tsc skipped (install node and npm)"; fi
 
 ## Debian's chromium for browser tests (playwright cannot download browsers here).
 chromium:

@@ -8,13 +8,14 @@ spacing/√2 during a transition, so 4.5 m keeps the flown separation above the 
 from __future__ import annotations
 
 from importlib import resources
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from formations._points import PointSet
-from formations._shapes import generate_shape
 from formations._show import SHOW_FORMAT, ShowFile, parse_show
-from formations._text import text_points
+
+if TYPE_CHECKING:
+    from formations._points import PointSet
 
 #: Drones in the demo show.
 DEMO_DRONES = 100
@@ -40,7 +41,7 @@ def _gradient(z: np.ndarray, low: tuple[int, int, int], high: tuple[int, int, in
     return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in rgb.tolist()]
 
 
-def _formation(name: str, points: np.ndarray, colors: list[str], hold_s: float = 6.0) -> dict:
+def _formation(name: str, points: np.ndarray, colors: list[str], hold_s: float = 6.0) -> dict[str, Any]:
     return {"name": name, "hold_s": hold_s, "points": points.tolist(), "colors": colors}
 
 
@@ -52,6 +53,11 @@ def demo_show() -> ShowFile:
     Returns:
         The validated show (``check_show`` finds no violation).
     """
+    # The shape and text sources (Pillow, FreeType) load only here: `swarmshow validate`
+    # imports this package and should not pay for them.
+    from formations._shapes import generate_shape
+    from formations._text import text_points
+
     s = DEMO_SPACING_M
     rings = _merge(
         *(

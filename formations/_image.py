@@ -109,7 +109,8 @@ def _lattice_in_mask(mask: np.ndarray, px_m: float, h: float) -> tuple[np.ndarra
 
 def _lattice_size(mask: np.ndarray, px_m: float, h: float) -> float:
     rows_px, cols_px = mask.shape
-    return (cols_px * px_m / h + 3) * (rows_px * px_m / (h * math.sqrt(3.0) / 2.0) + 3)
+    out: float = (cols_px * px_m / h + 3) * (rows_px * px_m / (h * math.sqrt(3.0) / 2.0) + 3)
+    return out
 
 
 def _lattice_pick(
@@ -211,8 +212,8 @@ def decode_image(data: bytes, *, target: tuple[float, float] | None = None) -> I
                 tw, th = working_size(w, h, width_m=target[0], min_spacing_m=target[1])
                 im.draft("RGB", (tw, th))
             im.load()
-            im = ImageOps.exif_transpose(im) or im
-            return im.convert("RGBA")
+            upright = ImageOps.exif_transpose(im) or im
+            return upright.convert("RGBA")
     except Image.DecompressionBombError as exc:
         raise InputTooLargeError(f"image is too large: {exc}") from None
     except UnidentifiedImageError:
@@ -231,7 +232,8 @@ def image_mask(rgba: np.ndarray, mode: str) -> np.ndarray:
         mode = "alpha" if not alpha.all() else "bright"
     if mode == "alpha":
         return alpha
-    return alpha & (rgba[..., :3].max(axis=2) >= THRESHOLD)
+    out: np.ndarray = alpha & (rgba[..., :3].max(axis=2) >= THRESHOLD)
+    return out
 
 
 def image_candidates(

@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import cKDTree
 
 #: Most points one formation source returns.
 MAX_POINTS = 20_000
@@ -67,7 +66,7 @@ class PointSet:
 
     def hex_colors(self) -> list[str]:
         """Return the colours as ``"#rrggbb"`` strings."""
-        return rgb_to_hex(self.colors_rgb)
+        return rgb_to_hex(self.colors_rgb / 255.0)
 
     def min_spacing_m(self) -> float:
         """Return the exact nearest-pair distance in metres (``inf`` for fewer than 2 points)."""
@@ -86,19 +85,90 @@ class PointSet:
         }
 
 
+#: Largest point set :func:`closest_pair` sweeps; larger ones use scipy's k-d tree.
+SWEEP_MAX_POINTS = 4096
+#: Sweep direction of :func:`closest_pair` (normalised per dimension): irrational ratios, so
+#: no lattice direction of a formation is parallel or perpendicular to it.
+_SWEEP_DIRECTION = np.array([1.0, (math.sqrt(5.0) - 1.0) / 2.0, math.sqrt(2.0) - 1.0])
+
+
+def closest_pair(points: ArrayLike) -> tuple[int, int, float]:
+    """The closest pair of an (N, d) array: ``(i, j, distance_m)``, i < j; ``(-1, -1, inf)`` for N < 2.
+
+    Exact, by a sweep along a fixed generic direction u: after sorting the projections
+    on u, shift s pairs every point with the s-th next one, and a shift whose projected
+    gaps all exceed the best distance so far ends the search (a pair's gap is at most its
+    distance, and gaps only grow with s). A generic u, not a coordinate axis, keeps the
+    grids and planes of formations from lining up along the sweep. Every step is
+    vectorised over the points; a k-d tree would cost a scipy.spatial import (~0.3 s),
+    which ``swarmshow validate`` avoids. The sweep costs about N times the number of points
+    in a slab of the closest distance's width (a dense grid of N points: ~sqrt(N) shifts),
+    so above :data:`SWEEP_MAX_POINTS` the k-d tree (N log N) takes over, where its import
+    is small next to the work. Among equally close pairs the sweep returns the smallest
+    ``(i, j)`` and the k-d tree the one of the smallest i, so messages naming them are
+    stable. The per-frame search of playback and of the flown-distance check is the O(N)
+    cell hash :func:`sim.geometry.closest_pair`.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    n = pts.shape[0]
+    if n < 2:
+        return -1, -1, math.inf
+    if n > SWEEP_MAX_POINTS:
+        return _closest_pair_kdtree(pts)
+    # Coincident points first (O(N log N)): the sweep would otherwise pair every copy of a
+    # repeated point with every other, since their gaps (0) never exceed the best (0).
+    _, first, inverse, counts = np.unique(pts, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    if counts.max() > 1:
+        inverse = inverse.reshape(-1)
+        dup = np.flatnonzero(counts[inverse] > 1)  # points that have a copy, in index order
+        i = int(dup[0])
+        j = int(np.flatnonzero(inverse == inverse[i])[1])
+        return i, j, 0.0
+    direction = _SWEEP_DIRECTION[: pts.shape[1]] / np.linalg.norm(_SWEEP_DIRECTION[: pts.shape[1]])
+    proj = pts @ direction
+    order = np.argsort(proj, kind="stable")
+    p = pts[order]
+    x = proj[order]
+    best2, bi, bj = math.inf, -1, -1
+    for s in range(1, n):
+        # <=, not <: a pair exactly as close as the best may still be the smaller (i, j).
+        idx = np.flatnonzero(x[s:] - x[:-s] <= math.sqrt(best2) if math.isfinite(best2) else np.ones(n - s, bool))
+        if idx.size == 0:
+            break
+        d2 = np.sum((p[idx + s] - p[idx]) ** 2, axis=1)
+        m = float(d2.min())
+        if m > best2:
+            continue
+        hit = idx[d2 == m]
+        a, b = order[hit], order[hit + s]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        k = int(np.lexsort((hi, lo))[0])
+        if m < best2 or (int(lo[k]), int(hi[k])) < (bi, bj):
+            best2, bi, bj = m, int(lo[k]), int(hi[k])
+    return bi, bj, math.sqrt(best2)
+
+
+def _closest_pair_kdtree(pts: np.ndarray) -> tuple[int, int, float]:
+    """:func:`closest_pair` for large sets by a k-d tree's 2-nearest query (ties: the smallest i)."""
+    from scipy.spatial import cKDTree  # ~0.3 s to import, paid only by shows with large formations
+
+    dist, idx = cKDTree(pts).query(pts, k=2)
+    i = int(np.argmin(dist[:, 1]))
+    j = int(idx[i, 1])
+    if j == i:  # exact duplicates tie at distance 0 and the tree may list the point itself second
+        j = int(idx[i, 0])
+    return min(i, j), max(i, j), float(dist[i, 1])
+
+
 def nearest_pair_distance(points: ArrayLike) -> float:
     """Exact nearest-pair distance of an (N, d) array in metres (``inf`` for N < 2)."""
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.shape[0] < 2:
-        return math.inf
-    d, _ = cKDTree(pts).query(pts, k=2)
-    return float(d[:, 1].min())
+    return closest_pair(points)[2]
 
 
 def rgb_to_hex(rgb: ArrayLike) -> list[str]:
-    """(N, 3) uint8 colours -> ``"#rrggbb"`` strings."""
-    arr = np.asarray(rgb, dtype=np.int64).reshape(-1, 3)
-    return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in arr.tolist()]
+    """(N, 3) floats in [0, 1] -> ``"#rrggbb"`` strings (rounded to the nearest 1/255)."""
+    u8 = np.clip(np.rint(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+    return ["#" + row.tobytes().hex() for row in u8.reshape(-1, 3)]
 
 
 def parse_color(color: str, *, name: str = "color") -> np.ndarray:

@@ -68,7 +68,8 @@ def largest_remainder(weights: np.ndarray, total: int) -> np.ndarray:
     rest = total - int(base.sum())
     order = np.lexsort((np.arange(len(w)), -(exact - base)))
     base[order[:rest]] += 1
-    return base
+    out: np.ndarray = base
+    return out
 
 
 def _pinned_samples(loop: np.ndarray, corners: np.ndarray, n: int) -> np.ndarray:

@@ -31,7 +31,9 @@ from pydantic import (
     model_validator,
 )
 from pydantic_core import PydanticCustomError
-from scipy.spatial import cKDTree
+
+from formations._points import closest_pair
+from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
 #: Most drones a show may have. The largest show flown so far had 15,947 drones;
 #: 20,000 leaves headroom while bounding memory (a 20k x 20k cost matrix is never built).
@@ -72,7 +74,7 @@ class _ArrayCachingModel(BaseModel):
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return self.model_dump() == other.model_dump()  # type: ignore[union-attr]
+        return self.model_dump() == other.model_dump()
 
     __hash__ = None  # type: ignore[assignment]  # mutable-looking list fields; never hashed
 
@@ -221,12 +223,6 @@ def hex_to_rgb(colors: list[str]) -> np.ndarray:
     return np.frombuffer(raw, dtype=np.uint8).reshape(-1, 3).astype(np.float64) / 255.0
 
 
-def rgb_to_hex(rgb: np.ndarray) -> list[str]:
-    """(n, 3) floats in [0, 1] -> ``#rrggbb`` strings (rounded to the nearest 1/255)."""
-    u8 = np.clip(np.rint(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
-    return ["#" + row.tobytes().hex() for row in u8.reshape(-1, 3)]
-
-
 def _home_kind(value: Any) -> str | None:
     if isinstance(value, dict):
         return "grid" if "grid" in value else ("points" if "points" in value else None)
@@ -320,17 +316,6 @@ def _path(loc: tuple[str | int, ...]) -> str:
     return out
 
 
-def _closest_pair(points: np.ndarray) -> tuple[int, int, float]:
-    """Indices (i < j) and distance of the closest pair of ``points`` (n >= 2)."""
-    tree = cKDTree(points)
-    dist, idx = tree.query(points, k=2)
-    i = int(np.argmin(dist[:, 1]))
-    j = int(idx[i, 1])
-    if j == i:  # exact duplicates tie at distance 0 and the tree may list the point itself second
-        j = int(idx[i, 0])
-    return min(i, j), max(i, j), float(dist[i, 1])
-
-
 def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str] | None:
     """The first cross-field rule the show breaks, as (JSON path, reason), or None."""
     s = show.settings
@@ -357,7 +342,7 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 f"altitude {pts[bad[0], 2]} m is outside [0, max_altitude_m {s.max_altitude_m}]"
             )
         if len(pts) > 1:
-            i, j, d = _closest_pair(pts)
+            i, j, d = closest_pair(pts)
             if d < s.min_distance_m - tol:
                 return ("home", "points"), (
                     f"home points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
@@ -379,7 +364,7 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
         if low.size:
             return ("formations", k, "points", int(low[0]), 2), f"altitude {z[low[0]]} m is below the ground (0 m)"
         if len(pts) > 1:
-            i, j, d = _closest_pair(pts)
+            i, j, d = closest_pair(pts)
             if d < s.min_distance_m - tol:
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"

@@ -127,7 +127,8 @@ def _span_projector(pts: np.ndarray) -> np.ndarray:
     if sv.size == 0 or sv[0] <= 0.0:
         return np.eye(pts.shape[1])
     basis = vt[sv > 1e-9 * sv[0]]
-    return basis.T @ basis
+    out: np.ndarray = basis.T @ basis
+    return out
 
 
 def repair_spacing(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import re
+from typing import Any
 from xml.etree.ElementTree import ParseError
 
 import numpy as np
@@ -83,7 +84,7 @@ def check_svg_bytes(data: bytes) -> bytes:
 _ACTIVE_ELEMENTS = frozenset({"script", "foreignObject", "iframe", "embed", "object", "handler", "listener"})
 
 
-def _refuse_active_content(root) -> None:
+def _refuse_active_content(root: Any) -> None:
     """Refuse scripts, event handlers and references to anything outside the file.
 
     Nothing here would run them (the SVG is only sampled), but a file carrying them is not a plain

@@ -32,7 +32,8 @@ def scale(points: ArrayLike, factor: float | ArrayLike, *, about: ArrayLike | No
     if f.shape not in ((), (3,)) or not np.all(np.isfinite(f)):
         raise FormationError(f"factor must be a finite number or three numbers, got {factor!r}")
     c = _about(pts, about)
-    return (pts - c) * f + c
+    out: np.ndarray = (pts - c) * f + c
+    return out
 
 
 def rotation_matrix(angle_rad: float, axis: str | ArrayLike = "z") -> np.ndarray:
@@ -51,7 +52,8 @@ def rotation_matrix(angle_rad: float, axis: str | ArrayLike = "z") -> np.ndarray
     if not np.isfinite(a):
         raise FormationError(f"angle_rad must be finite, got {angle_rad!r}")
     kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(a) * kx + (1.0 - np.cos(a)) * (kx @ kx)
+    out: np.ndarray = np.eye(3) + np.sin(a) * kx + (1.0 - np.cos(a)) * (kx @ kx)
+    return out
 
 
 def rotate(
@@ -75,13 +77,15 @@ def rotate(
     pts = as_points(points)
     r = rotation_matrix(angle_rad, axis)
     c = _about(pts, about)
-    return (pts - c) @ r.T + c
+    out: np.ndarray = (pts - c) @ r.T + c
+    return out
 
 
 def translate(points: ArrayLike, offset: ArrayLike) -> np.ndarray:
     """Shift (N, 3) points by ``offset`` (3,) metres."""
     pts = as_points(points)
-    return pts + check_center(offset, name="offset")
+    out: np.ndarray = pts + check_center(offset, name="offset")
+    return out
 
 
 def place_on_plane(

@@ -22,6 +22,7 @@ from sim.plan import ShowPlan as ShowPlan
 from sim.plan import TransitionInfo as TransitionInfo
 from sim.plan import assign as assign
 from sim.plan import assignment_cost as assignment_cost
+from sim.plan import cached_plan_show as cached_plan_show
 from sim.plan import certify as certify
 from sim.plan import min_transition_duration as min_transition_duration
 from sim.plan import plan_show as plan_show
@@ -48,6 +49,7 @@ __all__ = [
     "Violation",
     "assign",
     "assignment_cost",
+    "cached_plan_show",
     "check_plan",
     "certify",
     "check_show",

@@ -13,8 +13,6 @@ from fastapi.testclient import TestClient
 from app.server import create_app
 from app.settings import AppSettings
 
-pytest.importorskip("formations.sources")
-
 
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):

@@ -136,7 +136,6 @@ def test_serve_refuses_a_busy_port(tmp_path):
 
 
 def test_demo_seeds_the_store_once(tmp_path):
-    pytest.importorskip("formations._demo")
     first, added = seed_demo(tmp_path)
     again, added_again = seed_demo(tmp_path)
     assert added and not added_again and first == again

@@ -227,7 +227,6 @@ def test_export_show_file(client):
 
 
 def test_export_formats(client):
-    pytest.importorskip("app.exports")
     rec = _create(client, show_doc("exported"))
     r = client.get(f"/api/shows/{rec['id']}/export/skybrush-csv", params={"fps": 5})
     assert r.status_code == 200, r.text

@@ -7,7 +7,9 @@ import pytest
 
 from sim.flight import IsmcGains, QuadrotorParams, TrackingReference, hover_state, make_disturbance, simulate
 from sim.flight.engines._numba import run_chunk_numba
-from sim.flight.engines._numpy import STATS_SIZE, TEL_SIZE, _run_chunk_numpy, init_controller
+from sim.flight.engines._numpy import init_controller
+from sim.flight.engines._numpy import run_chunk_numpy as _run_chunk_numpy
+from sim.flight.engines._state import STATS_SIZE, TEL_SIZE
 
 
 @pytest.mark.parametrize("disturbance", ["none", "wind", "paper"])

@@ -1,4 +1,4 @@
-"""Quadrotor model, ISMC building blocks and attitude resolution (spec sections 1, 4-6)."""
+"""Quadrotor model, ISMC building blocks and attitude resolution (docs/method.md §1, §4-§6)."""
 
 from __future__ import annotations
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from app.cli import main
+from formations import load_demo_show
 from sim import plan_show
 from sim.flight import FlightResult, fly_show
 
@@ -126,8 +127,7 @@ def test_cli_bench_sim(capsys):
 
 
 def test_demo_show_flies_with_flown_min_distance():
-    demo = pytest.importorskip("formations._demo")
-    show = demo.load_demo_show()
+    show = load_demo_show()
     plan = plan_show(show)
     res = fly_show(plan, output_hz=10.0)
     s = res.summary()

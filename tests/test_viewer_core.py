@@ -260,7 +260,7 @@ def test_next_targets_and_bounds_with_per_drone_timing(viewer, staggered_small):
 
 
 def test_bezier_control_points_bound_curved_pieces():
-    from app.viewer._tracks import bezier_control_points
+    from app.exports._tracks import bezier_control_points
     from sim.plan import Trajectories
 
     rng = np.random.default_rng(12)

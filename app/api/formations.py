@@ -11,7 +11,7 @@ from app import tasks
 from app.api import deps
 from app.api.errors import ApiError
 from app.api.models import FormationPoints, Plane, ShapeRequest, TextRequest, error_responses
-from app.server._limits import BodyTooLarge
+from app.web import BodyTooLarge
 
 router = APIRouter(prefix="/formations", tags=["formations"])
 

@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from formations import ShowFile
 from formations._shapes import SHAPE_KINDS
 from sim import CheckReport
+from sim.flight import ControllerName, DisturbanceName  # the one list of names (FlightOptions)
 
 Plane = Literal["xz", "xy", "yz"]
 
@@ -178,8 +179,8 @@ class SimulateOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     engine: Literal["numba", "numpy"] = Field("numba", description="Simulation engine.")
-    controller: Literal["ismc", "baseline"] = Field("ismc", description="Position and attitude controllers.")
-    disturbance: Literal["none", "paper", "wind"] = Field("none", description="External disturbance model.")
+    controller: ControllerName = Field("ismc", description="Position and attitude controllers.")
+    disturbance: DisturbanceName = Field("none", description="External disturbance model.")
     output_hz: float = Field(25.0, gt=0, le=1000, description="Rate of the recorded trajectory, Hz.")
 
 

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.api import deps
 from app.api.models import error_responses
-from app.server._auth import COOKIE, bearer_ok, session_value
+from app.web import COOKIE, bearer_ok, session_value
 
 router = APIRouter(tags=["session"])
 

@@ -25,8 +25,8 @@ from app.api.models import (
     SimulateOptions,
     error_responses,
 )
-from app.server._limits import BodyTooLarge
 from app.store import RevisionConflict, ShowData, ShowRecord
+from app.web import BodyTooLarge
 
 router = APIRouter(tags=["shows"])
 

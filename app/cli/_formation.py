@@ -25,7 +25,7 @@ def _center(text: str) -> tuple[float, float, float]:
         raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
     if len(parts) != 3 or not all(math.isfinite(v) for v in parts):
         raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
-    return parts  # type: ignore[return-value]
+    return parts
 
 
 def _param(text: str) -> tuple[str, Any]:

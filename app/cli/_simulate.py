@@ -17,8 +17,8 @@ with a one-line message when the scheduler or a worker cannot be reached within
 ``--scheduler-timeout`` seconds.
 
 ``swarmshow simulate --scenario paper [--json] [--plot PNG] [--controller ...]`` runs
-spec section 7 for 20 s with the chosen controller and the other one for comparison;
-exit 1 if the chosen controller misses the spec's thresholds.
+method.md §7 for 20 s with the chosen controller and the other one for comparison;
+exit 1 if the chosen controller misses the paper scenario's thresholds.
 """
 
 from __future__ import annotations
@@ -30,14 +30,16 @@ import sys
 
 from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
 
-#: ``local`` (DESIGN.md's name for the in-process engine) is the numba kernel.
-ENGINES = ("numba", "numpy", "local", "dask")
+#: ``local`` (an alias for the in-process engine) is the numba kernel.
+LOCAL_ALIAS = "local"
 #: Environment variable giving the default ``--scheduler`` (shared with the server setting).
 SCHEDULER_ENV = "SWARMSHOW_DASK_SCHEDULER"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``simulate`` command."""
+    from sim.flight import CONTROLLERS, DISTURBANCES, ENGINES
+
     p = sub.add_parser(
         "simulate",
         help="fly every drone of a show with the quadrotor model and ISMC controllers at 1 kHz "
@@ -48,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenario", choices=("paper",), help="run a built-in scenario instead of a show")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.add_argument("--plot", metavar="PNG", help="with --scenario paper: write the error/input figure")
-    p.add_argument("--engine", choices=ENGINES, default="numba",
+    p.add_argument("--engine", choices=(*ENGINES, LOCAL_ALIAS), default="numba",
                    help="numba (alias local): fused parallel kernel (default); numpy: the readable reference; "
                    "dask: numba on shards of drones on a Dask cluster (needs --scheduler)")
     p.add_argument("--scheduler", metavar="ADDR",
@@ -56,9 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    f"cluster (default ${SCHEDULER_ENV})")
     p.add_argument("--scheduler-timeout", metavar="S", type=float, default=10.0,
                    help="with --engine dask: seconds to reach the scheduler and a worker (default 10)")
-    p.add_argument("--controller", choices=("ismc", "baseline"), default="ismc",
+    p.add_argument("--controller", choices=CONTROLLERS, default="ismc",
                    help="ismc: the paper's controllers (default); baseline: cascaded PD")
-    p.add_argument("--disturbance", choices=("none", "paper", "wind"), default="none",
+    p.add_argument("--disturbance", choices=DISTURBANCES, default="none",
                    help="external disturbance for a show flight (default none)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind gusts (default 0)")
@@ -94,12 +96,12 @@ def _dask_options(args: argparse.Namespace) -> dict:
 
 
 def _engine(args: argparse.Namespace) -> str:
-    return "numba" if args.engine == "local" else args.engine
+    return "numba" if args.engine == LOCAL_ALIAS else args.engine
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim import PlanError, plan_show
-    from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
+    from sim import PlanError, cached_plan_show
+    from sim.flight import FlightOptions, SchedulerUnreachableError, connect_scheduler, fly_show
 
     dask = _dask_options(args)
     show = load_show_arg(args.show)
@@ -112,14 +114,15 @@ def _show(args: argparse.Namespace) -> int:
             except SchedulerUnreachableError as exc:
                 raise CliError(" ".join(str(exc).split())) from None
         try:
-            plan = plan_show(show)
+            plan = cached_plan_show(show)
         except PlanError as exc:
             raise CliError(f"{args.show}: {exc}") from exc
         with progress_bar("simulate") as update:
-            result = fly_show(
-                plan, engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
-                output_hz=args.output_hz, seed=args.seed, progress=update, **dask,
+            options = FlightOptions(
+                engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
+                output_hz=args.output_hz, seed=args.seed, **dask,
             )
+            result = fly_show(plan, options, progress=update)
     summary = result.summary()
     summary["show"] = show.name
     if args.json:
@@ -174,7 +177,7 @@ def _paper(args: argparse.Namespace) -> int:
     else:
         print(format_paper(report))
     if not report["meets_thresholds"]:
-        print(f"swarmshow: {args.controller} misses the spec's thresholds", file=sys.stderr)
+        print(f"swarmshow: {args.controller} misses the paper scenario's thresholds", file=sys.stderr)
     return EXIT_OK if report["meets_thresholds"] else EXIT_FAILED
 
 
@@ -185,7 +188,7 @@ def format_paper(r: dict) -> str:
     th = r["thresholds"]
     settle = "never" if r["settle_time_s"] is None else f"{r['settle_time_s']:.3f} s"
     return "\n".join([
-        f"paper scenario (spec section 7), {r['controller']} controller, 20 s at 1 ms:",
+        f"paper scenario (docs/method.md §7), {r['controller']} controller, 20 s at 1 ms:",
         f"  position error  max(t>=8 s) {r['pos_err_m']['max_t_ge_8s']:.3e} m, at 20 s "
         f"{r['pos_err_m']['at_20s']:.3e} m   (required < {th['pos_err_m']:g})",
         f"  attitude error  max(t>=8 s) {r['att_err_rad']['max_t_ge_8s']:.3e} rad, at 20 s "
@@ -198,5 +201,6 @@ def format_paper(r: dict) -> str:
         f"  baseline / ismc steady error: position {r['baseline_over_ismc']['pos_err']:.0f}x, attitude "
         f"{r['baseline_over_ismc']['att_err']:.1f}x (to the filtered command "
         f"{r['baseline_over_ismc']['att_err_tracked']:.0f}x)",
-        "OK: meets the spec's thresholds" if r["meets_thresholds"] else "FAILED: misses the spec's thresholds",
+        "OK: meets the paper scenario's thresholds" if r["meets_thresholds"]
+        else "FAILED: misses the paper scenario's thresholds",
     ])

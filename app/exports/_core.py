@@ -1,20 +1,13 @@
-"""Export options, results, the format registry and :func:`export_show`.
-
-Every format is a function ``export(ctx: ExportContext) -> ExportResult``
-registered in :data:`EXPORT_FORMATS` by a lazy ``"module:function"`` string, so
-that importing :mod:`app.exports` stays cheap and a new format is one entry::
-
-    "viser-html": "app.viewer:viser_html_exporter",
+"""What every format shares: the options, the result, and the context an exporter gets.
 
 The context hands the exporter the show, the validated options, and the plan
 and simulated flight, both computed on first use (the ``show`` format needs
-neither; only ``--source simulated`` needs the flight).
+neither; only ``--source simulated`` needs the flight). The registry of formats
+and :func:`export_show` live one layer up, in :mod:`app.exports._formats`.
 """
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,18 +19,6 @@ if TYPE_CHECKING:
 
 ProgressFn = Callable[[float], None]
 Source = Literal["planned", "simulated"]
-
-#: Format name -> ``"module:function"`` of its exporter (imported on first use).
-EXPORT_FORMATS: dict[str, str] = {
-    "show": "app.exports._show_json:export_show_json",
-    "skybrush-csv": "app.exports._skybrush_csv:export_skybrush_csv",
-    "skyc": "app.exports._skyc:export_skyc",
-    "crazyswarm": "app.exports._crazyswarm:export_crazyswarm",
-    "qgc-plan": "app.exports._qgc:export_qgc_plan",
-    "qgc-wpl": "app.exports._qgc:export_qgc_wpl",
-    "waypoints-csv": "app.exports._waypoints_csv:export_waypoints_csv",
-    "viser-html": "app.viewer:viser_html_exporter",
-}
 
 #: Highest sampling rate accepted, frames per second (a flight controller rarely wants more).
 MAX_FPS = 1000.0
@@ -163,10 +144,10 @@ class ExportContext:
     def plan(self) -> ShowPlan:
         """The show's plan (planned on first use; a show that cannot be planned raises :class:`ExportError`)."""
         if self._plan is None:
-            from sim import PlanError, plan_show
+            from sim import PlanError, cached_plan_show
 
             try:
-                self._plan = plan_show(self.show, progress=lambda f: self.progress(0.1 * f))
+                self._plan = cached_plan_show(self.show, progress=lambda f: self.progress(0.1 * f))
             except PlanError as exc:
                 raise ExportError(f"the show cannot be planned: {exc}") from exc
         return self._plan
@@ -175,18 +156,12 @@ class ExportContext:
     def flight(self) -> Any:
         """The simulated flight (``sim.flight.FlightResult``), flown on first use."""
         if self._flight is None:
-            try:
-                from sim.flight import fly_show
-            except ImportError as exc:
-                raise ExportError("--source simulated needs the flight simulation (sim.flight), not available") from exc
-            params = inspect.signature(fly_show).parameters
-            kwargs: dict[str, Any] = {}
-            if "progress" in params and self._progress is not None:
-                kwargs["progress"] = lambda f: self.progress(0.8 * f)
-            if "output_hz" in params:
-                # Record at least as often as the export samples, so interpolation adds nothing visible.
-                kwargs["output_hz"] = min(max(self.options.fps_or(25.0), 25.0), MAX_FPS)
-            self._flight = fly_show(self.plan, **kwargs)
+            from sim.flight import FlightOptions, fly_show
+
+            # Record at least as often as the export samples, so interpolation adds nothing visible.
+            output_hz = min(max(self.options.fps_or(25.0), 25.0), MAX_FPS)
+            progress = (lambda f: self.progress(0.8 * f)) if self._progress is not None else None
+            self._flight = fly_show(self.plan, FlightOptions(output_hz=output_hz), progress=progress)
         return self._flight
 
     @property
@@ -206,85 +181,6 @@ class ExportContext:
     def warn(self, message: str) -> None:
         """Record a one-line warning for the result."""
         self.warnings.append(message)
-
-
-def _load_exporter(fmt: str) -> Callable[[ExportContext], ExportResult]:
-    target = EXPORT_FORMATS.get(fmt)
-    if target is None:
-        raise ExportError(f"unknown export format {fmt!r}; one of: {', '.join(EXPORT_FORMATS)}")
-    module_name, _, func_name = target.partition(":")
-    return getattr(importlib.import_module(module_name), func_name)
-
-
-def export_show(
-    show: ShowFile,
-    fmt: str,
-    *,
-    fps: float | None = None,
-    origin: tuple[float, float, float] | None = None,
-    heading_deg: float = 0.0,
-    source: Source = "planned",
-    plan: ShowPlan | None = None,
-    flight: Any = None,
-    drone_names: list[str] | None = None,
-    progress: ProgressFn | None = None,
-) -> ExportResult:
-    """Export a show in one of :data:`EXPORT_FORMATS`.
-
-    Args:
-        show: a validated show file.
-        fmt: format name, a key of :data:`EXPORT_FORMATS`.
-        fps: sampling rate of sampled formats, frames per second (``None``: the format's default).
-        origin: ``(latitude_deg, longitude_deg, altitude_m)`` of the local origin (QGroundControl formats).
-        heading_deg: bearing of the show's +y axis, degrees clockwise from true north.
-        source: ``"planned"`` or ``"simulated"`` (sampled formats only).
-        plan: the show's plan if already computed (else planned here).
-        flight: the simulated flight if already computed (else flown here when needed).
-        drone_names: optional per-drone names (sanitised for use as file names).
-        progress: optional callback receiving the fraction done in [0, 1].
-
-    Returns:
-        The exported file.
-
-    Raises:
-        ExportError: unknown format, bad option, or a show that cannot be planned.
-    """
-    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source)
-    return export_plan(
-        show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
-    )
-
-
-def export_plan(
-    show: ShowFile,
-    fmt: str,
-    *,
-    options: ExportOptions | None = None,
-    plan: ShowPlan | None = None,
-    flight: Any = None,
-    drone_names: list[str] | None = None,
-    progress: ProgressFn | None = None,
-) -> ExportResult:
-    """Like :func:`export_show` with the options as one :class:`ExportOptions`."""
-    exporter = _load_exporter(fmt)
-    options = options if options is not None else ExportOptions()
-    if drone_names is not None and len(drone_names) != show.drones:
-        raise ExportError(f"drone_names has {len(drone_names)} names for {show.drones} drones")
-    if plan is not None and plan.drone_count != show.drones:
-        raise ExportError(f"the plan has {plan.drone_count} drones, the show {show.drones}")
-    ctx = ExportContext(
-        show, options, fmt=fmt, plan=plan, flight=flight, drone_names=drone_names, progress=progress
-    )
-    result = exporter(ctx)
-    ctx.progress(1.0)
-    if ctx.warnings:
-        result = ExportResult(
-            filename=result.filename,
-            media_type=result.media_type,
-            content=result.content,
-            warnings=[*result.warnings, *(w for w in ctx.warnings if w not in result.warnings)],
-        )
-    return result
 
 
 def require_planned(ctx: ExportContext) -> None:

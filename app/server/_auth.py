@@ -12,16 +12,17 @@ the server, it dies with its expiry, and changing the token revokes every cookie
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 import json
-import time
 from collections.abc import Iterable
 
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-#: Name of the session cookie.
-COOKIE = "swarmshow_session"
+# The token and cookie primitives live one layer down, shared with the API's session route.
+from app.web import COOKIE as COOKIE
+from app.web import bearer_ok as bearer_ok
+from app.web import session_ok as session_ok
+from app.web import session_value as session_value
+
 #: Paths that need the token (the editor's static files at ``/`` are public).
 PROTECTED = ("/api", "/viser")
 #: The one path that takes the token in its body to set the cookie.
@@ -43,36 +44,6 @@ def _cookies(scope: Scope) -> Iterable[tuple[str, str]]:
         name, _, value = part.strip().partition("=")
         if name:
             yield name, value
-
-
-def bearer_ok(header: str | None, *, token: str) -> bool:
-    """True when ``header`` is ``Bearer <token>`` (constant-time comparison)."""
-    if not header:
-        return False
-    scheme, _, given = header.partition(" ")
-    if scheme.lower() != "bearer":
-        return False
-    return hmac.compare_digest(given.strip().encode(), token.encode())
-
-
-def session_value(*, token: str, ttl_s: int, now: float | None = None) -> str:
-    """A cookie value valid for ``ttl_s`` seconds, signed with the token."""
-    expiry = str(int((time.time() if now is None else now) + ttl_s))
-    return f"{expiry}.{_sign(token, expiry)}"
-
-
-def session_ok(value: str | None, *, token: str, now: float | None = None) -> bool:
-    """True when ``value`` is an unexpired cookie signed with ``token``."""
-    if not value:
-        return False
-    expiry, _, signature = value.partition(".")
-    if not expiry.isdigit() or not hmac.compare_digest(signature.encode(), _sign(token, expiry).encode()):
-        return False
-    return int(expiry) > (time.time() if now is None else now)
-
-
-def _sign(token: str, expiry: str) -> str:
-    return hmac.new(token.encode(), f"swarmshow-session:{expiry}".encode(), hashlib.sha256).hexdigest()
 
 
 def authorized(scope: Scope, *, token: str) -> bool:

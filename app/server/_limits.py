@@ -11,23 +11,12 @@ import json
 import re
 from dataclasses import dataclass
 
-from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from app.web import BodyTooLarge as BodyTooLarge  # shared with the API's routes
 
 #: Room for a multipart envelope or the ``{"revision": n, "show": ...}`` wrapper around a file.
 ENVELOPE_BYTES = 64 * 1024
-
-
-class BodyTooLarge(HTTPException):
-    """413 (an ``HTTPException`` so that FastAPI's body parsing passes it through untouched)."""
-
-    def __init__(self, what: str, limit: int, *, size: int | None = None) -> None:
-        got = f"is {size} bytes" if size is not None else "is larger"
-        super().__init__(413, f"request body {got}; the limit for {what} is {_human(limit)} ({limit} bytes)")
-
-
-def _human(n: int) -> str:
-    return f"{n / 2**20:g} MB" if n >= 2**20 else f"{n / 2**10:g} KB"
 
 
 @dataclass(frozen=True)

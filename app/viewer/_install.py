@@ -66,7 +66,7 @@ class _Loader:
             ``(record, plan, cached)``.
         """
         from formations import parse_show
-        from sim import plan_show
+        from sim import cached_plan_show as plan_show  # shared with exports and the CLI: planned once per show
 
         record = self.app.state.store.get(show_id)
         label = _label(record)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.viewer._tracks import (
+from app.exports import (
     Frame,
     Source,
     Track,

@@ -1,3 +1,4 @@
+// @ts-check
 // Fetch wrapper for the swarmshow REST API: JSON in and out, errors as ApiError with
 // per-field messages taken from FastAPI's 422 `detail` (its `path`, or `loc` turned into a path).
 
@@ -27,7 +28,7 @@ export class ApiError extends Error {
  */
 export function locToPath(loc) {
   const parts = [...loc];
-  while (parts.length && ["body", "query", "path", "show"].includes(parts[0])) parts.shift();
+  while (parts.length && ["body", "query", "path", "show"].includes(String(parts[0]))) parts.shift();
   let out = "";
   for (const p of parts) {
     if (typeof p === "number" || /^\d+$/.test(String(p))) out += `[${p}]`;
@@ -284,14 +285,14 @@ export async function exportShow(id, format, options = {}) {
   return { blob, filename, warnings };
 }
 
-/** Formats named by DESIGN.md, used when the OpenAPI schema does not list them. */
+/** The export formats the server registers (app.exports.EXPORT_FORMATS), used when the OpenAPI schema does not list them. */
 export const DEFAULT_EXPORT_FORMATS = [
   "show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html",
 ];
 
 /**
  * Export formats the server offers: the enum of the format path parameter in its OpenAPI schema,
- * else the list the server gives when asked for an unknown format, else DESIGN.md's list.
+ * else the list the server gives when asked for an unknown format, else this built-in list.
  * @returns {Promise<string[]>}
  */
 export async function exportFormats() {

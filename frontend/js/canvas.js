@@ -1,3 +1,4 @@
+// @ts-check
 // The formation canvas: front (x-z) or top (x-y) view of the current formation, a metre grid,
 // zoom about the cursor, pan, hit testing. Editing gestures live in tools.js.
 
@@ -49,7 +50,7 @@ export class CanvasView {
 
   /** @returns {[number, number, number]} [horizontal, vertical, depth] axis indices of the view. */
   get axes() {
-    return VIEW_AXES[this.view];
+    return /** @type {[number, number, number]} */ (VIEW_AXES[this.view]);
   }
 
   /**
@@ -242,7 +243,7 @@ export class CanvasView {
     const prev = show.formations[this.state.current - 1];
     if (prev) this._drawPoints(prev, { ghost: true });
     const f = this.state.formation;
-    if (f) this._drawPoints(f, {});
+    if (f) this._drawPoints(f, { ghost: false });
     this._drawOverlay();
   }
 

@@ -1,3 +1,4 @@
+// @ts-check
 // LED colours: one colour for the selection, a gradient across it, or colours taken from an image
 // laid over the selection's bounding box in the current view.
 

@@ -1,3 +1,4 @@
+// @ts-check
 // Small modal helpers: a choice among buttons (optionally with a text field) and a passing toast.
 
 let toastTimer = 0;
@@ -50,7 +51,7 @@ export function choose(spec) {
     dlg.addEventListener("close", () => resolve({ choice: dlg.returnValue || null, text: input.value }), { once: true });
     dlg.showModal();
     if (spec.input) input.select();
-    else box.querySelector(".primary, button")?.focus();
+    else /** @type {HTMLElement|null} */ (box.querySelector(".primary, button"))?.focus();
   });
 }
 

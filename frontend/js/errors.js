@@ -1,3 +1,4 @@
+// @ts-check
 // API problems shown next to the control they concern: settings fields, timeline cards, or a
 // fallback message element.
 
@@ -52,7 +53,7 @@ export function showShowErrors(problems, fallback) {
       parts.pop();
     }
     if (shown) {
-      const panel = document.getElementById("settings-panel");
+      const panel = /** @type {HTMLDetailsElement|null} */ (document.getElementById("settings-panel"));
       if (panel && path !== "formations") panel.open = true;
     } else {
       fallback(path ? `${path}: ${p.msg}` : p.msg);

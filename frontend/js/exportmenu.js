@@ -1,3 +1,4 @@
+// @ts-check
 // The export menu: every format the backend offers, downloaded through
 // GET /api/shows/{id}/export/{format}; errors appear next to the menu.
 
@@ -48,6 +49,7 @@ export class ExportMenu {
 
   /** @returns {Record<string, string>} the export options as query parameters (blank ones left out). */
   options() {
+    /** @type {Record<string, string>} */
     const out = {};
     for (const [key, el] of Object.entries(this.fields)) {
       const v = el.value.trim().replace(/\s+/g, "");

@@ -1,3 +1,4 @@
+// @ts-check
 // Point-set geometry in the canvas views: view axes, arc-length resampling, fit to a count,
 // scale and rotate about the centroid.
 

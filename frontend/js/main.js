@@ -1,3 +1,4 @@
+// @ts-check
 // The editor's entry point: builds the parts and wires them to the page.
 
 import * as api from "./api.js";
@@ -20,6 +21,7 @@ import { EditorState } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { TOOLS, Tools } from "./tools.js";
 
+/** Element by id; `any` because the ids name inputs, buttons and panels alike. @type {(id: string) => any} */
 const $ = (id) => document.getElementById(id);
 
 const state = new EditorState();
@@ -73,7 +75,7 @@ function opened(rec) {
   else status("");
   if (preview.isOpen && rec) preview.load();
 }
-persist.addEventListener("opened", (e) => {
+persist.addEventListener("opened", (/** @type {any} */ e) => {
   history.replaceState(null, "", `?show=${encodeURIComponent(e.detail.id)}`);
   refreshChrome();
   requestAnimationFrame(() => view.fit());
@@ -107,7 +109,7 @@ function updateSpacing() {
   requestAnimationFrame(() => {
     spacingQueued = false;
     const f = state.formation;
-    const r = f ? closePairs(f.points, state.show.settings.min_distance_m) : { close: new Set(), pairs: [] };
+    const r = f ? closePairs(f.points, state.show.settings.min_distance_m) : { close: new Set(), pairs: [], minDistance: Infinity };
     view.close = r.close;
     const el = $("st-spacing");
     if (!f) el.textContent = "";
@@ -137,7 +139,7 @@ function updateStatusbar() {
   $("st-selection").textContent = state.selection.size ? `${state.selection.size} selected` : "";
 }
 
-state.addEventListener("change", (e) => {
+state.addEventListener("change", (/** @type {any} */ e) => {
   const kind = e.detail.kind;
   if (kind !== "live") refreshChrome();
   else updateStatusbar();
@@ -155,9 +157,9 @@ view.onCursor = ([u, v]) => {
 
 function setTool(tool) {
   tools.setTool(tool);
-  for (const b of document.querySelectorAll(".tool")) b.setAttribute("aria-checked", String(b.dataset.tool === tool));
+  for (const b of document.querySelectorAll(".tool")) b.setAttribute("aria-checked", String(/** @type {HTMLElement} */ (b).dataset.tool === tool));
 }
-for (const b of document.querySelectorAll(".tool")) b.addEventListener("click", () => setTool(b.dataset.tool));
+for (const b of document.querySelectorAll(".tool")) b.addEventListener("click", () => setTool(/** @type {HTMLElement} */ (b).dataset.tool));
 setTool("select");
 
 const viewSelect = /** @type {HTMLSelectElement} */ ($("view-select"));
@@ -173,7 +175,7 @@ viewSelect.addEventListener("change", () => {
   $("depth-label").textContent = axis === 2 ? "Altitude (m)" : "Depth y (m)";
 });
 $("btn-fit-view").addEventListener("click", () => view.fit());
-$("depth-input").addEventListener("change", (e) => { view.depth = Number(e.target.value) || 0; });
+$("depth-input").addEventListener("change", (e) => { view.depth = Number(/** @type {HTMLInputElement} */ (e.target).value) || 0; });
 
 $("btn-undo").addEventListener("click", () => state.undo());
 $("btn-redo").addEventListener("click", () => state.redo());
@@ -315,5 +317,5 @@ async function start() {
   }
 }
 
-window.swarmshow = { state, view, tools, persist, TOOLS };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS };
 start();

@@ -1,3 +1,4 @@
+// @ts-check
 // Saving: explicit (Ctrl+S) or automatic, revision-checked. A 409 opens a choice (overwrite,
 // save as a copy, reload theirs, decide later) and the user's work is never dropped silently:
 // unsaved edits are also kept in localStorage until they are saved.
@@ -25,7 +26,7 @@ export class Persistence extends EventTarget {
     this.autosave = localStorage.getItem(AUTOSAVE_KEY) === "1";
     this._autoTimer = 0;
     this._draftTimer = 0;
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind !== "edit") return;
       this._scheduleDraft();
       if (this.autosave) {

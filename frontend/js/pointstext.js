@@ -1,3 +1,4 @@
+// @ts-check
 // Points typed or pasted as text: "x y z [#rrggbb]" lines or a JSON list, and back.
 
 const HEX = /^#[0-9a-fA-F]{6}$/;

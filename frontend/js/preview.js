@@ -1,3 +1,4 @@
+// @ts-check
 // "3D preview": the viser viewer (/viser/, same origin) beside or over the canvas, loaded with
 // the saved show through POST /api/shows/{id}/playback.
 

@@ -1,3 +1,4 @@
+// @ts-check
 // The show settings form: name, drone count, home grid and the safety limits, bound to the
 // document (each change is one undo step).
 
@@ -47,10 +48,11 @@ export class SettingsForm {
   constructor(form, state) {
     this.form = form;
     this.state = state;
-    this.inputs = [...form.querySelectorAll("[data-path]")];
+    /** @type {HTMLInputElement[]} */
+    this.inputs = [...form.querySelectorAll("[data-path]")].map((el) => /** @type {HTMLInputElement} */ (el));
     form.addEventListener("submit", (e) => e.preventDefault());
     for (const input of this.inputs) input.addEventListener("change", () => this._changed(input));
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {any} */ e) => {
       if (["load", "edit"].includes(e.detail.kind)) this.render();
     });
   }

@@ -1,3 +1,4 @@
+// @ts-check
 // Keyboard shortcuts, one table used both to handle keys and to fill the help panel.
 
 /**
@@ -10,7 +11,7 @@ const plain = (e) => !e.ctrlKey && !e.metaKey && !e.altKey;
 
 /**
  * The shortcut table.
- * @param {Record<string, () => void>} a actions by name
+ * @param {Record<string, (...args: any[]) => void>} a actions by name (``tool`` takes the tool's name)
  * @returns {Shortcut[]}
  */
 export function shortcutTable(a) {

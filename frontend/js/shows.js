@@ -1,3 +1,4 @@
+// @ts-check
 // The shows dialog: list, open, create (drone count, home grid), rename, delete, import and
 // export show files.
 

@@ -1,3 +1,4 @@
+// @ts-check
 // "Simulate": start the flight simulation job, follow its progress (server-sent events, or
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
@@ -26,7 +27,7 @@ export class SimulatePanel {
     this.body = document.getElementById("sim-body");
     this.cancelBtn = document.getElementById("btn-sim-cancel");
     this.cancelBtn.addEventListener("click", () => this.cancel());
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "load") this.reset();
     });
   }
@@ -58,7 +59,7 @@ export class SimulatePanel {
     const st = this.state;
     if (!st.meta) return;
     this._stopFollowing();
-    const btn = document.getElementById("btn-simulate");
+    const btn = /** @type {HTMLButtonElement} */ (document.getElementById("btn-simulate"));
     btn.disabled = true;
     try {
       if (!(await this.persist.ensureSaved())) {

@@ -1,3 +1,4 @@
+// @ts-check
 // Formation sources and whole-formation operations: shape presets, text, image and SVG uploads
 // (through the formation endpoints), scale, rotate, fit to the drone count, spacing repair.
 
@@ -112,7 +113,7 @@ export class Sources {
         if (!file || !file.name) return setError(key, "Choose a PNG, JPEG or SVG file.");
         source = /svg/i.test(file.type) || /\.svg$/i.test(file.name) ? "svg" : "image";
       }
-      const button = form.querySelector("button[type=submit]");
+      const button = /** @type {HTMLButtonElement} */ (form.querySelector("button[type=submit]"));
       button.disabled = true;
       button.setAttribute("aria-busy", "true");
       try {
@@ -203,7 +204,7 @@ export class Sources {
     if (!f.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
     st.edit(`Fit to ${n} drones`, () => {
       const fit = fitToCount(f.points, f.colors, n);
-      const fixed = repairSpacing(fit.points, st.show.settings.min_distance_m, { plane: VIEW_AXES[this.view.view].slice(0, 2) });
+      const fixed = repairSpacing(fit.points, st.show.settings.min_distance_m, { plane: /** @type {[number, number]} */ (VIEW_AXES[this.view.view].slice(0, 2)) });
       f.points = roundPoints(fixed.points);
       f.colors = fit.colors;
       st.selection = new Set();
@@ -218,7 +219,7 @@ export class Sources {
     const f = st.formation;
     if (!f) return;
     const d = st.show.settings.min_distance_m;
-    const res = repairSpacing(f.points, d, { plane: VIEW_AXES[this.view.view].slice(0, 2) });
+    const res = repairSpacing(f.points, d, { plane: /** @type {[number, number]} */ (VIEW_AXES[this.view.view].slice(0, 2)) });
     if (!res.moved) {
       toast("Spacing is fine: every pair is at least the minimum distance apart");
       return;

@@ -1,3 +1,4 @@
+// @ts-check
 // Minimum-distance checks and repair with a uniform grid of buckets (cell = the minimum
 // distance), so each point is only compared with points in its own and the 26 neighbouring cells.
 
@@ -45,6 +46,7 @@ class Grid {
  */
 export function closePairs(points, minDistance, only) {
   const close = new Set();
+  /** @type {Array<[number, number, number]>} */
   const pairs = [];
   let smallest = Infinity;
   if (!(minDistance > 0) || points.length < 2) return { close, pairs, minDistance: smallest };

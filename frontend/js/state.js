@@ -1,9 +1,13 @@
+// @ts-check
 // The open show: the document, which formation and points are selected, undo/redo, dirty flag.
-// Undo keeps whole-document snapshots (mementos): simple and always consistent; the stack is bounded.
+// Undo stores per-formation diffs: an undo step keeps, as JSON text, only the formations the
+// edit replaced and the ones it put in their place (one splice of the formation list), plus the
+// show's other fields only when they changed. Moving one point of a 20 MB show costs one
+// formation's text per step, not two copies of the document; the stack is bounded.
 
 const MAX_UNDO = 100;
 
-/** Skybrush's defaults (DESIGN.md). */
+/** Skybrush's defaults (a de facto standard for show settings). */
 export const DEFAULT_SETTINGS = Object.freeze({
   min_distance_m: 3.0,
   max_speed_xy_mps: 10.0,
@@ -35,6 +39,36 @@ export function withColors(f) {
 
 function clone(obj) {
   return structuredClone(obj);
+}
+
+/** The show's fields other than `formations`, as JSON text (settings, home, name, ...). */
+function restText(show) {
+  const { formations: _f, ...rest } = show;
+  return JSON.stringify(rest);
+}
+
+/**
+ * The document as text, formation by formation (what an edit is diffed against).
+ * @param {any} show
+ * @returns {{formations: string[], rest: string}}
+ */
+function documentText(show) {
+  return { formations: show.formations.map((f) => JSON.stringify(f)), rest: restText(show) };
+}
+
+/**
+ * The smallest single splice turning `before` into `after` (common prefix and suffix kept).
+ * @param {string[]} before
+ * @param {string[]} after
+ * @returns {{start: number, before: string[], after: string[]}}
+ */
+export function spliceDiff(before, after) {
+  let start = 0;
+  while (start < before.length && start < after.length && before[start] === after[start]) start++;
+  let endB = before.length;
+  let endA = after.length;
+  while (endB > start && endA > start && before[endB - 1] === after[endA - 1]) { endB--; endA--; }
+  return { start, before: before.slice(start, endB), after: after.slice(start, endA) };
 }
 
 /** The editor state. Listen with `store.addEventListener("change", ...)`; `detail.kind` says what changed. */
@@ -104,7 +138,7 @@ export class EditorState extends EventTarget {
   /** Remember the document before a multi-step edit (e.g. a drag); finish it with {@link commit}. */
   checkpoint() {
     if (!this.show) return;
-    this._pending = { show: clone(this.show), current: this.current, selection: [...this.selection], version: this.version };
+    this._pending = { text: documentText(this.show), current: this.current, selection: [...this.selection], version: this.version };
   }
 
   /** Forget a checkpoint without recording or restoring anything (the gesture changed nothing). */
@@ -115,7 +149,11 @@ export class EditorState extends EventTarget {
   /** Drop a checkpoint and restore the document it remembered (e.g. Escape during a drag). */
   rollback() {
     if (!this._pending) return;
-    this._restore(this._pending);
+    const p = this._pending;
+    this.show = { ...JSON.parse(p.text.rest), formations: p.text.formations.map((f) => JSON.parse(f)) };
+    this.current = Math.min(p.current, this.show.formations.length - 1);
+    this.selection = new Set(p.selection);
+    this.version = p.version;
     this._pending = null;
     this._emit("edit");
   }
@@ -126,12 +164,28 @@ export class EditorState extends EventTarget {
    */
   commit(label) {
     if (!this._pending) return;
-    this._pending.label = label;
-    this.undoStack.push(this._pending);
+    const p = this._pending;
+    const now = documentText(this.show);
+    const diff = spliceDiff(p.text.formations, now.formations);
+    const version = this._nextVersion++;
+    this.undoStack.push({
+      label,
+      start: diff.start,
+      before: diff.before,
+      after: diff.after,
+      restBefore: p.text.rest === now.rest ? null : p.text.rest,
+      restAfter: p.text.rest === now.rest ? null : now.rest,
+      currentBefore: p.current,
+      currentAfter: this.current,
+      selectionBefore: p.selection,
+      selectionAfter: [...this.selection],
+      versionBefore: p.version,
+      versionAfter: version,
+    });
     if (this.undoStack.length > MAX_UNDO) this.undoStack.shift();
     this.redoStack = [];
     this._pending = null;
-    this.version = this._nextVersion++;
+    this.version = version;
     this._emit("edit");
   }
 
@@ -158,37 +212,39 @@ export class EditorState extends EventTarget {
     this.commit(label);
   }
 
-  _snapshot() {
-    return { show: clone(this.show), current: this.current, selection: [...this.selection], version: this.version };
-  }
-
-  _restore(snap) {
-    this.show = clone(snap.show);
-    this.current = Math.min(snap.current, this.show.formations.length - 1);
-    this.selection = new Set(snap.selection);
-    this.version = snap.version;
+  /**
+   * Apply one side of an undo step: put back the formations of `side` in place of the other's.
+   * @param {any} step an entry of undoStack / redoStack
+   * @param {"before"|"after"} side
+   */
+  _apply(step, side) {
+    const other = side === "before" ? "after" : "before";
+    const fs = this.show.formations;
+    fs.splice(step.start, step[other].length, ...step[side].map((f) => JSON.parse(f)));
+    const rest = side === "before" ? step.restBefore : step.restAfter;
+    if (rest !== null) this.show = { ...JSON.parse(rest), formations: fs };
+    const current = side === "before" ? step.currentBefore : step.currentAfter;
+    this.current = Math.max(0, Math.min(current, fs.length - 1));
+    this.selection = new Set(side === "before" ? step.selectionBefore : step.selectionAfter);
+    this.version = side === "before" ? step.versionBefore : step.versionAfter;
   }
 
   /** @returns {boolean} whether there was something to undo. */
   undo() {
-    const snap = this.undoStack.pop();
-    if (!snap) return false;
-    const now = this._snapshot();
-    now.label = snap.label;
-    this.redoStack.push(now);
-    this._restore(snap);
+    const step = this.undoStack.pop();
+    if (!step) return false;
+    this._apply(step, "before");
+    this.redoStack.push(step);
     this._emit("edit");
     return true;
   }
 
   /** @returns {boolean} whether there was something to redo. */
   redo() {
-    const snap = this.redoStack.pop();
-    if (!snap) return false;
-    const now = this._snapshot();
-    now.label = snap.label;
-    this.undoStack.push(now);
-    this._restore(snap);
+    const step = this.redoStack.pop();
+    if (!step) return false;
+    this._apply(step, "after");
+    this.undoStack.push(step);
     this._emit("edit");
     return true;
   }

@@ -1,3 +1,4 @@
+// @ts-check
 // Canvas editing tools: select (click, box, move), freehand draw (resampled to the drone count),
 // place, erase, pan. Every finished gesture is one undo step.
 
@@ -28,7 +29,7 @@ export class Tools {
     c.addEventListener("pointermove", (e) => this._move(e));
     c.addEventListener("pointerup", (e) => this._up(e));
     c.addEventListener("pointercancel", () => this.cancel());
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "current" || e.detail.kind === "load") this.strokes = [];
     });
   }

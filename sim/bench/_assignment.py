@@ -99,7 +99,8 @@ def measure_in_subprocess(kind: str, n: int, solver: str, *, timeout_s: float = 
     proc = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout_s, check=True
     )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    out: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
+    return out
 
 
 def bench_assignment(kind: str, n: int, *, dense_baseline: bool) -> dict[str, Any]:

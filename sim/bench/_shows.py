@@ -92,7 +92,7 @@ def benchmark_show(n: int, *, formations: int = 5) -> ShowFile:
     """A ``n``-drone show with ``formations`` alternating 2-D and 3-D formations, valid by default settings."""
     side = math.ceil(math.sqrt(n))
     half = 0.5 * math.sqrt(n) * BENCH_SPACING_M
-    specs = [
+    specs: list[tuple[str, dict[str, Any]]] = [
         ("sphere", {"size_m": 2 * 0.8 * math.sqrt(n) * BENCH_SPACING_M / 1.6}),
         ("grid", {"size_m": 2 * half, "plane": "xz"}),
         ("cube", {"size_m": BENCH_SPACING_M * (math.ceil(n ** (1 / 3)) - 1) * 1.05}),

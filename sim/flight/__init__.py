@@ -2,12 +2,16 @@
 
 Public names re-exported from the private modules (see each for the details)::
 
-    from sim.flight import fly_show
-    result = fly_show(plan, engine="numba", controller="ismc", disturbance="wind")
+    from sim.flight import FlightOptions, fly_show
+    result = fly_show(plan, FlightOptions(engine="numba", controller="ismc", disturbance="wind"))
     result.summary()
 
     # the same flight sharded over drones on a Dask cluster (identical arrays)
-    result = fly_show(plan, engine="dask", scheduler="tcp://127.0.0.1:8786")
+    result = fly_show(plan, FlightOptions(engine="dask", scheduler="tcp://127.0.0.1:8786"))
+
+Layers (each imports only those below): ``_fly`` (the dispatcher) -> ``_dask`` ->
+``_runner`` (local flight) -> ``_result``, ``_options`` -> ``engines`` -> ``control``,
+``_quadrotor``, ``_disturbance``; ``scenarios`` sits on ``engines``.
 """
 
 from __future__ import annotations
@@ -17,10 +21,17 @@ from sim.flight._dask import connect_scheduler as connect_scheduler
 from sim.flight._dask import fly_show_dask as fly_show_dask
 from sim.flight._disturbance import Disturbance as Disturbance
 from sim.flight._disturbance import make_disturbance as make_disturbance
+from sim.flight._fly import fly_show as fly_show
+from sim.flight._options import CONTROLLERS as CONTROLLERS
+from sim.flight._options import DISTURBANCES as DISTURBANCES
+from sim.flight._options import ENGINES as ENGINES
+from sim.flight._options import ControllerName as ControllerName
+from sim.flight._options import DisturbanceName as DisturbanceName
+from sim.flight._options import EngineName as EngineName
+from sim.flight._options import FlightOptions as FlightOptions
 from sim.flight._quadrotor import QuadrotorParams as QuadrotorParams
-from sim.flight._runner import FLOWN_DISTANCE_TOLERANCE_M as FLOWN_DISTANCE_TOLERANCE_M
-from sim.flight._runner import FlightResult as FlightResult
-from sim.flight._runner import fly_show as fly_show
+from sim.flight._result import FLOWN_DISTANCE_TOLERANCE_M as FLOWN_DISTANCE_TOLERANCE_M
+from sim.flight._result import FlightResult as FlightResult
 from sim.flight._runner import plan_reference as plan_reference
 from sim.flight.control._attitude import CommandFilter as CommandFilter
 from sim.flight.control._attitude import resolve_attitude as resolve_attitude
@@ -30,18 +41,25 @@ from sim.flight.control._ismc import IsmcGains as IsmcGains
 from sim.flight.control._ismc import PositionGains as PositionGains
 from sim.flight.control._ismc import sig as sig
 from sim.flight.control._ismc import unit as unit
-from sim.flight.engines._numpy import SimResult as SimResult
-from sim.flight.engines._numpy import TrackingReference as TrackingReference
-from sim.flight.engines._numpy import hover_state as hover_state
-from sim.flight.engines._numpy import numpy_step as numpy_step
-from sim.flight.engines._numpy import simulate as simulate
+from sim.flight.engines import SimResult as SimResult
+from sim.flight.engines import TrackingReference as TrackingReference
+from sim.flight.engines import hover_state as hover_state
+from sim.flight.engines import numpy_step as numpy_step
+from sim.flight.engines import simulate as simulate
 from sim.flight.scenarios._paper import PaperRun as PaperRun
 from sim.flight.scenarios._paper import paper_report as paper_report
 from sim.flight.scenarios._paper import plot_paper as plot_paper
 from sim.flight.scenarios._paper import run_paper_scenario as run_paper_scenario
 
 __all__ = [
+    "CONTROLLERS",
+    "DISTURBANCES",
+    "ENGINES",
     "FLOWN_DISTANCE_TOLERANCE_M",
+    "ControllerName",
+    "DisturbanceName",
+    "EngineName",
+    "FlightOptions",
     "AttitudeGains",
     "BaselineGains",
     "CommandFilter",

@@ -3,9 +3,9 @@
 Drones fly independently given the plan (the disturbances depend on time only, the
 wind is one field over the whole fleet), so a show splits over drones without any
 communication during the flight. :func:`fly_show_dask` cuts the plan's drones into
-contiguous shards, runs the local numba engine (:func:`sim.flight._runner.fly_show` with
+contiguous shards, runs the local numba engine (:func:`sim.flight._runner.fly_local` with
 ``drones=shard``) on each shard as one task, gathers the per-shard arrays and merges
-them into one :class:`~sim.flight._runner.FlightResult`. Each drone's trajectory is computed
+them into one :class:`~sim.flight._result.FlightResult`. Each drone's trajectory is computed
 by the same kernel from the same inputs whatever shard it is in, so the merged arrays
 equal the local engine's bit for bit (on workers with the same CPU features: numba
 compiles for the host CPU). The flown minimum distance needs every drone of a frame,
@@ -46,6 +46,9 @@ from typing import Any
 
 import numpy as np
 
+from sim.flight._options import FlightOptions
+from sim.flight._result import FlightResult, fold_flown_distance, ordered_pair
+from sim.flight._runner import fly_local
 from sim.plan._plan import ShowPlan
 
 __all__ = ["SchedulerUnreachableError", "connect_scheduler", "fly_show_dask"]
@@ -84,22 +87,20 @@ def _hold_plan(plan: ShowPlan) -> ShowPlan:
     return plan
 
 
-def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: dict[str, Any], token: str, shard: int) -> Any:
+def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token: str, shard: int) -> FlightResult:
     """Fly one shard with the local numba engine (runs on a worker).
 
     Args:
         plan: The planned show.
         drones: Plan indices of the shard's drones.
-        options: Keyword arguments of ``fly_show`` (controller, disturbance, ...).
+        options: The run's options, with ``engine="numba"`` and no flown distance.
         token: Identifier of the run, sent with the progress events.
         shard: Index of the shard, echoed in its progress events.
 
     Returns:
-        The shard's :class:`~sim.flight._runner.FlightResult` (without the flown distance).
+        The shard's :class:`~sim.flight._result.FlightResult` (without the flown distance).
     """
     from distributed import get_worker
-
-    from sim.flight._runner import fly_show
 
     worker = get_worker()
     key = worker.get_current_task()
@@ -117,7 +118,7 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: dict[str, Any], toke
             worker.log_event(PROGRESS_TOPIC, [token, int(shard), float(fraction)])
 
     with _ENGINE_LOCK:
-        return fly_show(plan, engine="numba", drones=drones, progress=progress, flown_distance=False, **options)
+        return fly_local(plan, options, drones=drones, progress=progress)
 
 
 def dask_setup(worker: Any) -> None:
@@ -127,7 +128,7 @@ def dask_setup(worker: Any) -> None:
     loaded from there by every process (about a second); doing it when the worker starts
     keeps both out of the first shard. Without the preload the first shard pays it.
     """
-    from sim.flight.engines._numba import warm_up
+    from sim.flight.engines._driver import warm_up
 
     warm_up()
 
@@ -199,50 +200,54 @@ def _shard_count(shards: int | None, drones: int, threads: int) -> int:
 
 def fly_show_dask(
     plan: ShowPlan,
+    options: FlightOptions | None = None,
     *,
-    scheduler: Any,
-    shards: int | None = None,
-    connect_timeout_s: float = 10.0,
     retries: int = 2,
     drones: slice | np.ndarray | None = None,
     progress: Callable[[float], None] | None = None,
-    **options: Any,
-) -> Any:
+    **kwargs: Any,
+) -> FlightResult:
     """Fly ``plan`` on a Dask cluster, sharded over drones (see the module docstring).
 
     Args:
         plan: The planned show.
-        scheduler: ``"tcp://HOST:PORT"`` of a running scheduler, ``"local"`` for an
-            in-process ``LocalCluster`` (one worker per core, loopback only), or a
-            connected ``distributed.Client``.
-        shards: Number of tasks (default two per worker thread, at most one per drone).
-        connect_timeout_s: How long to try to reach the scheduler and to wait for a
-            first worker (s).
+        options: The flight options (:class:`~sim.flight._options.FlightOptions`):
+            ``scheduler`` is ``"tcp://HOST:PORT"`` of a running scheduler, ``"local"``
+            for an in-process ``LocalCluster`` (one worker per core, loopback only), or
+            a connected ``distributed.Client``; ``shards`` the number of tasks (default
+            two per worker thread, at most one per drone); ``connect_timeout_s`` how
+            long to try to reach the scheduler and to wait for a first worker (s).
         retries: Extra attempts of a task that raised (worker deaths are handled by
             the scheduler on top of this).
         drones: Optional subset (slice or index array) of the plan's drones to fly.
         progress: Called with the completed fraction in [0, 1] (increasing, ending at 1);
             if it raises, the run is cancelled and the exception propagates.
-        **options: The other keyword arguments of :func:`sim.flight._runner.fly_show`
-            (controller, disturbance, output_hz, seed, params, gains, ...).
+        **kwargs: Instead of ``options``, its fields as keywords (``engine`` is implied).
 
     Returns:
-        A :class:`~sim.flight._runner.FlightResult` with ``engine="dask"``.
+        A :class:`~sim.flight._result.FlightResult` with ``engine="dask"``.
 
     Raises:
         SchedulerUnreachableError: The scheduler or its workers could not be reached.
     """
+    if options is None:
+        options = FlightOptions.from_kwargs(**{"engine": "dask", **kwargs})
+    elif kwargs:
+        raise TypeError("give the flight options either as FlightOptions or as keywords, not both")
+    # Each shard flies the local numba kernel (the same arrays, bit for bit) and skips the
+    # flown distance, which needs every drone of a frame and is computed after the merge.
+    shard_options = options.with_(engine="numba", scheduler=None, shards=None, flown_distance=False)
     ids = np.arange(plan.drone_count)
     if drones is not None:
         ids = ids[drones]
-    with connect_scheduler(scheduler, connect_timeout_s) as client:
+    with connect_scheduler(options.scheduler, options.connect_timeout_s) as client:
         start = time.perf_counter()
         threads = sum(client.nthreads().values())
-        k = _shard_count(shards, ids.size, threads)
+        k = _shard_count(options.shards, ids.size, threads)
         parts = [p for p in np.array_split(ids, k) if p.size] or [ids]
         # One reporter for both phases, so the fractions stay strictly increasing.
         report = _Reporter(progress)
-        results = _run_shards(client, plan, parts, options, retries, lambda f: report(SIM_SHARE * f))
+        results = _run_shards(client, plan, parts, shard_options, retries, lambda f: report(SIM_SHARE * f))
         address = client.scheduler.address
         workers = len(client.nthreads())
     merged = _merge(plan, ids, results, lambda f: report(SIM_SHARE + (1.0 - SIM_SHARE) * f))
@@ -287,13 +292,13 @@ def _route_event(event: Any) -> None:
 
 
 def _run_shards(
-    client: Any, plan: ShowPlan, parts: list[np.ndarray], options: dict[str, Any], retries: int,
+    client: Any, plan: ShowPlan, parts: list[np.ndarray], options: FlightOptions, retries: int,
     report: Callable[[float], None],
-) -> list[Any]:
+) -> list[FlightResult]:
     """Submit one task per shard, report progress as events arrive, gather in shard order."""
     token = uuid.uuid4().hex
     wake = threading.Event()
-    events: queue.SimpleQueue = queue.SimpleQueue()
+    events: queue.SimpleQueue[tuple[int, float]] = queue.SimpleQueue()
 
     def on_event(shard: int, fraction: float) -> None:
         events.put((shard, fraction))
@@ -359,10 +364,10 @@ def _run_shards(
             f.release()
 
 
-def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable[[float], None]) -> Any:
+def _merge(
+    plan: ShowPlan, ids: np.ndarray, results: list[FlightResult], report: Callable[[float], None]
+) -> FlightResult:
     """Concatenate the shards' arrays in drone order and compute the flown distance over all."""
-    from sim.flight._runner import FlightResult, _fold_flown_distance, _ordered_pair
-
     first = results[0]
     times = first.times_s
     dt_s = first.dt_s
@@ -374,12 +379,12 @@ def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable
     for d, t, _reason in diverged:
         dstep[where[d]] = int(round(t / dt_s))
 
-    # Same frame loop as the local engine (fly_show's on_chunk), over every drone.
+    # Same frame loop as the local engine (fly_local's on_chunk), over every drone.
     every = int(round((times[1] - times[0]) / dt_s)) if times.size > 1 else 1
-    best = [float("inf"), -1, -1, float("nan")]
+    best: list[Any] = [float("inf"), -1, -1, float("nan")]
     n_frames = times.size
     for f0 in range(0, n_frames, DISTANCE_BLOCK_FRAMES):
-        _fold_flown_distance(best, range(f0, min(f0 + DISTANCE_BLOCK_FRAMES, n_frames)), positions=positions,
+        fold_flown_distance(best, range(f0, min(f0 + DISTANCE_BLOCK_FRAMES, n_frames)), positions=positions,
                              times=times, ids=ids, dstep=dstep, every=every)
         report(min(f0 + DISTANCE_BLOCK_FRAMES, n_frames) / n_frames * 0.999)
 
@@ -392,7 +397,7 @@ def _merge(plan: ShowPlan, ids: np.ndarray, results: list[Any], report: Callable
         tracking_max_m=np.concatenate([r.tracking_max_m for r in results]),
         max_thrust_step_n=np.concatenate([r.max_thrust_step_n for r in results]),
         flown_min_distance_m=float(best[0]),
-        flown_min_distance_pair=_ordered_pair(best),
+        flown_min_distance_pair=ordered_pair(best),
         flown_min_distance_time_s=float(best[3]),
         min_distance_limit_m=float(plan.settings.min_distance_m),
         diverged=diverged,

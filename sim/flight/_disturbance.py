@@ -1,4 +1,4 @@
-"""External disturbances: none, the paper's Δ1/Δ2 (spec section 7) and seeded wind.
+"""External disturbances: none, the paper's Δ1/Δ2 (docs/method.md §7) and seeded wind.
 
 Every disturbance is built from *sinusoid banks*, each a function of time only::
 
@@ -12,7 +12,7 @@ and enters the model as
 ``Δ2`` is an **angular acceleration of the Euler angles**, not a torque: the paper's
 ``0.1 sin t``-sized Δ2 read as N·m would be ~42 rad/s² on this airframe, far beyond
 what β = 4 rejects, and the paper's Figs. 3-5 are consistent with rad/s² in the e4
-dynamics (spec section 7). The plant adds ``W⁻¹ Δ2`` to Ω̇ so ``Θ̈`` gets exactly Δ2.
+dynamics (docs/method.md §7). The plant adds ``W⁻¹ Δ2`` to Ω̇ so ``Θ̈`` gets exactly Δ2.
 
 The wind is a linear-drag model: steady wind plus gusts drawn as a seeded sum of
 sinusoids (frequencies log-spread over 0.05-1 Hz). The gust field is uniform over the

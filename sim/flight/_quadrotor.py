@@ -1,4 +1,4 @@
-"""Rigid-body quadrotor model of spec section 1 (eqs. 1-7), vectorised over drones.
+"""Rigid-body quadrotor model of docs/method.md §1 (eqs. 1-7), vectorised over drones.
 
 State layout (one row per drone, ``(N, 12)``): position ``p`` (m, world ENU, z up),
 velocity ``v`` (m/s, world), Euler angles ``Θ = [φ, θ, ψ]`` (rad, ZYX: roll, pitch,
@@ -10,7 +10,7 @@ yaw) and body rates ``Ω`` (rad/s)::
     Ω̇ = I⁻¹ (τ - Ω × IΩ) + W⁻¹(Θ) Δ2
 
 ``R = Rz(ψ) Ry(θ) Rx(φ)`` is body-to-world. ``Δ2`` is an *angular acceleration of the
-Euler angles* (rad/s², spec section 7): it is mapped through ``W⁻¹`` so that it appears
+Euler angles* (rad/s², docs/method.md §7): it is mapped through ``W⁻¹`` so that it appears
 unchanged in ``Θ̈`` and hence in the attitude error dynamics ``ė4``.
 
 Rotor layout ("+" configuration, viewed from above, x forward, y left, z up):
@@ -100,10 +100,11 @@ class QuadrotorParams:
                 10 % harder to rotate than the controller believes (dimensionless).
         """
         scale = 1.0 + float(fraction)
+        ix, iy, iz = (float(i) for i in self.inertia_kgm2)
         return replace(
             self,
             mass_kg=self.mass_kg * scale,
-            inertia_kgm2=tuple(float(i) * scale for i in self.inertia_kgm2),
+            inertia_kgm2=(ix * scale, iy * scale, iz * scale),
             omega_max_rad_s=float(np.sqrt(self.omega_max_sq)),
         )
 

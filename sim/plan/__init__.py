@@ -1,4 +1,4 @@
-"""Plan: CAPT assignment, time laws and the whole-show plan (show file -> :class:`ShowPlan`)."""
+"""Plan: CAPT assignment, time laws and the whole-show plan (show file -> :class:`ShowPlan`), cached per show."""
 
 from __future__ import annotations
 
@@ -7,6 +7,9 @@ from sim.plan._assignment import AssignmentError as AssignmentError
 from sim.plan._assignment import assign as assign
 from sim.plan._assignment import assignment_cost as assignment_cost
 from sim.plan._assignment import certify as certify
+from sim.plan._cache import cached_plan_show as cached_plan_show
+from sim.plan._cache import clear_plan_cache as clear_plan_cache
+from sim.plan._cache import plan_cache_info as plan_cache_info
 from sim.plan._plan import PlanError as PlanError
 from sim.plan._plan import PlanSample as PlanSample
 from sim.plan._plan import Segment as Segment

@@ -149,4 +149,5 @@ def _reduced(cost: np.ndarray) -> np.ndarray:
     else:
         reduced = cost.copy()
     reduced -= reduced.min(axis=1, keepdims=True)
-    return reduced
+    out: np.ndarray = reduced
+    return out

@@ -400,7 +400,9 @@ def _sorted_unique(keys: np.ndarray) -> np.ndarray:
     return keys[np.r_[True, keys[1:] != keys[:-1]]] if len(keys) else keys
 
 
-def _csr(keys: np.ndarray, n: int, m: int, x: np.ndarray, g: np.ndarray):
+def _csr(
+    keys: np.ndarray, n: int, m: int, x: np.ndarray, g: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSR arrays (indptr, indices, cost m²) of the candidate edges ``keys = i·M + j`` (sorted, unique)."""
     rows = keys // m
     cols = keys % m
@@ -715,12 +717,14 @@ def _column_candidates(x: np.ndarray, g: np.ndarray, row_min: np.ndarray, k: int
     u = np.where(np.isfinite(row_min), row_min, 0.0)
     xx, xy, xz = (np.ascontiguousarray(x[:, d]) for d in range(3))
     cand_t, _, _ = _scan_all_pairs(g, xx, xy, xz, u.max() - u, kk, np.full(len(g), -1, dtype=np.int64))
-    return cand_t.ravel() * m + np.repeat(np.arange(len(g), dtype=np.int64), kk)
+    out: np.ndarray = cand_t.ravel() * m + np.repeat(np.arange(len(g), dtype=np.int64), kk)
+    return out
 
 
 def _edge_cost(x: np.ndarray, g: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     diff = x[rows] - g[cols]
-    return np.einsum("ij,ij->i", diff, diff)
+    out: np.ndarray = np.einsum("ij,ij->i", diff, diff)
+    return out
 
 
 def certify(

@@ -1,4 +1,4 @@
-"""Attitude resolution (spec section 5, eq. 51) and the Θ_ref command filter.
+"""Attitude resolution (docs/method.md §5, eq. 51) and the Θ_ref command filter.
 
 The position loop outputs the desired thrust acceleration ``a = u`` (it contains
 ``+g e_z``); with the yaw reference ψ_ref the exact roll/pitch references for
@@ -7,7 +7,7 @@ The position loop outputs the desired thrust acceleration ``a = u`` (it contains
     φ_ref = arcsin((a_x sin ψ_ref - a_y cos ψ_ref) / ||a||)
     θ_ref = atan2(a_x cos ψ_ref + a_y sin ψ_ref, a_z)
 
-**How Θ̇_ref and Θ̈_ref are obtained** (the spec leaves the method open): ``u``
+**How Θ̇_ref and Θ̈_ref are obtained** (the paper leaves the method open): ``u``
 contains ``u_d = ∫ω̃``, whose derivative ω̃ is discontinuous, so an analytic Θ̈_ref
 (which would need u̇ and ü) does not exist. We use a second-order *command filter*
 (Farrell et al., command-filtered backstepping), critically damped by default::
@@ -34,7 +34,7 @@ error, attitude error to the raw eq. 51 reference, peak torque):
     ω_n = 400: 3.7e-5 m, 5.8e-3 rad, 0.36 N·m
 
 The default (a 0.3 rad step at 1 ms, well inside semi-implicit Euler's stability
-bound) is the slowest filter that meets both of the spec's error thresholds.
+bound) is the slowest filter that meets both of the paper scenario's error thresholds.
 """
 
 from __future__ import annotations
@@ -63,7 +63,8 @@ class CommandFilter:
     ) -> np.ndarray:
         """Filter output Θ̈_c (rad/s²) for the raw reference and the filter state."""
         wn = self.omega_n_rad_s
-        return wn * wn * (theta_ref - theta_c) - 2.0 * self.zeta * wn * theta_c_dot
+        out: np.ndarray = wn * wn * (theta_ref - theta_c) - 2.0 * self.zeta * wn * theta_c_dot
+        return out
 
 
 def resolve_attitude(accel_mps2: np.ndarray, psi_ref_rad: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Finite-time multivariable integral sliding-mode control (spec sections 4 and 6).
+"""Finite-time multivariable integral sliding-mode control (docs/method.md §4 and §6).
 
 Both loops share one structure, for an error pair ``(e, ė)`` with ``ë = u + f + d``::
 
@@ -8,7 +8,7 @@ Both loops share one structure, for an error pair ``(e, ė)`` with ``ë = u + f 
     u_d = ∫ ω̃ dt                                          (eq. 36, continuous)
     u   = u_n + u_d
 
-Discrete implementation at the control step ``dt`` (textbook sampled form, the spec is
+Discrete implementation at the control step ``dt`` (textbook sampled form, the paper is
 silent on it):
 
 * ``ṡ``'s direction is taken from the backward difference ``s_k - s_{k-1}`` (no
@@ -45,7 +45,6 @@ __all__ = [
     "SWITCH_EPS",
     "AttitudeGains",
     "IsmcGains",
-    "IsmcIntegrators",
     "PositionGains",
     "ismc_nominal",
     "ismc_switching",
@@ -155,7 +154,8 @@ def ismc_nominal(
     r_a: float, r_b: float,
 ) -> np.ndarray:
     """Nominal finite-time control ``u_n = -k_a sig(e, r_a) - k_b sig(ė, r_b) - f`` (eq. 28)."""
-    return -k_a * sig(e, r_a) - k_b * sig(e_dot, r_b) - f
+    out: np.ndarray = -k_a * sig(e, r_a) - k_b * sig(e_dot, r_b) - f
+    return out
 
 
 def ismc_switching(s: np.ndarray, s_prev: np.ndarray, *, gain: float) -> np.ndarray:
@@ -164,39 +164,3 @@ def ismc_switching(s: np.ndarray, s_prev: np.ndarray, *, gain: float) -> np.ndar
     Both directions use the boundary layer ``SWITCH_EPS`` (see the module docstring).
     """
     return -gain * (unit(s, SWITCH_EPS) + 0.5 * unit(s - s_prev, SWITCH_EPS))
-
-
-@dataclass
-class IsmcIntegrators:
-    """Per-drone integral sliding-mode state of one loop (arrays ``(N, 3)``).
-
-    Attributes:
-        e_dot0: ``ė(0)``, the rate error when the controller started.
-        integral: ``∫(u_n + f) dt`` since the start.
-        u_d: The continuous discontinuity-rejection input ``∫ω̃ dt``.
-        s_prev: Sliding variable of the previous step (for the ṡ direction).
-    """
-
-    e_dot0: np.ndarray
-    integral: np.ndarray
-    u_d: np.ndarray
-    s_prev: np.ndarray
-
-    @classmethod
-    def start(cls, e_dot0: np.ndarray) -> IsmcIntegrators:
-        """Fresh integrators for rate errors ``e_dot0`` ``(N, 3)``: s(0) = 0, u_d = 0."""
-        z = np.zeros_like(e_dot0)
-        return cls(np.array(e_dot0, dtype=np.float64), z.copy(), z.copy(), z.copy())
-
-    def sliding(self, e_dot: np.ndarray) -> np.ndarray:
-        """``s = ė - ė(0) - ∫(u_n + f)`` (eq. 30)."""
-        return e_dot - self.e_dot0 - self.integral
-
-    def advance(
-        self, *, un_plus_f: np.ndarray, omega_tilde: np.ndarray, s: np.ndarray,
-        frozen: np.ndarray, dt_s: float,
-    ) -> None:
-        """Integrate over one step; ``frozen`` ``(N,)`` rows keep ``u_d`` (anti-windup)."""
-        self.integral = self.integral + dt_s * un_plus_f
-        self.u_d = np.where(frozen[:, None], self.u_d, self.u_d + dt_s * omega_tilde)
-        self.s_prev = s

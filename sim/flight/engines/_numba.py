@@ -5,7 +5,7 @@ controller, same mixer and saturation, same semi-implicit Euler step, same diver
 rules), but with the loops the other way round: ``prange`` over drones, and for each
 drone a serial loop over the steps of the chunk with the whole state in registers.
 Drones are independent (disturbances depend on time only), so no synchronisation is
-needed inside a chunk; the driver (:func:`sim.flight.engines._numpy.simulate`) calls the
+needed inside a chunk; the driver (:func:`sim.flight.engines._driver.simulate`) calls the
 kernel once per chunk of steps, which bounds the memory of the reference and
 disturbance tables and gives progress granularity.
 
@@ -35,12 +35,13 @@ bit-identical.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba as nb
 import numpy as np
 
 from sim.flight.control._ismc import SWITCH_EPS
-from sim.flight.engines._numpy import (
+from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
     C_IATT,
@@ -63,7 +64,7 @@ from sim.flight.engines._numpy import (
     TrackingReference,
 )
 
-__all__ = ["run_chunk_numba", "warm_up"]
+__all__ = ["run_chunk_numba"]
 
 
 @nb.njit(inline="always", cache=True)
@@ -94,7 +95,7 @@ def _ismc_law(
     ex: float, ey: float, ez: float, edx: float, edy: float, edz: float, fx: float, fy: float, fz: float,
     ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
     ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float,
-) -> tuple:
+) -> tuple[float, ...]:
     """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim.flight.control._ismc``.
 
     Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
@@ -424,7 +425,7 @@ def run_chunk_numba(
     state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
     dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
-    opts: dict,
+    opts: dict[str, Any],
 ) -> None:
     """Advance ``len(times)`` steps in place with the fused kernel (same contract as the numpy chunk).
 
@@ -459,18 +460,3 @@ def run_chunk_numba(
         opts["gains"].as_vector(), float(opts["disturbance"].drag_per_s), float(opts["dt_s"]),
         float(opts["divergence_limit_m"]),
     )
-
-
-def warm_up() -> None:
-    """Compile (or load from the on-disk cache) both kernel variants on a tiny problem.
-
-    One variant records float64 frames (``simulate``), the other float32 frames
-    (``fly_show``); call this at image build or server start to move the first-run
-    compile time (several seconds each) out of the first request.
-    """
-    from sim.flight.engines._numpy import TrackingReference as _Ref
-    from sim.flight.engines._numpy import simulate
-
-    ref = _Ref.hover(np.zeros((1, 3)))
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1)
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1, frames_out=np.zeros((3, 1, 3), np.float32))

@@ -1,4 +1,4 @@
-"""The readable reference engine (plain numpy, arrays over drones) and the run driver.
+"""The readable reference engine: one control step for every drone at once, in plain numpy.
 
 One control step at ``t_k = k dt`` (dt = 1 ms, the paper's), for every drone at once:
 
@@ -15,7 +15,7 @@ one model evaluation per step, which is what makes the fused kernel fast. The
 switching terms never meet an adaptive solver: the inputs are held over the step.
 Classical RK4 with the inputs held (disturbances at the stage times) is available
 here as ``integrator="rk4"`` to measure the discretisation error; on the paper
-scenario both meet the spec's thresholds (``run_paper_scenario(engine="numpy",
+scenario both meet the paper scenario's thresholds (docs/method.md §7) (``run_paper_scenario(engine="numpy",
 integrator="rk4")``).
 
 Divergence: before a step, a drone whose position error exceeds ``divergence_limit_m``
@@ -23,20 +23,20 @@ is frozen; a step that would make any state or input non-finite is not committed
 the drone is frozen. Frozen drones keep their last finite state and are reported with
 the time and the reason; the others fly on.
 
-The controller state of each drone is a flat row of ``CTRL_SIZE`` floats (layout
-below) so the numpy and numba engines share it.
+The controller state of each drone is a flat row of ``CTRL_SIZE`` floats; the layout,
+the reference type and the result live in :mod:`sim.flight.engines._state` so the
+numpy and numba engines share them without importing each other. The run driver
+(:func:`sim.flight.engines._driver.simulate`) picks the engine.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from sim.flight._disturbance import Disturbance, make_disturbance
+from sim.flight._disturbance import Disturbance
 from sim.flight._quadrotor import (
-    STATE_SIZE,
     QuadrotorParams,
     euler_rate_matrix,
     euler_rate_matrix_inverse,
@@ -48,228 +48,37 @@ from sim.flight._quadrotor import (
     w_dot_omega,
 )
 from sim.flight.control._attitude import resolve_attitude
-from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching
-from sim.plan._trajectory import DEGREE, Trajectories
-
-__all__ = [
-    "CTRL_SIZE",
-    "DIVERGED_NONFINITE",
-    "DIVERGED_RUNAWAY",
-    "TELEMETRY_FIELDS",
-    "RefChunk",
-    "SimResult",
-    "TrackingReference",
-    "hover_state",
-    "init_controller",
-    "numpy_step",
-    "simulate",
-]
-
-# Controller state row layout (per drone).
-C_E2_0, C_IPOS, C_UD, C_SPREV = 0, 3, 6, 9  # position ISMC: ė(0), ∫(u_n+f), u_d, s_{k-1}
-C_E4_0, C_IATT, C_UDA, C_SAPREV = 12, 15, 18, 21  # attitude ISMC, same order
-C_THC, C_THC_DOT = 24, 27  # command filter state Θ_c, Θ̇_c
-C_LAST_THRUST = 30  # τ_f of the previous step (N), for the continuity metric
-CTRL_SIZE = 31
-
-# Per-drone statistics: Σ||e1||² (m²), max ||e1|| (m), max |Δτ_f| (N), steps counted.
-STAT_SUMSQ, STAT_MAX, STAT_DTHRUST, STAT_COUNT = 0, 1, 2, 3
-STATS_SIZE = 4
-
-DIVERGED_RUNAWAY = 1
-DIVERGED_NONFINITE = 2
-DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite"}
-
-# Telemetry row recorded at output frames (when requested).
-TELEMETRY_FIELDS = (
-    "e1_x", "e1_y", "e1_z",  # position error p - p_ref (m)
-    "e3_phi", "e3_theta", "e3_psi",  # Θ - Θ_c, error to the tracked (filtered) reference (rad)
-    "er_phi", "er_theta", "er_psi",  # Θ - Θ_ref, error to the unfiltered eq. 51 reference (rad)
-    "thrust", "tau_x", "tau_y", "tau_z",  # inputs acting on the body (N, N·m)
-    "saturated",  # 1 when a rotor was clipped
+from sim.flight.engines._state import (
+    C_E2_0,
+    C_E4_0,
+    C_IATT,
+    C_IPOS,
+    C_LAST_THRUST,
+    C_SAPREV,
+    C_SPREV,
+    C_THC,
+    C_THC_DOT,
+    C_UD,
+    C_UDA,
+    CTRL_SIZE,
+    DIVERGED_NONFINITE,
+    DIVERGED_RUNAWAY,
+    STAT_COUNT,
+    STAT_DTHRUST,
+    STAT_MAX,
+    STAT_SUMSQ,
+    RefChunk,
+    TrackingReference,
 )
-TEL_SIZE = len(TELEMETRY_FIELDS)
 
+# The shared types, re-exported for callers that still import them from here.
+from sim.flight.engines._state import STATS_SIZE as STATS_SIZE
+from sim.flight.engines._state import TELEMETRY_FIELDS as TELEMETRY_FIELDS
+from sim.flight.engines._state import SimResult as SimResult
+from sim.flight.engines._state import hover_state as hover_state
 
-def _constant_motion(points_m: np.ndarray, duration_s: float) -> Trajectories:
-    """Every drone at rest at ``points_m`` (N, 3) over [0, duration_s]: one constant piece each."""
-    p = np.asarray(points_m, dtype=np.float64)
-    coeffs = np.zeros((p.shape[0], 1, 3, DEGREE + 1))
-    coeffs[:, 0, :, 0] = p
-    breaks = np.zeros((p.shape[0], 2))
-    breaks[:, 1] = max(float(duration_s), 0.0)
-    return Trajectories(breaks, coeffs)
-
-
-@dataclass(frozen=True)
-class RefChunk:
-    """The parts of the reference shared by every drone, at a run of steps.
-
-    Each drone's own motion is not tabulated here: the engines evaluate its
-    polynomial pieces (:class:`~sim.plan.Trajectories`) at ``times`` themselves.
-
-    Attributes:
-        times: ``(T,)`` step times (s).
-        offset: ``(T, 9)`` common offset p (m), v (m/s), a (m/s²).
-        yaw: ``(T, 3)`` ψ_ref (rad), sin ψ_ref, cos ψ_ref.
-    """
-
-    times: np.ndarray
-    offset: np.ndarray
-    yaw: np.ndarray
-
-
-@dataclass(frozen=True)
-class TrackingReference:
-    """Per-drone reference trajectories: each drone's own polynomial pieces (+ a shared offset).
-
-    ``p_ref[i](t) = motion_i(t) + offset_p(t)``, likewise v and a with the piece
-    derivatives; outside ``[motion.start_s, motion.end_s]`` a drone rests at its
-    first / last position (velocity and acceleration zero), as
-    :meth:`~sim.plan.Trajectories.evaluate` defines.
-
-    Attributes:
-        motion: Per-drone piecewise polynomials (``breaks_s`` (N, P+1), ``coeffs_m`` (N, P, 3, 6)).
-        offset: Optional ``times (T,) -> (T, 9)`` common offset p, v, a.
-        yaw: Optional ``times (T,) -> (T,)`` yaw reference (rad); default 0.
-        duration_s: Nominal length (s).
-    """
-
-    motion: Trajectories
-    offset: Callable[[np.ndarray], np.ndarray] | None = None
-    yaw: Callable[[np.ndarray], np.ndarray] | None = None
-    duration_s: float = 0.0
-
-    @property
-    def drone_count(self) -> int:
-        """Number of drones N."""
-        return self.motion.drone_count
-
-    def subset(self, drones: slice | np.ndarray) -> TrackingReference:
-        """The same reference for a subset of drones (index array or slice)."""
-        return TrackingReference(
-            motion=self.motion.select(drones), offset=self.offset, yaw=self.yaw, duration_s=self.duration_s,
-        )
-
-    def chunk(self, times_s: np.ndarray) -> RefChunk:
-        """Evaluate the shared parts at ``(T,)`` times (s)."""
-        t = np.ascontiguousarray(times_s, dtype=np.float64)
-        off = np.zeros((t.size, 9)) if self.offset is None else np.asarray(self.offset(t))
-        psi = np.zeros(t.size) if self.yaw is None else np.asarray(self.yaw(t), dtype=np.float64)
-        return RefChunk(
-            times=t,
-            offset=np.ascontiguousarray(off, dtype=np.float64),
-            yaw=np.ascontiguousarray(np.stack([psi, np.sin(psi), np.cos(psi)], axis=1)),
-        )
-
-    def at_step(self, chunk: RefChunk, j: int) -> tuple[np.ndarray, ...]:
-        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk.
-
-        :meth:`~sim.plan.Trajectories.evaluate` at one time (each drone on its own piece,
-        clamped to the show, at rest outside it), with the derivative polynomials written
-        out by Horner's rule as the numba kernel writes them.
-        """
-        m = self.motion
-        t = float(chunk.times[j])
-        inside = m.start_s <= t <= m.end_s
-        tc = min(max(t, m.start_s), m.end_s)
-        rows = np.arange(m.drone_count)
-        idx = m.piece_index(np.array([tc]))[0]
-        c = m.coeffs_m[rows, idx]  # (N, 3, 6)
-        u = (tc - m.breaks_s[rows, idx])[:, None]
-        c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
-        off = chunk.offset[j]
-        pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0 + off[0:3]
-        if not inside:
-            return pos, np.broadcast_to(off[3:6], pos.shape).copy(), np.broadcast_to(off[6:9], pos.shape).copy()
-        d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
-        vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1 + off[3:6]
-        acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2 + off[6:9]
-        return pos, vel, acc
-
-    # -- simple references for tests and scenarios ------------------------------------
-    @classmethod
-    def hover(cls, points_m: np.ndarray, *, duration_s: float = 0.0) -> TrackingReference:
-        """Hold each drone at ``points_m`` ``(N, 3)`` (m); a step reference from elsewhere."""
-        return cls(motion=_constant_motion(points_m, duration_s), duration_s=duration_s)
-
-    @classmethod
-    def circle(
-        cls, centers_m: np.ndarray, *, radius_m: float, omega_rad_s: float,
-        duration_s: float = 0.0,
-    ) -> TrackingReference:
-        """Horizontal circles ``c + r [cos ωt, sin ωt, 0]`` around each centre ``(N, 3)``."""
-        r, w = float(radius_m), float(omega_rad_s)
-
-        def offset(t: np.ndarray) -> np.ndarray:
-            c, s, z = np.cos(w * t), np.sin(w * t), np.zeros_like(t)
-            return np.stack(
-                [r * c, r * s, z, -r * w * s, r * w * c, z, -r * w * w * c, -r * w * w * s, z],
-                axis=1,
-            )
-
-        return cls(motion=_constant_motion(centers_m, duration_s), offset=offset, duration_s=duration_s)
-
-    @classmethod
-    def paper(cls, *, drones: int = 1) -> TrackingReference:
-        """Spec section 7: ``p_ref = [sin t, cos t, sin t]``, ψ_ref = 0."""
-
-        def offset(t: np.ndarray) -> np.ndarray:
-            s, c = np.sin(t), np.cos(t)
-            return np.stack([s, c, s, c, -s, c, -s, -c, -s], axis=1)
-
-        return cls(motion=_constant_motion(np.zeros((drones, 3)), 20.0), offset=offset, duration_s=20.0)
-
-
-def hover_state(points_m: np.ndarray) -> np.ndarray:
-    """``(N, 12)`` state at rest, level, at ``points_m`` ``(N, 3)`` (m)."""
-    p = np.asarray(points_m, dtype=np.float64)
-    s = np.zeros((p.shape[0], STATE_SIZE))
-    s[:, 0:3] = p
-    return s
-
-
-@dataclass
-class SimResult:
-    """Output of one engine run (arrays over drones on axis 1 for frames).
-
-    Attributes:
-        frame_times_s: ``(F,)`` output times (s).
-        positions_m: ``(F, N, 3)`` flown positions at the frames (m).
-        telemetry: ``(F, N, TEL_SIZE)`` (see ``TELEMETRY_FIELDS``) or None.
-        rms_error_m: ``(N,)`` RMS of ||p - p_ref|| over every control step (m).
-        max_error_m: ``(N,)`` maximum of ||p - p_ref|| (m).
-        max_thrust_step_n: ``(N,)`` largest change of τ_f between steps (N).
-        diverged_step: ``(N,)`` step at which the drone was frozen, -1 if it was not.
-        diverged_reason: ``(N,)`` ``DIVERGED_*`` code, 0 if it was not.
-        final_state: ``(N, 12)`` state at the end.
-        dt_s: Control and integration step (s).
-        engine: ``"numpy"`` or ``"numba"``.
-    """
-
-    frame_times_s: np.ndarray
-    positions_m: np.ndarray
-    telemetry: np.ndarray | None
-    rms_error_m: np.ndarray
-    max_error_m: np.ndarray
-    max_thrust_step_n: np.ndarray
-    diverged_step: np.ndarray
-    diverged_reason: np.ndarray
-    final_state: np.ndarray
-    dt_s: float
-    engine: str
-    extra: dict = field(default_factory=dict)
-
-    def diverged(self) -> list[tuple[int, float, str]]:
-        """``[(drone, time_s, reason)]`` for every frozen drone, by drone index."""
-        idx = np.flatnonzero(self.diverged_step >= 0)
-        return [
-            (int(i), float(self.diverged_step[i] * self.dt_s),
-             DIVERGED_REASONS.get(int(self.diverged_reason[i]), "unknown"))
-            for i in idx
-        ]
-
+__all__ = ["init_controller", "numpy_step", "run_chunk_numpy"]
 
 # ----------------------------------------------------------------------------------------
 # Controller initialisation (shared by both engines)
@@ -414,11 +223,11 @@ def numpy_step(
     return ns, nc, tel
 
 
-def _run_chunk_numpy(
+def run_chunk_numpy(
     state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
     dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
-    opts: dict,
+    opts: dict[str, Any],
 ) -> None:
     """Advance ``len(times)`` steps in place (the numpy engine's chunk)."""
     limit = opts["divergence_limit_m"]
@@ -455,132 +264,3 @@ def _run_chunk_numpy(
         stats[alive, STAT_COUNT] += 1.0
         state[alive] = ns[alive]
         ctrl[alive] = nc[alive]
-
-
-# ----------------------------------------------------------------------------------------
-# Driver
-# ----------------------------------------------------------------------------------------
-def simulate(
-    reference: TrackingReference,
-    *,
-    duration_s: float,
-    initial_state: np.ndarray | None = None,
-    params: QuadrotorParams | None = None,
-    mismatch: float = 0.0,
-    gains: IsmcGains | BaselineGains | None = None,
-    disturbance: str | Disturbance | None = None,
-    seed: int = 0,
-    dt_s: float = 1e-3,
-    output_every: int = 40,
-    telemetry: bool = False,
-    engine: str = "numba",
-    integrator: str = "euler",
-    divergence_limit_m: float = 100.0,
-    chunk_steps: int = 1000,
-    progress: Callable[[float], None] | None = None,
-    frames_out: np.ndarray | None = None,
-    on_chunk: Callable[[int, np.ndarray], None] | None = None,
-) -> SimResult:
-    """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
-
-    Args:
-        reference: What each drone tracks (per-drone pieces + offset + yaw).
-        duration_s: Flight length (s); ``round(duration/dt) + 1`` control steps are
-            taken so that the state at ``duration_s`` is recorded.
-        initial_state: ``(N, 12)`` start state; default at rest, level, on the
-            reference at t = 0.
-        params: The vehicle the controller is tuned for (default: the paper's).
-        mismatch: Plant mass and inertia off by this fraction (dimensionless).
-        gains: ISMC gains (default the paper's) or ``BaselineGains`` for the PD baseline.
-        disturbance: ``"none" | "paper" | "wind"`` or a ``Disturbance``.
-        seed: Seed of the wind gusts.
-        dt_s: Control and integration step (s), default 1 ms (the paper's).
-        output_every: Record positions (and telemetry) every this many steps.
-        telemetry: Also record ``TELEMETRY_FIELDS`` at the frames.
-        engine: ``"numba"`` (fused kernel) or ``"numpy"`` (reference).
-        integrator: ``"euler"`` (semi-implicit; both engines) or ``"rk4"`` (numpy only).
-        divergence_limit_m: Position error beyond which a drone is frozen (m).
-        chunk_steps: Steps per kernel call (progress granularity).
-        progress: Called with the completed fraction in [0, 1] after every chunk; an
-            exception it raises stops the run and propagates (used to cancel).
-        frames_out: Optional preallocated ``(F, N, 3)`` frame buffer (float32 or
-            float64), F = ``(steps - 1) // output_every + 1``; saves a float64 copy.
-        on_chunk: Called after every chunk with ``(steps_done, diverged_step)``:
-            frames with index ``< ceil(steps_done / output_every)`` are final.
-
-    Returns:
-        A ``SimResult``.
-    """
-    params = params or QuadrotorParams()
-    plant = params.mismatched(fraction=mismatch) if mismatch else params
-    if gains is None:
-        gains = IsmcGains()
-    if isinstance(gains, BaselineGains):
-        gains = gains.as_ismc()
-    dist = make_disturbance(disturbance, seed=seed)
-    n = reference.drone_count
-    steps = int(round(duration_s / dt_s)) + 1
-    every = max(int(output_every), 1)
-    n_frames = (steps - 1) // every + 1
-
-    chunk0 = reference.chunk(np.zeros(1))
-    if initial_state is None:
-        initial_state = hover_state(reference.at_step(chunk0, 0)[0])
-    state = np.array(initial_state, dtype=np.float64, copy=True)
-    if state.shape != (n, STATE_SIZE):
-        raise ValueError(f"initial_state must be ({n}, {STATE_SIZE}), got {state.shape}")
-    ctrl = init_controller(state, reference, chunk0, params=params, gains=gains)
-    stats = np.zeros((n, STATS_SIZE))
-    dstep = np.full(n, -1, dtype=np.int64)
-    dreason = np.zeros(n, dtype=np.int64)
-    if frames_out is None:
-        frames = np.zeros((n_frames, n, 3))
-    else:
-        frames = frames_out
-        if frames.shape != (n_frames, n, 3):
-            raise ValueError(f"frames_out must be {(n_frames, n, 3)}, got {frames.shape}")
-    tel = np.full((n_frames, n, TEL_SIZE), np.nan) if telemetry else None
-
-    if engine == "numba":
-        if integrator != "euler":
-            raise ValueError("the numba engine integrates with semi-implicit Euler only")
-        from sim.flight.engines._numba import run_chunk_numba as runner
-    elif engine == "numpy":
-        runner = _run_chunk_numpy
-    else:
-        raise ValueError(f"unknown engine {engine!r} (expected numba or numpy)")
-
-    opts = {
-        "params": params, "plant": plant, "gains": gains, "disturbance": dist, "dt_s": dt_s,
-        "integrator": integrator, "divergence_limit_m": float(divergence_limit_m),
-    }
-    step = 0
-    while step < steps:
-        count = min(int(chunk_steps), steps - step)
-        times = (step + np.arange(count)) * dt_s
-        runner(
-            state, ctrl, stats, dstep, dreason, ref=reference, chunk=reference.chunk(times),
-            dist=np.ascontiguousarray(dist.signals(times)), step0=step, times=times,
-            every=every, frames=frames, tel=tel, opts=opts,
-        )
-        step += count
-        if on_chunk is not None:
-            on_chunk(step, dstep)
-        if progress is not None:
-            progress(step / steps)
-
-    count = np.maximum(stats[:, STAT_COUNT], 1.0)
-    return SimResult(
-        frame_times_s=np.arange(n_frames) * every * dt_s,
-        positions_m=frames,
-        telemetry=tel,
-        rms_error_m=np.sqrt(stats[:, STAT_SUMSQ] / count),
-        max_error_m=stats[:, STAT_MAX].copy(),
-        max_thrust_step_n=stats[:, STAT_DTHRUST].copy(),
-        diverged_step=dstep,
-        diverged_reason=dreason,
-        final_state=state,
-        dt_s=dt_s,
-        engine=engine,
-    )
-

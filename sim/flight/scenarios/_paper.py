@@ -1,4 +1,4 @@
-"""The paper's single-drone scenario (spec section 7), its metrics and its figure.
+"""The paper's single-drone scenario (docs/method.md §7), its metrics and its figure.
 
 Reference ``p_ref = [sin t, cos t, sin t]`` (m), ψ_ref = 0; disturbances
 ``Δ1 = Δ2 = [0.1 sin t, 0.1 cos t, 0.1 (sin t + cos t)]`` with Δ1 in m/s² and Δ2 an
@@ -15,7 +15,7 @@ Errors reported:
   command ``Θ_c`` that the attitude ISMC actually tracks (its e3).
 
 ``settle_time_s`` is the first time after which the position error stays below
-1e-3 m and the attitude error below 1e-2 rad until the end (the spec's thresholds).
+1e-3 m and the attitude error below 1e-2 rad until the end (the scenario's thresholds).
 ``max_thrust_step_n`` is the largest change of the thrust between consecutive steps
 over the whole run; ``max_thrust_step_after_settle_n`` the same after settling.
 
@@ -33,12 +33,15 @@ lets the lag break the 1e-3 m position requirement (table in ``sim.flight.contro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from sim.flight._options import CONTROLLERS
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
-from sim.flight.engines._numpy import TELEMETRY_FIELDS, TrackingReference, simulate
+from sim.flight.engines._driver import simulate
+from sim.flight.engines._state import TELEMETRY_FIELDS, TrackingReference
 
 __all__ = [
     "PAPER_ATT_THRESHOLD_RAD",
@@ -83,7 +86,7 @@ class PaperRun:
     torque_nm: np.ndarray
     saturated: np.ndarray
 
-    def metrics(self) -> dict:
+    def metrics(self) -> dict[str, Any]:
         """The scalar figures of the run (JSON-safe)."""
         t = self.times_s
         pe = np.linalg.norm(self.pos_err_m, axis=1)
@@ -120,7 +123,7 @@ def run_paper_scenario(
     *, controller: str = "ismc", engine: str = "numba", duration_s: float = PAPER_DURATION_S,
     integrator: str = "euler",
 ) -> PaperRun:
-    """Fly spec section 7 with the paper's gains (or the baseline PD) and record every step.
+    """Fly the scenario of docs/method.md §7 with the paper's gains (or the baseline PD) and record every step.
 
     Args:
         controller: ``"ismc"`` or ``"baseline"``.
@@ -128,8 +131,8 @@ def run_paper_scenario(
         duration_s: Length (s), default 20 s as in the paper.
         integrator: ``"euler"`` (both engines) or ``"rk4"`` (numpy engine only).
     """
-    if controller not in ("ismc", "baseline"):
-        raise ValueError(f"unknown controller {controller!r} (expected ismc or baseline)")
+    if controller not in CONTROLLERS:
+        raise ValueError(f"unknown controller {controller!r} (expected {' or '.join(CONTROLLERS)})")
     x0 = np.zeros((1, 12))
     x0[0, 0:3] = PAPER_P0_M
     x0[0, 6:9] = PAPER_THETA0_RAD
@@ -139,6 +142,7 @@ def run_paper_scenario(
         disturbance="paper", output_every=1, telemetry=True, engine=engine, integrator=integrator,
         chunk_steps=5000,
     )
+    assert res.telemetry is not None  # asked for with telemetry=True
     tel = res.telemetry[:, 0]
     return PaperRun(
         controller=controller,
@@ -152,7 +156,7 @@ def run_paper_scenario(
     )
 
 
-def paper_report(*, controller: str = "ismc", engine: str = "numba") -> tuple[dict, PaperRun, PaperRun]:
+def paper_report(*, controller: str = "ismc", engine: str = "numba") -> tuple[dict[str, Any], PaperRun, PaperRun]:
     """Run the scenario with ``controller`` and with the other one for comparison.
 
     Returns:
@@ -226,6 +230,6 @@ def plot_paper(runs: list[PaperRun], path: str) -> None:
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
-    fig.suptitle("Paper scenario (spec section 7): ISMC tracking under Δ1, Δ2")
+    fig.suptitle("Paper scenario (docs/method.md §7): ISMC tracking under Δ1, Δ2")
     fig.savefig(path, dpi=110)
     plt.close(fig)

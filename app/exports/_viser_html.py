@@ -28,7 +28,9 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.viewer._tracks import framing_camera, make_track, show_bounds
+from app.exports._archive import safe_stem
+from app.exports._core import ExportContext, ExportResult
+from app.exports._tracks import framing_camera, make_track, show_bounds
 from sim import ShowPlan
 from sim.geometry import closest_pair
 
@@ -155,11 +157,8 @@ def _led_uint8(colors_rgb: np.ndarray) -> np.ndarray:
     return (np.clip(DARK_LED_FLOOR + (1.0 - DARK_LED_FLOOR) * colors_rgb, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
-def viser_html_exporter(ctx: Any) -> Any:
+def export_viser_html_file(ctx: ExportContext) -> ExportResult:
     """``viser-html`` entry of :data:`app.exports.EXPORT_FORMATS`: an ``ExportContext`` -> ``ExportResult``."""
-    from app.exports import ExportResult
-    from app.exports._archive import safe_stem
-
     options = ctx.options
     flight = ctx.flight if options.source == "simulated" else None
     ctx.progress(0.8 if flight is not None else 0.1)
@@ -173,4 +172,4 @@ def viser_html_exporter(ctx: Any) -> Any:
     )
 
 
-__all__ = ["DEFAULT_EXPORT_FPS", "export_viser_html", "viser_html_exporter"]
+__all__ = ["DEFAULT_EXPORT_FPS", "export_viser_html", "export_viser_html_file"]

@@ -9,13 +9,14 @@ cache (each drone's current piece), never state that changes an answer.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numba as nb
 import numpy as np
 
-from sim import ShowPlan
-from sim.plan import Trajectories
+if TYPE_CHECKING:  # annotations only: importing app.exports stays cheap (no numba, no scipy)
+    from sim import ShowPlan
+    from sim.plan import Trajectories
 
 Source = Literal["planned", "simulated"]
 

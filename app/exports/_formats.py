@@ -1,0 +1,113 @@
+"""The format registry and the entry points :func:`export_show` / :func:`export_plan`.
+
+Every format is a function ``export(ctx: ExportContext) -> ExportResult``
+registered in :data:`EXPORT_FORMATS` by a lazy ``"module:function"`` string, so
+that importing :mod:`app.exports` stays cheap (viser and the flight simulation
+load only when their format is asked for) and a new format is one entry. The
+registry sits above the format modules (they import only :mod:`app.exports._core`),
+so the lazy strings point down and form no cycle.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from app.exports._core import ExportContext, ExportError, ExportOptions, ExportResult, ProgressFn, Source
+
+if TYPE_CHECKING:
+    from formations import ShowFile
+    from sim import ShowPlan
+
+#: Format name -> ``"module:function"`` of its exporter (imported on first use).
+EXPORT_FORMATS: dict[str, str] = {
+    "show": "app.exports._show_json:export_show_json",
+    "skybrush-csv": "app.exports._skybrush_csv:export_skybrush_csv",
+    "skyc": "app.exports._skyc:export_skyc",
+    "crazyswarm": "app.exports._crazyswarm:export_crazyswarm",
+    "qgc-plan": "app.exports._qgc:export_qgc_plan",
+    "qgc-wpl": "app.exports._qgc:export_qgc_wpl",
+    "waypoints-csv": "app.exports._waypoints_csv:export_waypoints_csv",
+    "viser-html": "app.exports._viser_html:export_viser_html_file",
+}
+
+
+
+def _load_exporter(fmt: str) -> Callable[[ExportContext], ExportResult]:
+    target = EXPORT_FORMATS.get(fmt)
+    if target is None:
+        raise ExportError(f"unknown export format {fmt!r}; one of: {', '.join(EXPORT_FORMATS)}")
+    module_name, _, func_name = target.partition(":")
+    return getattr(importlib.import_module(module_name), func_name)
+
+
+def export_show(
+    show: ShowFile,
+    fmt: str,
+    *,
+    fps: float | None = None,
+    origin: tuple[float, float, float] | None = None,
+    heading_deg: float = 0.0,
+    source: Source = "planned",
+    plan: ShowPlan | None = None,
+    flight: Any = None,
+    drone_names: list[str] | None = None,
+    progress: ProgressFn | None = None,
+) -> ExportResult:
+    """Export a show in one of :data:`EXPORT_FORMATS`.
+
+    Args:
+        show: a validated show file.
+        fmt: format name, a key of :data:`EXPORT_FORMATS`.
+        fps: sampling rate of sampled formats, frames per second (``None``: the format's default).
+        origin: ``(latitude_deg, longitude_deg, altitude_m)`` of the local origin (QGroundControl formats).
+        heading_deg: bearing of the show's +y axis, degrees clockwise from true north.
+        source: ``"planned"`` or ``"simulated"`` (sampled formats only).
+        plan: the show's plan if already computed (else planned here).
+        flight: the simulated flight if already computed (else flown here when needed).
+        drone_names: optional per-drone names (sanitised for use as file names).
+        progress: optional callback receiving the fraction done in [0, 1].
+
+    Returns:
+        The exported file.
+
+    Raises:
+        ExportError: unknown format, bad option, or a show that cannot be planned.
+    """
+    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source)
+    return export_plan(
+        show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
+    )
+
+
+def export_plan(
+    show: ShowFile,
+    fmt: str,
+    *,
+    options: ExportOptions | None = None,
+    plan: ShowPlan | None = None,
+    flight: Any = None,
+    drone_names: list[str] | None = None,
+    progress: ProgressFn | None = None,
+) -> ExportResult:
+    """Like :func:`export_show` with the options as one :class:`ExportOptions`."""
+    exporter = _load_exporter(fmt)
+    options = options if options is not None else ExportOptions()
+    if drone_names is not None and len(drone_names) != show.drones:
+        raise ExportError(f"drone_names has {len(drone_names)} names for {show.drones} drones")
+    if plan is not None and plan.drone_count != show.drones:
+        raise ExportError(f"the plan has {plan.drone_count} drones, the show {show.drones}")
+    ctx = ExportContext(
+        show, options, fmt=fmt, plan=plan, flight=flight, drone_names=drone_names, progress=progress
+    )
+    result = exporter(ctx)
+    ctx.progress(1.0)
+    if ctx.warnings:
+        result = ExportResult(
+            filename=result.filename,
+            media_type=result.media_type,
+            content=result.content,
+            warnings=[*result.warnings, *(w for w in ctx.warnings if w not in result.warnings)],
+        )
+    return result

@@ -1,0 +1,176 @@
+"""The run driver: :func:`simulate` flies a reference in chunks with either engine.
+
+It allocates the state, controller and statistics arrays (layout in
+:mod:`sim.flight.engines._state`), evaluates the shared reference tables and the
+disturbance one chunk at a time, and hands each chunk to the numpy step
+(:mod:`sim.flight.engines._numpy`) or the fused numba kernel
+(:mod:`sim.flight.engines._numba`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from sim.flight._disturbance import Disturbance, make_disturbance
+from sim.flight._quadrotor import STATE_SIZE, QuadrotorParams
+from sim.flight.control._baseline import BaselineGains
+from sim.flight.control._ismc import IsmcGains
+from sim.flight.engines._numpy import init_controller, run_chunk_numpy
+from sim.flight.engines._state import (
+    STAT_COUNT,
+    STAT_DTHRUST,
+    STAT_MAX,
+    STAT_SUMSQ,
+    STATS_SIZE,
+    TEL_SIZE,
+    SimResult,
+    TrackingReference,
+    hover_state,
+)
+
+__all__ = ["simulate", "warm_up"]
+
+ChunkRunner = Callable[..., None]
+
+
+def simulate(
+    reference: TrackingReference,
+    *,
+    duration_s: float,
+    initial_state: np.ndarray | None = None,
+    params: QuadrotorParams | None = None,
+    mismatch: float = 0.0,
+    gains: IsmcGains | BaselineGains | None = None,
+    disturbance: str | Disturbance | None = None,
+    seed: int = 0,
+    dt_s: float = 1e-3,
+    output_every: int = 40,
+    telemetry: bool = False,
+    engine: str = "numba",
+    integrator: str = "euler",
+    divergence_limit_m: float = 100.0,
+    chunk_steps: int = 1000,
+    progress: Callable[[float], None] | None = None,
+    frames_out: np.ndarray | None = None,
+    on_chunk: Callable[[int, np.ndarray], None] | None = None,
+) -> SimResult:
+    """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
+
+    Args:
+        reference: What each drone tracks (knots + time law + offset + yaw).
+        duration_s: Flight length (s); ``round(duration/dt) + 1`` control steps are
+            taken so that the state at ``duration_s`` is recorded.
+        initial_state: ``(N, 12)`` start state; default at rest, level, on the
+            reference at t = 0.
+        params: The vehicle the controller is tuned for (default: the paper's).
+        mismatch: Plant mass and inertia off by this fraction (dimensionless).
+        gains: ISMC gains (default the paper's) or ``BaselineGains`` for the PD baseline.
+        disturbance: ``"none" | "paper" | "wind"`` or a ``Disturbance``.
+        seed: Seed of the wind gusts.
+        dt_s: Control and integration step (s), default 1 ms (the paper's).
+        output_every: Record positions (and telemetry) every this many steps.
+        telemetry: Also record ``TELEMETRY_FIELDS`` at the frames.
+        engine: ``"numba"`` (fused kernel) or ``"numpy"`` (reference).
+        integrator: ``"euler"`` (semi-implicit; both engines) or ``"rk4"`` (numpy only).
+        divergence_limit_m: Position error beyond which a drone is frozen (m).
+        chunk_steps: Steps per kernel call (progress granularity).
+        progress: Called with the completed fraction in [0, 1] after every chunk; an
+            exception it raises stops the run and propagates (used to cancel).
+        frames_out: Optional preallocated ``(F, N, 3)`` frame buffer (float32 or
+            float64), F = ``(steps - 1) // output_every + 1``; saves a float64 copy.
+        on_chunk: Called after every chunk with ``(steps_done, diverged_step)``:
+            frames with index ``< ceil(steps_done / output_every)`` are final.
+
+    Returns:
+        A ``SimResult``.
+    """
+    params = params or QuadrotorParams()
+    plant = params.mismatched(fraction=mismatch) if mismatch else params
+    if gains is None:
+        gains = IsmcGains()
+    if isinstance(gains, BaselineGains):
+        gains = gains.as_ismc()
+    dist = make_disturbance(disturbance, seed=seed)
+    n = reference.drone_count
+    steps = int(round(duration_s / dt_s)) + 1
+    every = max(int(output_every), 1)
+    n_frames = (steps - 1) // every + 1
+
+    chunk0 = reference.chunk(np.zeros(1))
+    if initial_state is None:
+        initial_state = hover_state(reference.at_step(chunk0, 0)[0])
+    state = np.array(initial_state, dtype=np.float64, copy=True)
+    if state.shape != (n, STATE_SIZE):
+        raise ValueError(f"initial_state must be ({n}, {STATE_SIZE}), got {state.shape}")
+    ctrl = init_controller(state, reference, chunk0, params=params, gains=gains)
+    stats = np.zeros((n, STATS_SIZE))
+    dstep = np.full(n, -1, dtype=np.int64)
+    dreason = np.zeros(n, dtype=np.int64)
+    if frames_out is None:
+        frames = np.zeros((n_frames, n, 3))
+    else:
+        frames = frames_out
+        if frames.shape != (n_frames, n, 3):
+            raise ValueError(f"frames_out must be {(n_frames, n, 3)}, got {frames.shape}")
+    tel = np.full((n_frames, n, TEL_SIZE), np.nan) if telemetry else None
+
+    if engine == "numba":
+        if integrator != "euler":
+            raise ValueError("the numba engine integrates with semi-implicit Euler only")
+        # Imported on first use: numba's import and the kernel's cache load cost a second.
+        from sim.flight.engines._numba import run_chunk_numba
+
+        runner: ChunkRunner = run_chunk_numba
+    elif engine == "numpy":
+        runner = run_chunk_numpy
+    else:
+        raise ValueError(f"unknown engine {engine!r} (expected numba or numpy)")
+
+    opts: dict[str, Any] = {
+        "params": params, "plant": plant, "gains": gains, "disturbance": dist, "dt_s": dt_s,
+        "integrator": integrator, "divergence_limit_m": float(divergence_limit_m),
+    }
+    step = 0
+    while step < steps:
+        count = min(int(chunk_steps), steps - step)
+        times = (step + np.arange(count)) * dt_s
+        runner(
+            state, ctrl, stats, dstep, dreason, ref=reference, chunk=reference.chunk(times),
+            dist=np.ascontiguousarray(dist.signals(times)), step0=step, times=times,
+            every=every, frames=frames, tel=tel, opts=opts,
+        )
+        step += count
+        if on_chunk is not None:
+            on_chunk(step, dstep)
+        if progress is not None:
+            progress(step / steps)
+
+    counted = np.maximum(stats[:, STAT_COUNT], 1.0)
+    return SimResult(
+        frame_times_s=np.arange(n_frames) * every * dt_s,
+        positions_m=frames,
+        telemetry=tel,
+        rms_error_m=np.sqrt(stats[:, STAT_SUMSQ] / counted),
+        max_error_m=stats[:, STAT_MAX].copy(),
+        max_thrust_step_n=stats[:, STAT_DTHRUST].copy(),
+        diverged_step=dstep,
+        diverged_reason=dreason,
+        final_state=state,
+        dt_s=dt_s,
+        engine=engine,
+    )
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) both numba kernel variants on a tiny problem.
+
+    One variant records float64 frames (``simulate``), the other float32 frames
+    (``fly_show``); call this at image build or server start to move the first-run
+    compile time (several seconds each) out of the first request.
+    """
+    ref = TrackingReference.hover(np.zeros((1, 3)))
+    simulate(ref, duration_s=0.002, engine="numba", output_every=1)
+    simulate(ref, duration_s=0.002, engine="numba", output_every=1, frames_out=np.zeros((3, 1, 3), np.float32))

@@ -1,0 +1,236 @@
+"""What both engines share: the controller-state layout, the reference type, the result.
+
+The controller state of each drone is a flat row of ``CTRL_SIZE`` floats (layout
+below) so the numpy engine (:mod:`sim.flight.engines._numpy`) and the fused numba
+kernel (:mod:`sim.flight.engines._numba`) share it; both import this module and
+neither imports the other (the driver, :mod:`sim.flight.engines._driver`, picks one).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sim.flight._quadrotor import STATE_SIZE
+from sim.plan._trajectory import DEGREE, Trajectories
+
+__all__ = [
+    "CTRL_SIZE",
+    "DIVERGED_NONFINITE",
+    "DIVERGED_REASONS",
+    "DIVERGED_RUNAWAY",
+    "STATS_SIZE",
+    "TELEMETRY_FIELDS",
+    "TEL_SIZE",
+    "RefChunk",
+    "SimResult",
+    "TrackingReference",
+    "hover_state",
+]
+
+# Controller state row layout (per drone).
+C_E2_0, C_IPOS, C_UD, C_SPREV = 0, 3, 6, 9  # position ISMC: ė(0), ∫(u_n+f), u_d, s_{k-1}
+C_E4_0, C_IATT, C_UDA, C_SAPREV = 12, 15, 18, 21  # attitude ISMC, same order
+C_THC, C_THC_DOT = 24, 27  # command filter state Θ_c, Θ̇_c
+C_LAST_THRUST = 30  # τ_f of the previous step (N), for the continuity metric
+CTRL_SIZE = 31
+
+# Per-drone statistics: Σ||e1||² (m²), max ||e1|| (m), max |Δτ_f| (N), steps counted.
+STAT_SUMSQ, STAT_MAX, STAT_DTHRUST, STAT_COUNT = 0, 1, 2, 3
+STATS_SIZE = 4
+
+DIVERGED_RUNAWAY = 1
+DIVERGED_NONFINITE = 2
+DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite"}
+
+# Telemetry row recorded at output frames (when requested).
+TELEMETRY_FIELDS = (
+    "e1_x", "e1_y", "e1_z",  # position error p - p_ref (m)
+    "e3_phi", "e3_theta", "e3_psi",  # Θ - Θ_c, error to the tracked (filtered) reference (rad)
+    "er_phi", "er_theta", "er_psi",  # Θ - Θ_ref, error to the unfiltered eq. 51 reference (rad)
+    "thrust", "tau_x", "tau_y", "tau_z",  # inputs acting on the body (N, N·m)
+    "saturated",  # 1 when a rotor was clipped
+)
+TEL_SIZE = len(TELEMETRY_FIELDS)
+
+
+def _constant_motion(points_m: np.ndarray, duration_s: float) -> Trajectories:
+    """Every drone at rest at ``points_m`` (N, 3) over [0, duration_s]: one constant piece each."""
+    p = np.asarray(points_m, dtype=np.float64)
+    coeffs = np.zeros((p.shape[0], 1, 3, DEGREE + 1))
+    coeffs[:, 0, :, 0] = p
+    breaks = np.zeros((p.shape[0], 2))
+    breaks[:, 1] = max(float(duration_s), 0.0)
+    return Trajectories(breaks, coeffs)
+
+
+@dataclass(frozen=True)
+class RefChunk:
+    """The parts of the reference shared by every drone, at a run of steps.
+
+    Each drone's own motion is not tabulated here: the engines evaluate its
+    polynomial pieces (:class:`~sim.plan.Trajectories`) at ``times`` themselves.
+
+    Attributes:
+        times: ``(T,)`` step times (s).
+        offset: ``(T, 9)`` common offset p (m), v (m/s), a (m/s²).
+        yaw: ``(T, 3)`` ψ_ref (rad), sin ψ_ref, cos ψ_ref.
+    """
+
+    times: np.ndarray
+    offset: np.ndarray
+    yaw: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrackingReference:
+    """Per-drone reference trajectories: each drone's own polynomial pieces (+ a shared offset).
+
+    ``p_ref[i](t) = motion_i(t) + offset_p(t)``, likewise v and a with the piece
+    derivatives; outside ``[motion.start_s, motion.end_s]`` a drone rests at its
+    first / last position (velocity and acceleration zero), as
+    :meth:`~sim.plan.Trajectories.evaluate` defines.
+
+    Attributes:
+        motion: Per-drone piecewise polynomials (``breaks_s`` (N, P+1), ``coeffs_m`` (N, P, 3, 6)).
+        offset: Optional ``times (T,) -> (T, 9)`` common offset p, v, a.
+        yaw: Optional ``times (T,) -> (T,)`` yaw reference (rad); default 0.
+        duration_s: Nominal length (s).
+    """
+
+    motion: Trajectories
+    offset: Callable[[np.ndarray], np.ndarray] | None = None
+    yaw: Callable[[np.ndarray], np.ndarray] | None = None
+    duration_s: float = 0.0
+
+    @property
+    def drone_count(self) -> int:
+        """Number of drones N."""
+        return self.motion.drone_count
+
+    def subset(self, drones: slice | np.ndarray) -> TrackingReference:
+        """The same reference for a subset of drones (index array or slice)."""
+        return TrackingReference(
+            motion=self.motion.select(drones), offset=self.offset, yaw=self.yaw, duration_s=self.duration_s,
+        )
+
+    def chunk(self, times_s: np.ndarray) -> RefChunk:
+        """Evaluate the shared parts at ``(T,)`` times (s)."""
+        t = np.ascontiguousarray(times_s, dtype=np.float64)
+        off = np.zeros((t.size, 9)) if self.offset is None else np.asarray(self.offset(t))
+        psi = np.zeros(t.size) if self.yaw is None else np.asarray(self.yaw(t), dtype=np.float64)
+        return RefChunk(
+            times=t,
+            offset=np.ascontiguousarray(off, dtype=np.float64),
+            yaw=np.ascontiguousarray(np.stack([psi, np.sin(psi), np.cos(psi)], axis=1)),
+        )
+
+    def at_step(self, chunk: RefChunk, j: int) -> tuple[np.ndarray, ...]:
+        """``(p_r, v_r, a_r)`` ``(N, 3)`` of every drone at row ``j`` of a chunk.
+
+        :meth:`~sim.plan.Trajectories.evaluate` at one time (each drone on its own piece,
+        clamped to the show, at rest outside it), with the derivative polynomials written
+        out by Horner's rule as the numba kernel writes them.
+        """
+        m = self.motion
+        t = float(chunk.times[j])
+        inside = m.start_s <= t <= m.end_s
+        tc = min(max(t, m.start_s), m.end_s)
+        rows = np.arange(m.drone_count)
+        idx = m.piece_index(np.array([tc]))[0]
+        c = m.coeffs_m[rows, idx]  # (N, 3, 6)
+        u = (tc - m.breaks_s[rows, idx])[:, None]
+        c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
+        off = chunk.offset[j]
+        pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0 + off[0:3]
+        if not inside:
+            return pos, np.broadcast_to(off[3:6], pos.shape).copy(), np.broadcast_to(off[6:9], pos.shape).copy()
+        d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
+        vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1 + off[3:6]
+        acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2 + off[6:9]
+        return pos, vel, acc
+
+    # -- simple references for tests and scenarios ------------------------------------
+    @classmethod
+    def hover(cls, points_m: np.ndarray, *, duration_s: float = 0.0) -> TrackingReference:
+        """Hold each drone at ``points_m`` ``(N, 3)`` (m); a step reference from elsewhere."""
+        return cls(motion=_constant_motion(points_m, duration_s), duration_s=duration_s)
+
+    @classmethod
+    def circle(
+        cls, centers_m: np.ndarray, *, radius_m: float, omega_rad_s: float,
+        duration_s: float = 0.0,
+    ) -> TrackingReference:
+        """Horizontal circles ``c + r [cos ωt, sin ωt, 0]`` around each centre ``(N, 3)``."""
+        r, w = float(radius_m), float(omega_rad_s)
+
+        def offset(t: np.ndarray) -> np.ndarray:
+            c, s, z = np.cos(w * t), np.sin(w * t), np.zeros_like(t)
+            return np.stack(
+                [r * c, r * s, z, -r * w * s, r * w * c, z, -r * w * w * c, -r * w * w * s, z],
+                axis=1,
+            )
+
+        return cls(motion=_constant_motion(centers_m, duration_s), offset=offset, duration_s=duration_s)
+
+    @classmethod
+    def paper(cls, *, drones: int = 1) -> TrackingReference:
+        """Spec section 7: ``p_ref = [sin t, cos t, sin t]``, ψ_ref = 0."""
+
+        def offset(t: np.ndarray) -> np.ndarray:
+            s, c = np.sin(t), np.cos(t)
+            return np.stack([s, c, s, c, -s, c, -s, -c, -s], axis=1)
+
+        return cls(motion=_constant_motion(np.zeros((drones, 3)), 20.0), offset=offset, duration_s=20.0)
+
+
+def hover_state(points_m: np.ndarray) -> np.ndarray:
+    """``(N, 12)`` state at rest, level, at ``points_m`` ``(N, 3)`` (m)."""
+    p = np.asarray(points_m, dtype=np.float64)
+    s = np.zeros((p.shape[0], STATE_SIZE))
+    s[:, 0:3] = p
+    return s
+
+
+@dataclass
+class SimResult:
+    """Output of one engine run (arrays over drones on axis 1 for frames).
+
+    Attributes:
+        frame_times_s: ``(F,)`` output times (s).
+        positions_m: ``(F, N, 3)`` flown positions at the frames (m).
+        telemetry: ``(F, N, TEL_SIZE)`` (see ``TELEMETRY_FIELDS``) or None.
+        rms_error_m: ``(N,)`` RMS of ||p - p_ref|| over every control step (m).
+        max_error_m: ``(N,)`` maximum of ||p - p_ref|| (m).
+        max_thrust_step_n: ``(N,)`` largest change of τ_f between steps (N).
+        diverged_step: ``(N,)`` step at which the drone was frozen, -1 if it was not.
+        diverged_reason: ``(N,)`` ``DIVERGED_*`` code, 0 if it was not.
+        final_state: ``(N, 12)`` state at the end.
+        dt_s: Control and integration step (s).
+        engine: ``"numpy"`` or ``"numba"``.
+    """
+
+    frame_times_s: np.ndarray
+    positions_m: np.ndarray
+    telemetry: np.ndarray | None
+    rms_error_m: np.ndarray
+    max_error_m: np.ndarray
+    max_thrust_step_n: np.ndarray
+    diverged_step: np.ndarray
+    diverged_reason: np.ndarray
+    final_state: np.ndarray
+    dt_s: float
+    engine: str
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def diverged(self) -> list[tuple[int, float, str]]:
+        """``[(drone, time_s, reason)]`` for every frozen drone, by drone index."""
+        idx = np.flatnonzero(self.diverged_step >= 0)
+        return [
+            (int(i), float(self.diverged_step[i] * self.dt_s),
+             DIVERGED_REASONS.get(int(self.diverged_reason[i]), "unknown"))
+            for i in idx
+        ]
