@@ -47,6 +47,11 @@ class AppSettings(BaseSettings):
         None,
         description="Bearer token every /api and /viser request must carry (required off loopback).",
     )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="Host names besides loopback ones a tokenless server answers to (JSON list); any other "
+        "Host or Origin gets 421, so that a DNS-rebinding web page cannot reach a loopback server.",
+    )
     session_ttl_s: int = Field(
         3600, ge=60, le=86_400, description="Lifetime of the session cookie POST /api/session sets, seconds."
     )

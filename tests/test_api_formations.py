@@ -19,7 +19,7 @@ pytest.importorskip("formations.sources")
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=1))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 

@@ -35,7 +35,7 @@ def stored(doc: dict) -> dict:
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=2))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -290,7 +290,7 @@ def test_an_internal_error_is_a_json_500(tmp_path, monkeypatch):
         raise RuntimeError("disk on fire")
 
     app = create_app(AppSettings(data_dir=tmp_path, workers=1))
-    with TestClient(app, raise_server_exceptions=False) as c:
+    with TestClient(app, raise_server_exceptions=False, base_url="http://127.0.0.1") as c:
         monkeypatch.setattr(shows_api, "_summary", broken)
         rec = c.post("/api/shows", json=show_doc("x"))
         assert rec.status_code == 500
@@ -299,9 +299,9 @@ def test_an_internal_error_is_a_json_500(tmp_path, monkeypatch):
 
 def test_check_cache_and_shows_survive_a_restart(tmp_path):
     settings = AppSettings(data_dir=tmp_path, workers=1)
-    with TestClient(create_app(settings)) as c:
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         sid = _create(c, show_doc("persistent", hold_s=2.5))["id"]
         assert c.post(f"/api/shows/{sid}/check").json()["cached"] is False
-    with TestClient(create_app(settings)) as c:
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         assert c.get(f"/api/shows/{sid}").json()["name"] == "persistent"
         assert c.post(f"/api/shows/{sid}/check").json()["cached"] is True

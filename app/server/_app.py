@@ -36,6 +36,7 @@ from app.api.models import ShowUpdate
 from app.jobs import JobManager
 from app.server._auth import TokenMiddleware
 from app.server._headers import SecurityHeadersMiddleware
+from app.server._hosts import LoopbackHostMiddleware
 from app.server._limits import ENVELOPE_BYTES, BodyLimit, BodyLimitMiddleware
 from app.settings import AppSettings
 from app.store import ShowStore
@@ -150,6 +151,9 @@ def create_app(settings: AppSettings | None = None) -> FastAPI:
     app.add_middleware(BodyLimitMiddleware, limits=limits, default=default)
     if settings.token is not None:
         app.add_middleware(TokenMiddleware, token=settings.token.get_secret_value())
+    else:
+        # No token: the server is on loopback, and only loopback names may address it (DNS rebinding).
+        app.add_middleware(LoopbackHostMiddleware, extra_hosts=settings.allowed_hosts)
     app.add_middleware(SecurityHeadersMiddleware)
     for module in (health, shows, jobs, formations, session):
         app.include_router(module.router, prefix="/api")
