@@ -94,7 +94,7 @@ def test_invalid_show_is_422_with_the_field_path(client):
     assert r.status_code == 422
     (problem,) = r.json()["detail"]
     assert problem["path"] == "formations[0].hold_s" and problem["loc"] == ["body", "formations", 0, "hold_s"]
-    assert "greater than 0" in problem["msg"]
+    assert "greater than or equal to 0.01" in problem["msg"]
     doc = show_doc()
     doc["formations"][0]["points"][1] = [1, 0, 6]  # 1 m from its neighbour: a cross-field rule
     assert client.post("/api/shows", json=doc).json()["detail"][0]["path"] == "formations[0].points"

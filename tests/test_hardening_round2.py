@@ -88,3 +88,50 @@ def test_allowed_hosts_setting_adds_names(tmp_path):
     with TestClient(app, base_url="http://studio.lan:8000") as c:
         assert c.get("/api/health").status_code == 200
         assert c.get("/api/health", headers={"Host": "evil.example"}).status_code == 421
+
+
+# -- 2. sizes that derive work from a small input are bounded at validation time --------------------
+
+
+def _point(x: str) -> str:
+    return json.dumps(SHOW).replace("[0, 0, 6]", f"[{x}, 0, 6]", 1)
+
+
+BOUNDED_CASES = [
+    ("1 drone on a 20,000 x 20,000 grid",
+     json.dumps(doc(drones=1, home={"grid": {"rows": 20_000, "cols": 20_000}},
+                    formations=[{"name": "a", "hold_s": 1.0, "points": [[0, 0, 6]]}])),
+     "home.grid", "more than 16"),
+    ("4 drones on 17 home points",
+     json.dumps(doc(home={"points": [[5.0 * i, 0, 0] for i in range(17)]})), "home.points", "at most 16"),
+    ("grid reaching outside the area",
+     json.dumps(doc(home={"grid": {"rows": 2, "cols": 2, "spacing_m": 4.5, "center_m": [1999, 0]}})),
+     "home.grid", "max_horizontal_extent_m"),
+    ("x = 1e9", _point("1e9"), "formations[0].points[0][0]", "outside the show area"),
+    ("x = 1e308", _point("1e308"), "formations[0].points[0][0]", "outside the show area"),
+    ("x = -2001", _point("-2001"), "formations[0].points[0][0]", "+-2000 m"),
+    ("hold_s = 1e-320", json.dumps(SHOW).replace('"hold_s": 2.0', '"hold_s": 1e-320'), "formations[0].hold_s",
+     "greater than or equal to 0.01"),
+    ("transition_s = 5e-324", json.dumps(SHOW).replace('"hold_s": 2.0', '"hold_s": 2.0, "transition_s": 5e-324'),
+     "formations[0].transition_s", "greater than or equal to 0.01"),
+    ("speed 1e-300", json.dumps(doc(settings={"max_speed_xy_mps": 1e-300})), "settings.max_speed_xy_mps",
+     "greater than or equal to 0.1"),
+    ("min distance 1e-9", json.dumps(doc(settings={"min_distance_m": 1e-9})), "settings.min_distance_m",
+     "greater than or equal to 0.1"),
+    ("area asked too large", json.dumps(doc(settings={"max_horizontal_extent_m": 1e9})),
+     "settings.max_horizontal_extent_m", "less than or equal"),
+]
+
+
+@pytest.mark.parametrize(("body", "path", "words"), [c[1:] for c in BOUNDED_CASES], ids=[c[0] for c in BOUNDED_CASES])
+def test_work_deriving_sizes_refused_at_validation(client, body, path, words):
+    r = client.post("/api/shows", content=body, headers={"Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    problems = r.json()["detail"]
+    assert problems[0]["path"] == path, problems
+    assert words in problems[0]["msg"], problems
+
+
+def test_a_wider_area_can_be_asked_for(client):
+    body = _point("2500").replace('"settings": {', '"settings": {"max_horizontal_extent_m": 3000, ', 1)
+    assert client.post("/api/shows", content=body, headers={"Content-Type": "application/json"}).status_code == 201
