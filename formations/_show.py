@@ -109,7 +109,8 @@ class Settings(BaseModel):
 
     model_config = _CONFIG
 
-    min_distance_m: float = Field(3.0, ge=MIN_LIMIT, le=100, description="Minimum distance between any two drones, metres.")
+    min_distance_m: float = Field(3.0, ge=MIN_LIMIT, le=100,
+                                  description="Minimum distance between any two drones, metres.")
     max_speed_xy_mps: float = Field(10.0, ge=MIN_LIMIT, le=100, description="Peak horizontal speed, m/s.")
     max_speed_z_mps: float = Field(2.0, ge=MIN_LIMIT, le=100, description="Peak vertical speed, m/s.")
     max_accel_mps2: float = Field(4.0, ge=MIN_LIMIT, le=100, description="Peak acceleration magnitude, m/s^2.")
