@@ -39,6 +39,20 @@ class AppSettings(BaseSettings):
     job_timeout_s: float = Field(
         3600.0, gt=0, le=7 * 86_400, description="A background job running longer than this is stopped and fails."
     )
+    interactive_workers: int = Field(
+        1, ge=1, le=16, description="Worker processes kept for interactive requests (checks, formations, "
+        "exports, large saves, viewer planning), apart from the simulation workers.",
+    )
+    task_timeout_s: float = Field(
+        60.0, gt=0, le=3600, description="Time budget of one interactive request's work, seconds (504 after).",
+    )
+    max_interactive_tasks: int = Field(
+        64, ge=1, le=4096, description="Interactive requests queued or running at once before 429.",
+    )
+    max_jobs_per_client: int = Field(
+        16, ge=1, description="Queued or running jobs of one client (session cookie, X-Swarmshow-Client "
+        "header or address) before 429.",
+    )
     max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")

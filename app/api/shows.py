@@ -13,7 +13,7 @@ from fastapi.responses import JSONResponse
 
 from app import tasks
 from app.api import deps
-from app.api.errors import ApiError, show_problems
+from app.api.errors import ApiError, job_body, show_problems
 from app.api.models import (
     CheckOut,
     JobOut,
@@ -74,13 +74,13 @@ async def _parse_show(request: Request, data: bytes | dict[str, Any], *, size: i
 
     try:
         if size > INLINE_PARSE_BYTES:
-            return ShowData(**await deps.jobs(request).run(tasks.validate_task, data))
+            return ShowData(**await deps.run(request, tasks.validate_task, data))
         # Validation, canonical JSON and its hash all in the thread: none of it on the event loop.
         return await asyncio.to_thread(lambda: ShowData.of(parse_show(data)))
     except ShowValidationError as exc:
         raise ApiError(422, show_problems(exc.errors, prefix=prefix)) from None
     except tasks.TaskFailure as exc:
-        if exc.status != 422:
+        if exc.kind != tasks.FailureKind.INVALID:
             raise
         raise ApiError(422, show_problems(exc.detail, prefix=prefix)) from None
 
@@ -266,7 +266,7 @@ async def check_show(request: Request, show_id: str) -> JSONResponse:
     """
     record = deps.store(request).get(show_id)
     result, cached = await deps.jobs(request).run_cached(
-        "check", record.content_hash, {}, tasks.check_task, record.json
+        "check", record.content_hash, {}, tasks.check_task, record.json, gone=request.is_disconnected
     )
     return JSONResponse({
         "show_id": record.id, "revision": record.revision, "content_hash": record.content_hash,
@@ -293,11 +293,13 @@ async def simulate_show(
     """
     record = deps.store(request).get(show_id)
     opts = (options or SimulateOptions()).model_dump()
+    manager = deps.jobs(request)
     job = await asyncio.to_thread(
-        deps.jobs(request).submit, "simulate", tasks.simulate_task, show_text=record.json,
+        manager.submit, "simulate", tasks.simulate_task, show_text=record.json,
         content_hash=record.content_hash, options=opts, show_id=record.id, show_revision=record.revision,
+        client=deps.client_id(request), task_options=tasks.flight_options(opts, manager.settings.dask_scheduler),
     )
-    return JSONResponse(job.snapshot(), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
+    return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
 
 
 def export_formats() -> tuple[str, ...]:
@@ -361,7 +363,7 @@ async def export_show(
         options["fps"] = fps
     if origin is not None:
         options["origin"] = _parse_origin(origin)
-    out = await deps.jobs(request).run(tasks.export_task, record.json, fmt, options)
+    out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',
         "X-Swarmshow-Warnings": json.dumps(out["warnings"]),

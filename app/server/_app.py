@@ -67,11 +67,7 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: AppSettings = app.state.settings
     store = await asyncio.to_thread(ShowStore, settings.db_path, keep_revisions=settings.keep_revisions)
-    manager = JobManager(
-        store=store, workers=settings.workers, max_jobs_kept=settings.max_jobs_kept,
-        max_pending=settings.max_pending_jobs, max_cached=settings.max_cached_results,
-        timeout_s=settings.job_timeout_s,
-    )
+    manager = JobManager(store=store, settings=settings)
     # The pool starts in the background: the API answers (and the store serves) a few hundred ms
     # sooner after a restart; the first job waits for it (JobManager.wait_started).
     starting = asyncio.get_running_loop().run_in_executor(None, manager.start)
