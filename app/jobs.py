@@ -40,6 +40,7 @@ import json
 import logging
 import multiprocessing
 import secrets
+import sqlite3
 import threading
 import time
 from collections import OrderedDict
@@ -370,6 +371,8 @@ class JobManager:
         try:
             fut = self._submit_interactive(slot, budget, fn, *args)
             waiting = asyncio.wrap_future(fut)
+            # An abandoned task still ends (cancelled, with an error): retrieve it so that asyncio does not warn.
+            waiting.add_done_callback(lambda f: f.cancelled() or f.exception())
             while True:
                 done, _ = await asyncio.wait({waiting}, timeout=0.25 if gone is not None else None)
                 if done:
@@ -505,7 +508,8 @@ class JobManager:
                 key, kind=kind, content_hash=content_hash, text=json.dumps(result, allow_nan=False),
                 keep=self.max_cached,
             )
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, sqlite3.Error) as exc:
+            # Not JSON-safe, or the disk is full: the result is still answered, only not kept on disk.
             log.warning("result of %s not cached on disk: %s", key, exc)
 
     def _memo_put(self, key: str, value: Any) -> None:

@@ -6,6 +6,7 @@ Every test here failed before its fix; all run on loopback, bounded in count and
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 from fastapi.testclient import TestClient
@@ -135,3 +136,225 @@ def test_work_deriving_sizes_refused_at_validation(client, body, path, words):
 def test_a_wider_area_can_be_asked_for(client):
     body = _point("2500").replace('"settings": {', '"settings": {"max_horizontal_extent_m": 3000, ', 1)
     assert client.post("/api/shows", content=body, headers={"Content-Type": "application/json"}).status_code == 201
+
+
+# -- 2b. work estimated before starting --------------------------------------------------------------
+
+
+def _wait_job(c: TestClient, job_id: str, timeout_s: float = 60.0) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job = c.get(f"/api/jobs/{job_id}").json()
+        if job["state"] in ("done", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    raise AssertionError(f"job {job_id} did not finish")
+
+
+def test_simulation_recording_too_large_is_refused_naming_output_hz(client):
+    long = doc(name="a day", formations=[{**SHOW["formations"][0], "hold_s": 86_400.0}])
+    sid = client.post("/api/shows", json=long).json()["id"]
+    r = client.post(f"/api/shows/{sid}/simulate", json={"output_hz": 1000})
+    job = _wait_job(client, r.json()["id"])
+    assert job["state"] == "failed" and job["error"]["kind"] == "too_large" and job["error"]["status"] == 413
+    problem = job["error"]["detail"][0]
+    assert problem["path"] == "output_hz" and "20000000" in problem["msg"] and "output_hz <=" in problem["msg"]
+
+
+# -- 4. 500s that were the input's fault ---------------------------------------------------------------
+
+
+def test_deep_nesting_and_huge_integers_are_422_not_500(client):
+    sid = client.post("/api/shows", json=doc(name="nest")).json()["id"]
+    deep = ("[" * 5000 + "]" * 5000).encode()
+    digits = b'{"revision": 1, "show": {"drones": ' + b"9" * 5000 + b"}}"
+    for body in (deep, digits, b'{"revision": 1, "show": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"):
+        for method, path in (("PUT", f"/api/shows/{sid}"), ("POST", "/api/shows")):
+            r = client.request(method, path, content=body, headers={"Content-Type": "application/json"})
+            assert r.status_code == 422, (method, len(body), r.status_code, r.text[:200])
+            assert "internal" not in r.text and "/work/" not in r.text
+
+
+def test_if_match_is_respected_when_the_body_has_a_revision(client):
+    sid = client.post("/api/shows", json=doc(name="ifmatch")).json()["id"]
+    r = client.put(f"/api/shows/{sid}", json={"revision": 1, "show": doc(name="v2")}, headers={"If-Match": '"7"'})
+    assert r.status_code == 422 and r.json()["detail"][0]["path"] == "If-Match"
+    assert client.get(f"/api/shows/{sid}").json()["revision"] == 1
+    ok = client.put(f"/api/shows/{sid}", json={"revision": 1, "show": doc(name="v2")}, headers={"If-Match": '"1"'})
+    assert ok.status_code == 200 and ok.json()["revision"] == 2
+
+
+def test_disk_full_answers_507_and_stored_shows_stay_readable(tmp_path):
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1, viewer=False))
+    with TestClient(app, base_url=LOOPBACK, raise_server_exceptions=False) as c:
+        kept = c.post("/api/shows", json=doc(name="kept")).json()
+        store = app.state.store
+        # A real SQLITE_FULL: the database may not grow by a single page any more.
+        pages = store._db.execute("PRAGMA page_count").fetchone()[0]
+        store._db.execute(f"PRAGMA max_page_count = {pages}")
+        big = doc(name="x" * 150, formations=[{**SHOW["formations"][0], "name": f"f{i}"} for i in range(400)])
+        r = c.post("/api/shows", json=big)
+        assert r.status_code == 507, r.text
+        assert "full" in r.json()["detail"] and "sqlite" not in r.text.lower()
+        check = c.post(f"/api/shows/{kept['id']}/check")
+        assert check.status_code == 200  # the result is answered, only not cached on disk
+        got = c.get(f"/api/shows/{kept['id']}")
+        assert got.status_code == 200 and got.json()["show"]["name"] == "kept"
+        assert c.get("/api/shows").json()["total"] == 1
+
+
+# -- 2c/3. time budgets, clients that leave, fairness, per-client caps --------------------------------
+
+
+@pytest.fixture(scope="module")
+def pools(tmp_path_factory):
+    """One simulation worker and one interactive worker; a 2 s budget per interactive task."""
+    settings = AppSettings(data_dir=tmp_path_factory.mktemp("pools"), workers=1, interactive_workers=1,
+                           viewer=False, task_timeout_s=2.0, max_jobs_per_client=3)
+    with TestClient(create_app(settings), base_url=LOOPBACK) as c:
+        c.app.state.jobs.wait_started()
+        yield c
+
+
+def _run(c: TestClient, fn, *args):
+    return c.portal.call(c.app.state.jobs.run, fn, *args)
+
+
+def test_interactive_task_over_its_budget_is_stopped_and_the_worker_reused(pools):
+    from app.jobs import ErrorKind, TaskError
+    from tests import round2_tasks
+
+    worker = _run(pools, round2_tasks.pid)
+    t0 = time.monotonic()
+    with pytest.raises(TaskError) as info:
+        _run(pools, round2_tasks.spin, 60.0)
+    assert info.value.kind == ErrorKind.TIMEOUT and "2 s" in str(info.value)
+    assert time.monotonic() - t0 < 10
+    assert _run(pools, round2_tasks.pid) == worker  # stopped by its timer, not by killing the worker
+
+
+def test_a_task_stuck_in_one_c_call_is_ended_with_its_worker(pools):
+    from app.jobs import ErrorKind, TaskError
+    from tests import round2_tasks
+
+    t0 = time.monotonic()
+    with pytest.raises(TaskError) as info:
+        _run(pools, round2_tasks.stuck_in_c, 120.0)
+    assert info.value.kind == ErrorKind.WORKER_DIED
+    assert time.monotonic() - t0 < 20  # budget 2 s + grace 5 s + a watchdog period + a new worker
+    assert _run(pools, round2_tasks.spin, 0.01) > 0  # a new worker answers
+
+
+def test_work_of_a_client_that_left_is_stopped(pools):
+    from app.jobs import ErrorKind, TaskError
+    from tests import round2_tasks
+
+    asked = time.monotonic()
+
+    async def gone() -> bool:
+        return time.monotonic() - asked > 0.3
+
+    async def leave():
+        return await pools.app.state.jobs.run(round2_tasks.spin, 1.9, gone=gone)
+
+    with pytest.raises(TaskError) as info:
+        pools.portal.call(leave)
+    assert info.value.kind == ErrorKind.CANCELLED
+    # The one interactive worker is free again well before the abandoned task would have ended.
+    t0 = time.monotonic()
+    assert _run(pools, round2_tasks.spin, 0.01) > 0
+    assert time.monotonic() - t0 < 1.2
+
+
+def test_interactive_requests_do_not_wait_behind_simulations(pools):
+    from tests import round2_tasks
+
+    jobs = pools.app.state.jobs
+    queued = [jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash=f"h{i}", options={},
+                          client="heavy") for i in range(3)]
+    try:
+        time.sleep(0.3)  # the one simulation worker is busy, two jobs wait
+        t0 = time.monotonic()
+        r = pools.post("/api/formations/shape", json={"kind": "circle", "n": 8, "size_m": 20})
+        assert r.status_code == 200 and r.json()["count"] == 8
+        sid = pools.post("/api/shows", json=doc(name="fair")).json()["id"]
+        assert pools.post(f"/api/shows/{sid}/check").status_code == 200
+        assert time.monotonic() - t0 < 10  # was: behind 3 x 20 s of simulations
+    finally:
+        for j in queued:
+            jobs.cancel(j.id)
+
+
+def test_jobs_per_client_are_capped_and_never_shared_across_clients(pools):
+    from app.jobs import JobsBusy
+    from tests import round2_tasks
+
+    jobs = pools.app.state.jobs
+    mine = [jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash=f"c{i}", options={},
+                        client="a") for i in range(3)]
+    try:
+        with pytest.raises(JobsBusy, match="per client"):
+            jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash="c9", options={}, client="a")
+        # The same work asked by another client is its own job: cancelling one leaves the other.
+        other = jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash="c0", options={},
+                            client="b")
+        assert other.id != mine[0].id
+        assert jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash="c0", options={},
+                           client="a").id == mine[0].id  # the same client's repeat is shared
+        pools.delete(f"/api/jobs/{mine[0].id}")
+        assert jobs.get(mine[0].id).state == "cancelled"
+        assert jobs.get(other.id).state in ("queued", "running")
+        jobs.cancel(other.id)
+    finally:
+        for j in mine:
+            if not j.terminal:
+                jobs.cancel(j.id)
+
+
+def test_cancelled_job_error_has_a_kind_mapped_to_a_status_by_the_api(pools):
+    from tests import round2_tasks
+
+    jobs = pools.app.state.jobs
+    job = jobs.submit("slow", round2_tasks.slow_job, show_text="{}", content_hash="k", options={}, client="k")
+    assert "status" not in str(jobs.cancel(job.id).error)  # the job manager holds no HTTP codes
+    body = pools.get(f"/api/jobs/{job.id}").json()
+    assert body["error"]["kind"] == "cancelled" and body["error"]["status"] == 499
+
+
+def test_health_reports_a_saturated_pool(pools):
+    from tests import round2_tasks
+
+    assert pools.get("/api/health").json()["status"] == "ok"
+
+    async def two_spins():
+        import asyncio
+
+        jobs = pools.app.state.jobs
+        tasks = [asyncio.ensure_future(jobs.run(round2_tasks.spin, 1.0)) for _ in range(3)]
+        await asyncio.sleep(0.3)
+        from httpx import ASGITransport, AsyncClient
+
+        async with AsyncClient(transport=ASGITransport(app=pools.app), base_url=LOOPBACK) as ac:
+            during = (await ac.get("/api/health")).json()
+        await asyncio.gather(*tasks)
+        return during
+
+    during = pools.portal.call(two_spins)
+    assert during["status"] == "busy" and during["interactive_pending"] == 3
+    assert pools.get("/api/health").json()["status"] == "ok"
+
+
+def test_settings_given_to_create_app_reach_the_jobs(tmp_path, monkeypatch):
+    # The scheduler comes from AppSettings, not from the workers' environment (issue 14.4).
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # closed again: nothing listens there
+    monkeypatch.delenv("SWARMSHOW_DASK_SCHEDULER", raising=False)
+    settings = AppSettings(data_dir=tmp_path, workers=1, viewer=False, dask_scheduler=f"tcp://127.0.0.1:{port}")
+    with TestClient(create_app(settings), base_url=LOOPBACK) as c:
+        sid = c.post("/api/shows", json=SHOW).json()["id"]
+        job = _wait_job(c, c.post(f"/api/shows/{sid}/simulate", json={}).json()["id"], timeout_s=90)
+    assert job["state"] == "failed" and job["error"]["kind"] == "unavailable", job
+    assert job["error"]["status"] == 503 and "cluster unavailable" in job["error"]["message"]
