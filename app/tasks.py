@@ -419,9 +419,36 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
         if getattr(exc, "max_n", None) is not None:
             problem["max_n"] = exc.max_n
         raise TaskFailure(FailureKind.INVALID, [problem]) from None
+    _check_formation_result(source, points.points_m)
     out = points.to_json()
     out["count"] = len(out["points"])
     return out
+
+
+def _check_formation_result(source: str, points_m: Any) -> None:
+    """Refuse a formation no show could use: non-finite points, below the ground or above the highest
+    ceiling a show may have, or outside the largest show area (a 1 x 400,000 pixel image once gave
+    points 8,000 km below the ground).
+
+    Raises:
+        TaskFailure: ``invalid``, naming the source and the bound.
+    """
+    import numpy as np
+
+    from formations._show import MAX_CEILING_M as ceiling_m
+    from formations._show import MAX_HORIZONTAL_EXTENT_M
+    pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+    problem = None
+    if not np.isfinite(pts).all():
+        problem = "some points are not finite numbers"
+    elif pts.size and (pts[:, 2].min() < 0 or pts[:, 2].max() > ceiling_m):
+        problem = (f"points reach altitudes {pts[:, 2].min():.4g} .. {pts[:, 2].max():.4g} m, outside "
+                   f"[0, {ceiling_m:g}] m; lower the size or move the centre")
+    elif pts.size and np.abs(pts[:, :2]).max() > MAX_HORIZONTAL_EXTENT_M:
+        problem = (f"points reach {np.abs(pts[:, :2]).max():.4g} m from the origin, outside the largest show "
+                   f"area +-{MAX_HORIZONTAL_EXTENT_M:g} m; lower the size")
+    if problem is not None:
+        raise TaskFailure(FailureKind.INVALID, [{"loc": ["body"], "path": "", "msg": f"{source}: {problem}"}])
 
 
 def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, Any]:

@@ -53,6 +53,8 @@ MIN_HOME_SLOTS = 16
 #: x and y lie within +-this of the origin. The exact check's work grows with the area over the
 #: minimum distance; one point at x = 1e9 m made it build about 3e8 search trees.
 DEFAULT_HORIZONTAL_EXTENT_M = 2_000.0
+#: Highest ``settings.max_altitude_m`` a show may set, metres.
+MAX_CEILING_M = 10_000.0
 #: Largest show area a show file may ask for, metres (half-width).
 MAX_HORIZONTAL_EXTENT_M = 20_000.0
 #: Shortest hold or forced transition, seconds: a subnormal 1e-320 is "> 0" but no real duration.
@@ -114,7 +116,7 @@ class Settings(BaseModel):
     max_speed_xy_mps: float = Field(10.0, ge=MIN_LIMIT, le=100, description="Peak horizontal speed, m/s.")
     max_speed_z_mps: float = Field(2.0, ge=MIN_LIMIT, le=100, description="Peak vertical speed, m/s.")
     max_accel_mps2: float = Field(4.0, ge=MIN_LIMIT, le=100, description="Peak acceleration magnitude, m/s^2.")
-    max_altitude_m: float = Field(150.0, gt=0, le=10_000, description="Highest allowed altitude, metres.")
+    max_altitude_m: float = Field(150.0, gt=0, le=MAX_CEILING_M, description="Highest allowed altitude, metres.")
     takeoff_altitude_m: float = Field(10.0, ge=MIN_LIMIT, le=10_000,
                                       description="Altitude of the vertical takeoff, metres.")
     # None (left out of the file) means the default, so that shows written before this setting keep

@@ -358,3 +358,73 @@ def test_settings_given_to_create_app_reach_the_jobs(tmp_path, monkeypatch):
         job = _wait_job(c, c.post(f"/api/shows/{sid}/simulate", json={}).json()["id"], timeout_s=90)
     assert job["state"] == "failed" and job["error"]["kind"] == "unavailable", job
     assert job["error"]["status"] == 503 and "cluster unavailable" in job["error"]["message"]
+
+
+# -- 2d. the viewer plans in the worker pool, with one loader thread ---------------------------------
+
+
+def test_viewer_plans_in_a_worker_and_selections_start_one_thread(tmp_path, monkeypatch):
+    import threading
+    from types import SimpleNamespace
+
+    import sim
+
+    def not_here(*_a, **_k):
+        raise AssertionError("planning ran in the server process")
+
+    monkeypatch.setattr(sim, "plan_show", not_here)
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1, viewer=True))
+    with TestClient(app, base_url=LOOPBACK) as c:
+        ids = [c.post("/api/shows", json=doc(name=f"v{i}")).json()["id"] for i in range(3)]
+        r = c.post(f"/api/shows/{ids[0]}/playback", json={"source": "planned"})
+        assert r.status_code == 200, r.text  # planned in the interactive pool, not by the patched function
+        viewer = c.app.state.viewer
+        before = threading.active_count()
+        labels = list(viewer._catalog_keys)
+        assert labels
+        for _ in range(20):  # a client hammering the selector
+            for label in labels:
+                viewer._on_show_selected(SimpleNamespace(target=SimpleNamespace(value=label), client=None))
+        loaders = [t for t in threading.enumerate() if t.name.startswith("viewer-catalog-load")]
+        assert len(loaders) <= 1 and threading.active_count() <= before + 1
+        deadline = time.monotonic() + 30
+        while viewer._loading.locked() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not viewer._loading.locked()
+
+
+# -- 4b. formation sources never answer points no show could use --------------------------------------
+
+
+def _png(width: int, height: int) -> bytes:
+    import io
+
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.new("L", (width, height), 255).save(out, "PNG")
+    return out.getvalue()
+
+
+def test_a_one_pixel_wide_tall_image_is_refused_not_placed_kilometres_underground(client):
+    r = client.post("/api/formations/image", files={"file": ("tall.png", _png(1, 400_000), "image/png")},
+                    data={"n": "10"})
+    assert r.status_code == 422, r.text[:300]
+    assert "image: points reach altitudes" in r.json()["detail"][0]["msg"]
+    ok = client.post("/api/formations/image", files={"file": ("wide.png", _png(400, 20), "image/png")},
+                     data={"n": "10"})
+    assert ok.status_code == 200 and ok.json()["count"] == 10
+
+
+def test_every_formation_result_is_checked_against_the_show_bounds():
+    import numpy as np
+
+    from app import tasks
+
+    good = np.array([[0.0, 0.0, 10.0], [5.0, 0.0, 10.0]])
+    tasks._check_formation_result("shape", good)
+    for bad, words in ((good * [1, 1, -1], "altitudes"), (good + [0, 0, 1e5], "altitudes"),
+                       (good + [3e4, 0, 0], "largest show area"), (good * np.nan, "finite")):
+        with pytest.raises(tasks.TaskFailure) as info:
+            tasks._check_formation_result("svg", bad)
+        assert info.value.kind == "invalid" and words in str(info.value) and str(info.value).startswith("svg:")
