@@ -53,6 +53,12 @@ class AppSettings(BaseSettings):
         16, ge=1, description="Queued or running jobs of one client (session cookie, X-Swarmshow-Client "
         "header or address) before 429.",
     )
+    header_timeout_s: float = Field(
+        10.0, gt=0, le=600, description="A connection must send its request headers within this many seconds "
+        "(slow-loris connections are closed).",
+    )
+    timeout_keep_alive_s: float = Field(5.0, gt=0, le=600, description="Idle keep-alive connections close "
+                                        "after this many seconds.")
     max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")

@@ -428,3 +428,48 @@ def test_every_formation_result_is_checked_against_the_show_bounds():
         with pytest.raises(tasks.TaskFailure) as info:
             tasks._check_formation_result("svg", bad)
         assert info.value.kind == "invalid" and words in str(info.value) and str(info.value).startswith("svg:")
+
+
+# -- 4c. a live server: slow connections, odd paths, rebinding through uvicorn -----------------------
+
+
+def _raw(port: int, request: bytes, timeout_s: float = 10.0) -> bytes:
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout_s) as s:
+        s.sendall(request)
+        out = b""
+        while chunk := s.recv(65536):
+            out += chunk
+            if b"\r\n\r\n" in out and (b"content-length: 0" in out.lower() or out.count(b"}") >= 1):
+                break
+        return out
+
+
+def test_live_server_times_out_slow_headers_and_answers_odd_paths_with_404(tmp_path):
+    import socket
+
+    from tests.live_server import ServerProcess
+
+    server = ServerProcess(tmp_path, viewer=True, env={"SWARMSHOW_HEADER_TIMEOUT_S": "1"})
+    server.start()
+    try:
+        slow = []
+        for _ in range(40):
+            s = socket.create_connection(("127.0.0.1", server.port), timeout=10)
+            s.sendall(b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ")  # never finished
+            slow.append(s)
+        t0 = time.monotonic()
+        for s in slow:
+            assert s.recv(1024) == b""  # closed by the server
+            s.close()
+        assert time.monotonic() - t0 < 8
+        for path in (b"/viser/%00", b"/viser/a%00.js", b"/%00", b"/viser/" + b"a" * 5000, b"/" + b"a" * 5000):
+            answer = _raw(server.port, b"GET " + path + b" HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
+            status = int(answer.split(b" ", 2)[1])
+            assert 400 <= status < 500, (path[:20], answer[:200])
+            assert str(tmp_path).encode() not in answer and b"site-packages" not in answer and b"/work" not in answer
+        rebound = _raw(server.port, b"GET /api/shows HTTP/1.1\r\nHost: evil.example:8000\r\nConnection: close\r\n\r\n")
+        assert rebound.startswith(b"HTTP/1.1 421")
+    finally:
+        server.stop()
