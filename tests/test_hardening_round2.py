@@ -473,3 +473,20 @@ def test_live_server_times_out_slow_headers_and_answers_odd_paths_with_404(tmp_p
         assert rebound.startswith(b"HTTP/1.1 421")
     finally:
         server.stop()
+
+
+# -- 4d. exports: work bounded by the samples and keyframes a request implies -------------------------
+
+
+def test_exports_refuse_work_over_their_budget_naming_the_limit(client):
+    long = doc(name="long hold", formations=[{**SHOW["formations"][0], "hold_s": 2500.0}])
+    sid = client.post("/api/shows", json=long).json()["id"]
+    t0 = time.monotonic()
+    html = client.get(f"/api/shows/{sid}/export/viser-html", params={"fps": 100})
+    assert html.status_code == 422 and "fps <=" in html.text and "20000 keyframes" in html.text
+    csv = client.get(f"/api/shows/{sid}/export/waypoints-csv", params={"fps": 1000})
+    assert csv.status_code == 422 and "exceeds the limit of 4000000" in csv.text
+    assert time.monotonic() - t0 < 10  # refused before the work (was: 97 s for the HTML)
+    # Within the budget (a lower rate) both still export.
+    assert client.get(f"/api/shows/{sid}/export/viser-html", params={"fps": 2}).status_code == 200
+    assert client.get(f"/api/shows/{sid}/export/waypoints-csv", params={"fps": 10}).status_code == 200
