@@ -490,3 +490,30 @@ def test_exports_refuse_work_over_their_budget_naming_the_limit(client):
     # Within the budget (a lower rate) both still export.
     assert client.get(f"/api/shows/{sid}/export/viser-html", params={"fps": 2}).status_code == 200
     assert client.get(f"/api/shows/{sid}/export/waypoints-csv", params={"fps": 10}).status_code == 200
+
+
+# -- 4e. SVG <use>: recursion and fan-out refused before parsing -------------------------------------
+
+_SVG = '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink">{}</svg>'
+
+
+def _fan_out(levels: int, width: int) -> str:
+    defs = '<g id="l0"><circle cx="5" cy="5" r="4"/></g>'
+    for k in range(1, levels + 1):
+        defs += f'<g id="l{k}">' + "".join(f'<use href="#l{k - 1}" x="{9 * i}"/>' for i in range(width)) + "</g>"
+    return _SVG.format(f'<defs>{defs}</defs><use href="#l{levels}"/>')
+
+
+@pytest.mark.parametrize(("svg", "status", "words"), [
+    (_SVG.format('<g id="a"><use href="#a"/></g>'), 422, "refers to itself"),
+    (_SVG.format('<g id="a"><use href="#b"/></g><g id="b"><use xlink:href="#a"/></g>'), 422, "refers to itself"),
+    (_fan_out(5, 10), 413, "expands to more than 20000"),
+    (_SVG.format('<circle cx="1" cy="1" r="1"/>' * 30_000), 413, "expands to more than 20000"),
+], ids=["self", "mutual", "fan-out 10^5", "30k circles"])
+def test_svg_use_recursion_and_fan_out_refused(client, svg, status, words):
+    assert len(svg) < 1_500_000
+    t0 = time.monotonic()
+    r = client.post("/api/formations/svg", files={"file": ("x.svg", svg.encode(), "image/svg+xml")}, data={"n": "10"})
+    assert r.status_code == status, r.text[:300]
+    assert words in r.text
+    assert time.monotonic() - t0 < 10
