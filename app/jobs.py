@@ -28,6 +28,10 @@
   recomputed, not even after a restart. An identical job of the same client already queued
   or running is shared instead of started twice (never across clients: one client's
   cancel must not stop another's job).
+* **Records.** Every job's record (state, progress, error) is written to the store when
+  it starts, changes state, every :data:`PERSIST_PROGRESS_S` of progress, and when it
+  ends; after a crash or a restart the ids still answer, and the jobs that were queued
+  or running are marked failed with kind ``interrupted``.
 * **Settings.** The manager gets the server's :class:`~app.settings.AppSettings` at
   construction; workers never read the environment.
 """
@@ -61,6 +65,8 @@ log = logging.getLogger("swarmshow.jobs")
 
 #: Seconds a timed-out task gets to notice its cancel event before its worker process is ended.
 TIMEOUT_GRACE_S = 5.0
+#: Seconds between two writes of a running job's progress to the store (each write is an fsync).
+PERSIST_PROGRESS_S = 2.0
 
 
 class JobState(StrEnum):
@@ -84,6 +90,7 @@ class ErrorKind(StrEnum):
     TIMEOUT = "timeout"  # over its time budget
     WORKER_DIED = "worker_died"  # its worker process was killed (out of memory, a signal)
     FAILED = "failed"  # a bug: the traceback is in the server log
+    INTERRUPTED = "interrupted"  # the server stopped (crashed, restarted) while the job was queued or running
 
 
 class TaskError(RuntimeError):
@@ -131,6 +138,7 @@ class Job:
     version: int = 0
     cache_key: str = ""
     client: str = ""
+    persisted_at: float = field(default=0.0, repr=False)
     future: Future | None = field(default=None, repr=False)
     cancel_event: Any = field(default=None, repr=False)
 
@@ -165,6 +173,14 @@ def _iso(t: float | None) -> str | None:
     return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(t)) + f".{int((t % 1) * 1e6):06d}Z"
 
 
+def _parse_iso(text: str) -> float:
+    """Inverse of :func:`_iso` (UTC)."""
+    import calendar
+
+    head, _, frac = text.rstrip("Z").partition(".")
+    return calendar.timegm(time.strptime(head, "%Y-%m-%dT%H:%M:%S")) + (int(frac) / 1e6 if frac else 0.0)
+
+
 def cache_key(kind: str, content_hash: str, options: dict[str, Any]) -> str:
     """Key of a result: kind, show content hash, and a digest of the options and the swarmshow
     version (results cached on disk by an older planner are not served after an upgrade)."""
@@ -186,6 +202,7 @@ class JobManager:
         self.max_cached = settings.max_cached_results
         self.task_timeout_s = settings.task_timeout_s
         self._lock = threading.Lock()
+        self._persist_lock = threading.Lock()
         self._jobs: OrderedDict[str, Job] = OrderedDict()
         self._inflight: dict[str, str] = {}
         self._memo: OrderedDict[str, Any] = OrderedDict()
@@ -209,7 +226,9 @@ class JobManager:
     # -- life cycle -------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start the manager process, the pool (warming every worker up) and the relay thread."""
+        """Mark jobs a previous server left unfinished as interrupted; start the manager process, the
+        pools (warming every worker up) and the relay and watchdog threads."""
+        self._mark_interrupted()
         self._manager = SyncManager(ctx=self._ctx)
         self._manager.start(initializer=tasks.die_with_parent)
         self._events = self._manager.Queue()
@@ -323,6 +342,65 @@ class JobManager:
             if p.is_alive():
                 p.terminate()
 
+    # -- job records in the store ----------------------------------------------------------
+
+    def _save(self, job: Job) -> None:
+        """Write the job's current record to the store.
+
+        Taking the record and writing it happen under one lock of their own (not the jobs' lock: a
+        write waits for an fsync), so a late "running" can never overwrite a "done" written before it.
+        """
+        with self._persist_lock:
+            with self._lock:
+                snap = job.snapshot(with_result=False)
+                snap.update(cache_key=job.cache_key, client=job.client)
+                state = job.state.value
+            self._persist(job.id, (json.dumps(snap), state))
+
+    def _persist(self, job_id: str, record: tuple[str, str]) -> None:
+        try:
+            self.store.put_job(job_id, record[0], state=record[1], keep=self.max_jobs_kept)
+        except Exception as exc:  # a full disk must not fail the job itself
+            log.warning("job %s: record not written: %s", job_id, exc)
+
+    def _mark_interrupted(self) -> None:
+        try:
+            records = self.store.unfinished_jobs()
+        except Exception:
+            log.exception("could not read the job records")
+            return
+        now = time.time()
+        for text in records:
+            rec = json.loads(text)
+            rec.update(state=JobState.FAILED.value, finished_at=_iso(now), error={
+                "kind": ErrorKind.INTERRUPTED.value,
+                "message": "the server stopped while this job was queued or running; start it again"})
+            self._persist(rec["id"], (json.dumps(rec), rec["state"]))
+        if records:
+            log.warning("%d job(s) were interrupted by the last server stop", len(records))
+
+    def _stored_job(self, job_id: str) -> Job | None:
+        """A finished job of an earlier server, from its record (its result from the cache), or None."""
+        try:
+            text = self.store.get_job(job_id)
+        except Exception:
+            return None
+        if text is None:
+            return None
+        rec = json.loads(text)
+        job = Job(id=rec["id"], kind=rec["kind"], content_hash=rec["content_hash"], options=rec["options"],
+                  show_id=rec.get("show_id"), show_revision=rec.get("show_revision"),
+                  state=JobState(rec["state"]), progress=float(rec["progress"]), error=rec.get("error"),
+                  cached=bool(rec.get("cached")), cache_key=rec.get("cache_key", ""), client=rec.get("client", ""))
+        for name in ("created_at", "started_at", "finished_at"):
+            value = rec.get(name)
+            setattr(job, name, _parse_iso(value) if value else None)
+        if job.state == JobState.DONE and job.cache_key:
+            job.result = self.cached_result(job.cache_key)
+        if not job.terminal:  # written by this server an instant ago and not yet in memory: not ours to show
+            return None
+        return job
+
     def _relay_loop(self) -> None:
         while True:
             try:
@@ -336,10 +414,12 @@ class JobManager:
             if item is None:
                 return
             job_id, what, value = item
+            save = False
             with self._lock:
                 job = self._jobs.get(job_id)
                 if job is None or job.terminal:
                     continue
+                was = job.state
                 if what == "running" and job.state == JobState.QUEUED:
                     job.state, job.started_at = JobState.RUNNING, time.time()
                 elif what == "progress":
@@ -347,6 +427,11 @@ class JobManager:
                     if job.state == JobState.QUEUED:
                         job.state, job.started_at = JobState.RUNNING, time.time()
                 job.version += 1
+                if job.state != was or time.monotonic() - job.persisted_at >= PERSIST_PROGRESS_S:
+                    job.persisted_at = time.monotonic()
+                    save = True
+            if save:
+                self._save(job)
 
     # -- synchronous tasks (awaited by a request) -------------------------------------------
 
@@ -584,12 +669,14 @@ class JobManager:
     def _add(self, job: Job, *, inflight: bool = False) -> None:
         with self._lock:
             self._jobs[job.id] = job
+            job.persisted_at = time.monotonic()
             if inflight:
                 self._inflight[f"{job.client}|{job.cache_key}"] = job.id
             excess = len(self._jobs) - self.max_jobs_kept
             if excess > 0:
                 for old_id in [k for k, j in self._jobs.items() if j.terminal][:excess]:
                     del self._jobs[old_id]
+        self._save(job)
 
     def _on_done(self, job_id: str, fut: Future) -> None:
         """Runs in the pool's management thread when a job's task ends."""
@@ -639,11 +726,14 @@ class JobManager:
             job.started_at = job.started_at or job.finished_at
             job.version += 1
             job.future, job.cancel_event = None, None
+        self._save(job)
 
     def get(self, job_id: str) -> Job:
         """The job. Raises :class:`JobNotFound`."""
         with self._lock:
             job = self._jobs.get(job_id)
+        if job is None:
+            job = self._stored_job(job_id)  # an earlier server's job, or one forgotten from memory
         if job is None:
             raise JobNotFound(job_id)
         return job

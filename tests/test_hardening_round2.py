@@ -517,3 +517,40 @@ def test_svg_use_recursion_and_fan_out_refused(client, svg, status, words):
     assert r.status_code == status, r.text[:300]
     assert words in r.text
     assert time.monotonic() - t0 < 10
+
+
+# -- 4f. job records survive a crash -------------------------------------------------------------------
+
+
+def test_job_ids_answer_after_a_crash_marked_interrupted(tmp_path):
+    import httpx
+
+    from tests.live_server import ServerProcess
+
+    server = ServerProcess(tmp_path)
+    server.start()
+    try:
+        long = doc(name="long", formations=[{**SHOW["formations"][0], "hold_s": 3000.0}])
+        sid = httpx.post(f"{server.base}/api/shows", json=long).json()["id"]
+        quick = httpx.post(f"{server.base}/api/shows", json=doc(name="quick")).json()["id"]
+        done_id = httpx.post(f"{server.base}/api/shows/{quick}/simulate", json={"output_hz": 5}).json()["id"]
+        job_id = httpx.post(f"{server.base}/api/shows/{sid}/simulate", json={"engine": "numpy", "output_hz": 1}
+                            ).json()["id"]
+        deadline = time.monotonic() + 60
+        while httpx.get(f"{server.base}/api/jobs/{job_id}").json()["state"] != "running":
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+        while httpx.get(f"{server.base}/api/jobs/{done_id}").json()["state"] != "done":
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+        server.crash()
+        server.start()
+        job = httpx.get(f"{server.base}/api/jobs/{job_id}")
+        assert job.status_code == 200, job.text  # was 404: the job had vanished
+        body = job.json()
+        assert body["state"] == "failed" and body["error"]["kind"] == "interrupted"
+        assert body["error"]["status"] == 503 and body["show_id"] == sid
+        done = httpx.get(f"{server.base}/api/jobs/{done_id}").json()
+        assert done["state"] == "done" and done["result"]["flight"]["drones"] == 4
+    finally:
+        server.stop()

@@ -30,6 +30,7 @@ STATUS_OF_KIND: dict[str, int] = {
     ErrorKind.TIMEOUT: 504,
     ErrorKind.WORKER_DIED: 500,
     ErrorKind.FAILED: 500,
+    ErrorKind.INTERRUPTED: 503,
     FailureKind.INVALID: 422,
     FailureKind.TOO_LARGE: 413,
     FailureKind.UNAVAILABLE: 503,
