@@ -554,3 +554,82 @@ def test_job_ids_answer_after_a_crash_marked_interrupted(tmp_path):
         assert done["state"] == "done" and done["result"]["flight"]["drones"] == 4
     finally:
         server.stop()
+
+
+# -- 5. the CLI keeps its exit-code promise: one line on stderr, exit 2, no hang, no truncated file ----
+
+
+def _cli(*args, stdin=None, stdout=None, preexec_fn=None, cwd=None, timeout_s=60):
+    import subprocess
+
+    from tests.live_server import swarmshow_command
+
+    return subprocess.run([*swarmshow_command(), *map(str, args)], capture_output=stdout is None, stdout=stdout,
+                          stderr=None if stdout is None else subprocess.PIPE, text=True, timeout=timeout_s,
+                          preexec_fn=preexec_fn, cwd=cwd, stdin=stdin)
+
+
+def _one_line_error(r, *words):
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("swarmshow: error:"), r.stderr
+    assert "Traceback" not in r.stderr and all(w in lines[0] for w in words), lines
+
+
+def test_cli_inputs_that_loop_hang_or_never_end(tmp_path):
+    import os
+
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    _one_line_error(_cli("validate", tmp_path / "a"), "symbolic links")
+    t0 = time.monotonic()
+    _one_line_error(_cli("validate", "/dev/zero"), "larger than the limit")
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    _one_line_error(_cli("validate", fifo), "is empty")  # was: blocked in open() forever
+    _one_line_error(_cli("formation", "svg", "/dev/zero", "-n", "5"), "larger than the limit")
+    _one_line_error(_cli("validate", "/proc/self/mem"), "/proc/self/mem")  # unreadable (EIO), even for root
+    assert time.monotonic() - t0 < 40
+
+
+def test_cli_outputs_closed_read_only_full_or_a_symlink(tmp_path):
+    import resource
+    import signal
+    import subprocess
+
+    show = tmp_path / "show.json"
+    show.write_text(json.dumps(SHOW))
+    # stdout closed (>&-): an error, not a silent exit 0.
+    closed = subprocess.run(f"exec {' '.join(_quoted_cli())} validate --json {show} >&-", shell=True,
+                            capture_output=False, stderr=subprocess.PIPE, text=True, timeout=60)
+    _one_line_error(closed, "stdout is closed")
+    # A directory that cannot be written (for root too).
+    _one_line_error(_cli("export", show, "-f", "skybrush-csv", "-o", "/proc/swarmshow-out.zip"), "cannot write")
+    # A full disk (a file-size limit, SIGXFSZ ignored): the previous file is kept whole, no temporary left.
+    out = tmp_path / "out.zip"
+    out.write_bytes(b"previous export")
+
+    def small_disk():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (512, 512))
+
+    _one_line_error(_cli("export", show, "-f", "skybrush-csv", "-o", out, preexec_fn=small_disk), "disk is full")
+    assert out.read_bytes() == b"previous export"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".swarmshow-")]
+    # formation -o on a symlink replaces the link; its target is not written through.
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me")
+    link = tmp_path / "points.json"
+    link.symlink_to(target)
+    r = _cli("formation", "shape", "circle", "-n", "8", "-o", link)
+    assert r.returncode == 0, r.stderr
+    assert target.read_text() == "keep me" and not link.is_symlink()
+    assert len(json.loads(link.read_text())["points"]) == 8
+
+
+def _quoted_cli() -> list[str]:
+    import shlex
+
+    from tests.live_server import swarmshow_command
+
+    return [shlex.quote(a) for a in swarmshow_command()]
