@@ -495,17 +495,6 @@ class JobManager:
         finally:
             self._release_slot(slot, fut)
 
-    def run_batch_sync(self, fn: Callable[..., Any], *args: Any, budget_s: float | None = None) -> Any:
-        """Run ``fn(*args)`` in the batch pool (long work: a viewer's simulated flight) from a thread,
-        under ``budget_s`` (default ``job_timeout_s``)."""
-        self.wait_started()
-        try:
-            return self._submit(tasks.budgeted, -1, float(budget_s or self.timeout_s), fn, *args).result()
-        except tasks.TaskTimeout as exc:
-            raise TaskError(ErrorKind.TIMEOUT, f"{exc} (SWARMSHOW_JOB_TIMEOUT_S)") from None
-        except (BrokenProcessPool, CancelledError):
-            raise TaskError(ErrorKind.WORKER_DIED, "the worker process died") from None
-
     def _take_slot(self) -> int:
         with self._lock:
             if not self._free_slots:

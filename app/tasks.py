@@ -28,6 +28,9 @@ PLAN_SHARE = 0.05
 #: 1 GB of positions, colours and errors in the worker (``output_hz=1000`` on a 1,000-drone 10-minute
 #: show asked for 600 M and was killed at 3 GB).
 MAX_OUTPUT_SAMPLES = 20_000_000
+#: Most drone-seconds the 3D viewer flies inside one request (the numba engine does about 18,000 per
+#: second on an idle core at 1 kHz, so this stays well inside the interactive time budget).
+MAX_VIEWER_FLIGHT_DRONE_S = 300_000
 #: Seconds between two looks of :func:`budgeted` at the clock and the cancel flag.
 BUDGET_TICK_S = 0.05
 
@@ -503,4 +506,10 @@ def viewer_flight_task(show_text: str, options: dict[str, Any]) -> tuple[Any, An
     """
     plan = viewer_plan_task(show_text)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
+    work = plan.drone_count * plan.duration_s
+    if work > MAX_VIEWER_FLIGHT_DRONE_S:
+        raise TaskFailure(FailureKind.TOO_LARGE, (
+            f"{plan.drone_count} drones x {plan.duration_s:g} s = {work:.3g} drone-seconds of flight exceeds the "
+            f"3D viewer's limit of {MAX_VIEWER_FLIGHT_DRONE_S} (a request waits for it); fly it as a job with "
+            "POST /api/shows/{id}/simulate"))
     return plan, _fly_show()(plan, **options)

@@ -633,3 +633,66 @@ def _quoted_cli() -> list[str]:
     from tests.live_server import swarmshow_command
 
     return [shlex.quote(a) for a in swarmshow_command()]
+
+
+# -- 6b. the bad-input matrix against a live server: peak memory of every process --------------------
+
+
+def _peak_rss_bytes(pid: int) -> int:
+    from pathlib import Path
+
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024
+    raise AssertionError("no VmHWM")
+
+
+def _children(pid: int) -> list[int]:
+    from pathlib import Path
+
+    out = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        kids = (task / "children").read_text().split()
+        out += [int(k) for k in kids]
+    return out + [g for k in out for g in _children(k)]
+
+
+def test_bad_input_matrix_keeps_every_process_small(tmp_path):
+    import httpx
+
+    from tests.live_server import ServerProcess
+
+    server = ServerProcess(tmp_path, viewer=True)
+    server.start()
+    b = server.base
+    try:
+        with httpx.Client(base_url=b, timeout=120) as http:
+            posted = [http.post("/api/shows", content=body, headers={"Content-Type": "application/json"})
+                      for _, body, _, _ in BOUNDED_CASES]
+            assert all(r.status_code == 422 for r in posted), [r.status_code for r in posted]
+            long = http.post("/api/shows", json=doc(name="long", formations=[
+                {**SHOW["formations"][0], "hold_s": 86_400.0}])).json()["id"]
+            answers = [
+                http.get(f"/api/shows/{long}/export/viser-html", params={"fps": 1000}),
+                http.get(f"/api/shows/{long}/export/waypoints-csv", params={"fps": 1000}),
+                http.put(f"/api/shows/{long}", content=b"[" * 100_000 + b"]" * 100_000),
+                http.post("/api/formations/svg", files={"file": ("x.svg", _fan_out(5, 10).encode())},
+                          data={"n": "10"}),
+                http.post("/api/formations/image", files={"file": ("t.png", _png(1, 400_000))}, data={"n": "10"}),
+            ]
+            assert [r.status_code for r in answers] == [422, 422, 422, 413, 422], [a.text[:200] for a in answers]
+            job = http.post(f"/api/shows/{long}/simulate", json={"output_hz": 1000}).json()
+            deadline = time.monotonic() + 60
+            while (state := http.get(f"/api/jobs/{job['id']}").json())["state"] not in ("done", "failed"):
+                assert time.monotonic() < deadline
+                time.sleep(0.1)
+            assert state["error"]["kind"] == "too_large"
+            assert http.post(f"/api/shows/{long}/playback", json={"source": "simulated"}).status_code == 413
+            assert http.get("/api/health").json()["status"] in ("ok", "busy")
+        server_peak = _peak_rss_bytes(server.proc.pid)
+        worker_peaks = [_peak_rss_bytes(k) for k in _children(server.proc.pid)]
+    finally:
+        server.stop()
+    print(f"peak RSS: server {server_peak / 2**20:.0f} MiB, workers {[round(w / 2**20) for w in worker_peaks]} MiB")
+    assert server_peak < 1 << 30, server_peak
+    assert worker_peaks and max(worker_peaks) < 2 << 30, worker_peaks

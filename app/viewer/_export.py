@@ -90,6 +90,7 @@ def export_viser_html(
         The HTML document, UTF-8.
     """
     src = source or ("simulated" if flight is not None else "planned")
+    _auto_fps(plan.drone_count, plan.duration_s, fps)  # refuse an over-budget rate before any work
     track = make_track(plan, flight, src)  # type: ignore[arg-type]
     rate = _auto_fps(track.drone_count, track.duration_s, fps)
     times = np.arange(int(np.floor(track.duration_s * rate + 1e-9)) + 1) / rate

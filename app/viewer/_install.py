@@ -60,8 +60,8 @@ class _Loader:
     def load(self, show_id: str, source: Source = "planned") -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
 
-        Called from a thread; the planning runs in the job manager's interactive pool (under its
-        time budget) and the flight in its batch pool, never in the server process.
+        Called from a thread; the planning and the flight run in the job manager's interactive pool
+        under its time budget, never in the server process.
 
         Returns:
             ``(record, plan, cached)``.
@@ -80,7 +80,9 @@ class _Loader:
             if source == "simulated" and flight is None:
                 viewer.set_busy(f"Simulating {record.name}", 0.0)
                 options = tasks.flight_options({}, jobs.settings.dask_scheduler)
-                plan, flight = jobs.run_batch_sync(tasks.viewer_flight_task, record.json, options)
+                # Interactive pool and budget: a request waits for it (a long show answers 504, the job
+                # API flies it without a time budget).
+                plan, flight = jobs.run_sync(tasks.viewer_flight_task, record.json, options)
             elif plan is None:
                 viewer.set_busy(f"Planning {record.name}", 0.0)
                 plan = jobs.run_sync(tasks.viewer_plan_task, record.json)
