@@ -285,11 +285,13 @@ class JobManager:
             self._manager.shutdown()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx, initializer=tasks.worker_init)
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx, initializer=tasks.worker_init,
+                                   initargs=(self.settings.worker_memory_mb << 20,))
 
     def _new_interactive_pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=self.interactive_workers, mp_context=self._ctx,
-                                   initializer=tasks.interactive_init, initargs=(self._flags, self._starts))
+                                   initializer=tasks.interactive_init,
+                                   initargs=(self._flags, self._starts, self.settings.worker_memory_mb << 20))
 
     def _submit(self, fn: Callable[..., Any], *args: Any) -> Future:
         self.wait_started()
@@ -689,6 +691,11 @@ class JobManager:
         except BrokenProcessPool:
             self._finish(job, JobState.FAILED, error={
                 "kind": ErrorKind.WORKER_DIED.value, "message": "the worker process died (killed or out of memory)"})
+            return
+        except MemoryError:
+            self._finish(job, JobState.FAILED, error={
+                "kind": tasks.FailureKind.TOO_LARGE.value,
+                "message": "the job needs more memory than a worker may use (SWARMSHOW_WORKER_MEMORY_MB)"})
             return
         except Exception:
             # A bug: the traceback goes to the log, the client gets no exception text.

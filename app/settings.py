@@ -59,6 +59,10 @@ class AppSettings(BaseSettings):
     )
     timeout_keep_alive_s: float = Field(5.0, gt=0, le=600, description="Idle keep-alive connections close "
                                         "after this many seconds.")
+    worker_memory_mb: int = Field(
+        2048, ge=256, le=1 << 20, description="Memory (heap and private mappings) each worker process may use, "
+        "MiB; past it the task fails with 413 instead of the process being killed.",
+    )
     max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")

@@ -90,7 +90,7 @@ _FLAGS: Any = None
 _STARTS: Any = None
 
 
-def interactive_init(flags: Any, starts: Any = None) -> None:
+def interactive_init(flags: Any, starts: Any = None, memory_bytes: int | None = None) -> None:
     """Initializer of the interactive pool's workers: end with the server, keep the cancel flags.
 
     They run at normal CPU priority, above the batch workers (:data:`WORKER_NICE`), so that a check
@@ -98,6 +98,7 @@ def interactive_init(flags: Any, starts: Any = None) -> None:
     """
     global _FLAGS, _STARTS
     die_with_parent()
+    limit_memory(memory_bytes)
     _FLAGS, _STARTS = flags, starts
 
 
@@ -127,6 +128,9 @@ def budgeted(slot: int, budget_s: float, fn: Any, *args: Any) -> Any:
     signal.setitimer(signal.ITIMER_REAL, BUDGET_TICK_S, BUDGET_TICK_S)
     try:
         return fn(*args)
+    except MemoryError:
+        raise TaskFailure(FailureKind.TOO_LARGE, "the request needs more memory than a worker may use "
+                          "(SWARMSHOW_WORKER_MEMORY_MB)") from None
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0, 0.0)
         signal.signal(signal.SIGALRM, previous)
@@ -177,9 +181,24 @@ class Progress:
 WORKER_NICE = 10
 
 
-def worker_init() -> None:
-    """Run once in each worker process: end with the server, and run at a lower CPU priority."""
+def limit_memory(memory_bytes: int | None) -> None:
+    """Cap this process's data (heap and private mappings, ``RLIMIT_DATA``): an allocation past it
+    raises ``MemoryError`` in the task instead of the kernel's OOM killer ending the process, or the
+    machine swapping."""
+    if not memory_bytes:
+        return
+    try:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_DATA, (memory_bytes, memory_bytes))
+    except (ImportError, ValueError, OSError):  # not on this platform, or above the hard limit
+        pass
+
+
+def worker_init(memory_bytes: int | None = None) -> None:
+    """Run once in each worker process: end with the server, cap its memory, run at a lower CPU priority."""
     die_with_parent()
+    limit_memory(memory_bytes)
     try:
         os.nice(WORKER_NICE)
     except (AttributeError, OSError):  # not on this platform, or not permitted: run at normal priority

@@ -38,3 +38,10 @@ def slow_job(show_text: str, options: dict, job_id: str, queue: Any, cancel: Any
         time.sleep(0.1)
         progress(i / 200)
     return {"done": True}
+
+
+def hog(gigabytes: float) -> int:
+    """Allocate and touch ``gigabytes`` of memory."""
+    import numpy as np
+
+    return int(np.ones(int(gigabytes * (1 << 30)) // 8).sum())

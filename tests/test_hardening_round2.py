@@ -696,3 +696,14 @@ def test_bad_input_matrix_keeps_every_process_small(tmp_path):
     print(f"peak RSS: server {server_peak / 2**20:.0f} MiB, workers {[round(w / 2**20) for w in worker_peaks]} MiB")
     assert server_peak < 1 << 30, server_peak
     assert worker_peaks and max(worker_peaks) < 2 << 30, worker_peaks
+
+
+def test_a_worker_that_needs_too_much_memory_fails_413_and_lives(pools):
+    from app import tasks
+    from tests import round2_tasks
+
+    worker = _run(pools, round2_tasks.pid)
+    with pytest.raises(tasks.TaskFailure) as info:
+        _run(pools, round2_tasks.hog, 3.0)  # over the 2 GiB default: refused by the allocator, not the OOM killer
+    assert info.value.kind == tasks.FailureKind.TOO_LARGE and "SWARMSHOW_WORKER_MEMORY_MB" in str(info.value)
+    assert _run(pools, round2_tasks.pid) == worker

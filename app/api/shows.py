@@ -374,7 +374,11 @@ async def export_show(
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
     record = deps.store(request).get(show_id)
     if fmt == "show":
-        text = json.dumps(json.loads(record.json), indent=2) + "\n"
+        def pretty() -> str:
+            return json.dumps(json.loads(record.json), indent=2) + "\n"
+
+        # Re-indenting megabytes is CPU work: off the event loop for large shows.
+        text = pretty() if len(record.json) <= INLINE_JSON_BYTES else await asyncio.to_thread(pretty)
         return Response(text, media_type="application/json", headers={
             "Content-Disposition": f'attachment; filename="{_slug(record.name)}.json"',
             "ETag": f'"{record.revision}"'})
