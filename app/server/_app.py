@@ -56,8 +56,12 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 * Uploads over the limits get **413**: show file 20 MB, image 40 megapixels (50 MB), SVG 5 MB.
 * With a server token (`SWARMSHOW_TOKEN`), every request needs `Authorization: Bearer <token>` or the
   cookie set by `POST /api/session`; otherwise **401**.
-* A full job queue answers **429** with `Retry-After`; a job running longer than `SWARMSHOW_JOB_TIMEOUT_S`
-  fails (status 504 in its error).
+* A full job queue (or a client's `SWARMSHOW_MAX_JOBS_PER_CLIENT` jobs) answers **429** with `Retry-After`;
+  a job running longer than `SWARMSHOW_JOB_TIMEOUT_S` fails (kind `timeout`, status 504 in its error).
+  Interactive work (check, formations, exports) has its own worker pool and a time budget
+  (`SWARMSHOW_TASK_TIMEOUT_S`: **504**); work over a size limit is refused before it starts (**413**/**422**).
+* Without a token, only loopback `Host` and `Origin` names are answered (**421** otherwise).
+* An unexpected error answers **500** `{"detail": "internal error", "request_id": ...}`; a full disk **507**.
 * Heavy work (checks, simulations, formation sampling, exports) runs in worker processes; simulations are
   jobs (`202`) with progress as server-sent events. Results are cached by the show's content hash.
 """
