@@ -1,9 +1,20 @@
 """Background jobs on a bounded worker-process pool, with progress, cancellation and a result cache.
 
-* **Pool.** A :class:`~concurrent.futures.ProcessPoolExecutor` (``spawn`` start
-  method: forking a process that runs threads and an event loop is unsafe) with a
-  fixed number of workers; CPU-heavy work never runs in the server process, whose
-  GIL the event loop and the viewer thread need.
+* **Pools.** Two :class:`~concurrent.futures.ProcessPoolExecutor` (``spawn`` start
+  method: forking a process that runs threads and an event loop is unsafe): the
+  *batch* pool flies simulation jobs at a lower CPU priority; the *interactive*
+  pool runs what a request awaits (checks, formations, exports, large saves, viewer
+  planning), so that one client's 64 queued simulations never delay another's
+  check. CPU-heavy work never runs in the server process, whose GIL the event loop
+  and the viewer thread need.
+* **Budgets.** Every interactive task runs under :func:`app.tasks.budgeted`: it stops
+  after ``task_timeout_s`` or as soon as its client has gone (a shared-memory flag
+  per task slot); one that does not stop is ended with its worker. Jobs fail after
+  ``job_timeout_s``. At most ``max_interactive_tasks`` interactive tasks wait at once,
+  and a client may have ``max_jobs_per_client`` jobs (then :class:`JobsBusy`).
+* **Errors.** A failed job's ``error`` carries a ``kind`` (:class:`ErrorKind`, or a
+  :class:`app.tasks.FailureKind` the task gave); the API maps kinds to HTTP statuses,
+  this module knows none. Interactive tasks raise :class:`TaskError` likewise.
 * **Progress.** Workers put ``(job_id, "running" | "progress", fraction)`` on one
   queue owned by a :mod:`multiprocessing` manager; a relay thread in the server
   applies them to the jobs. Every change bumps ``Job.version``, which is what the
@@ -14,8 +25,15 @@
   either way, and the late result, if any, is dropped.
 * **Cache.** Results are keyed by (kind, show content hash, options, version): in memory
   (LRU) in front of the store's ``results`` table, so an unchanged show is not
-  recomputed, not even after a restart. An identical job already queued or running
-  is shared instead of started twice.
+  recomputed, not even after a restart. An identical job of the same client already queued
+  or running is shared instead of started twice (never across clients: one client's
+  cancel must not stop another's job).
+* **Records.** Every job's record (state, progress, error) is written to the store when
+  it starts, changes state, every :data:`PERSIST_PROGRESS_S` of progress, and when it
+  ends; after a crash or a restart the ids still answer, and the jobs that were queued
+  or running are marked failed with kind ``interrupted``.
+* **Settings.** The manager gets the server's :class:`~app.settings.AppSettings` at
+  construction; workers never read the environment.
 """
 
 from __future__ import annotations
@@ -26,10 +44,11 @@ import json
 import logging
 import multiprocessing
 import secrets
+import sqlite3
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from concurrent.futures import CancelledError, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -38,6 +57,7 @@ from multiprocessing.managers import SyncManager
 from typing import Any
 
 from app import tasks
+from app.settings import AppSettings
 from app.store import ShowStore
 from app.version import __version__
 
@@ -45,6 +65,8 @@ log = logging.getLogger("swarmshow.jobs")
 
 #: Seconds a timed-out task gets to notice its cancel event before its worker process is ended.
 TIMEOUT_GRACE_S = 5.0
+#: Seconds between two writes of a running job's progress to the store (each write is an fsync).
+PERSIST_PROGRESS_S = 2.0
 
 
 class JobState(StrEnum):
@@ -58,6 +80,25 @@ class JobState(StrEnum):
 
 
 TERMINAL = frozenset({JobState.DONE, JobState.FAILED, JobState.CANCELLED})
+
+
+class ErrorKind(StrEnum):
+    """Why a job or an interactive task did not finish with a result (besides a task's own
+    :class:`app.tasks.FailureKind`)."""
+
+    CANCELLED = "cancelled"  # by its client, or its client has gone
+    TIMEOUT = "timeout"  # over its time budget
+    WORKER_DIED = "worker_died"  # its worker process was killed (out of memory, a signal)
+    FAILED = "failed"  # a bug: the traceback is in the server log
+    INTERRUPTED = "interrupted"  # the server stopped (crashed, restarted) while the job was queued or running
+
+
+class TaskError(RuntimeError):
+    """An interactive task ended without a result: ``kind`` (an :class:`ErrorKind`) and a message."""
+
+    def __init__(self, kind: ErrorKind, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 class JobNotFound(LookupError):
@@ -96,6 +137,8 @@ class Job:
     finished_at: float | None = None
     version: int = 0
     cache_key: str = ""
+    client: str = ""
+    persisted_at: float = field(default=0.0, repr=False)
     future: Future | None = field(default=None, repr=False)
     cancel_event: Any = field(default=None, repr=False)
 
@@ -130,6 +173,14 @@ def _iso(t: float | None) -> str | None:
     return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(t)) + f".{int((t % 1) * 1e6):06d}Z"
 
 
+def _parse_iso(text: str) -> float:
+    """Inverse of :func:`_iso` (UTC)."""
+    import calendar
+
+    head, _, frac = text.rstrip("Z").partition(".")
+    return calendar.timegm(time.strptime(head, "%Y-%m-%dT%H:%M:%S")) + (int(frac) / 1e6 if frac else 0.0)
+
+
 def cache_key(kind: str, content_hash: str, options: dict[str, Any]) -> str:
     """Key of a result: kind, show content hash, and a digest of the options and the swarmshow
     version (results cached on disk by an older planner are not served after an upgrade)."""
@@ -141,22 +192,17 @@ def cache_key(kind: str, content_hash: str, options: dict[str, Any]) -> str:
 class JobManager:
     """The worker pool, the jobs and the result cache of one server."""
 
-    def __init__(
-        self,
-        *,
-        store: ShowStore,
-        workers: int = 2,
-        max_jobs_kept: int = 1000,
-        max_pending: int = 64,
-        max_cached: int = 500,
-        timeout_s: float = 3600.0,
-    ) -> None:
-        self.store = store
-        self.workers = workers
-        self.max_jobs_kept = max_jobs_kept
-        self.max_pending = max_pending
-        self.max_cached = max_cached
+    def __init__(self, *, store: ShowStore, settings: AppSettings) -> None:
+        self.store, self.settings = store, settings
+        self.workers = settings.workers
+        self.interactive_workers = settings.interactive_workers
+        self.max_jobs_kept = settings.max_jobs_kept
+        self.max_pending = settings.max_pending_jobs
+        self.max_per_client = settings.max_jobs_per_client
+        self.max_cached = settings.max_cached_results
+        self.task_timeout_s = settings.task_timeout_s
         self._lock = threading.Lock()
+        self._persist_lock = threading.Lock()
         self._jobs: OrderedDict[str, Job] = OrderedDict()
         self._inflight: dict[str, str] = {}
         self._memo: OrderedDict[str, Any] = OrderedDict()
@@ -167,19 +213,33 @@ class JobManager:
         self._relay: threading.Thread | None = None
         self._closed = False
         self._started = threading.Event()
-        self.timeout_s = timeout_s
+        self.timeout_s = settings.job_timeout_s
         self._watchdog: threading.Thread | None = None
+        # Interactive tasks: one slot each (its cancel flag and budget); free slots are the admission limit.
+        slots = settings.max_interactive_tasks
+        self._flags: Any = None
+        self._starts: Any = None
+        self._free_slots: list[int] = list(range(slots))[::-1]
+        self._slot_budget: dict[int, tuple[Future, float]] = {}  # slot -> (future, budget_s)
+        self._ipool: ProcessPoolExecutor | None = None
 
     # -- life cycle -------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start the manager process, the pool (warming every worker up) and the relay thread."""
+        """Mark jobs a previous server left unfinished as interrupted; start the manager process, the
+        pools (warming every worker up) and the relay and watchdog threads."""
+        self._mark_interrupted()
         self._manager = SyncManager(ctx=self._ctx)
         self._manager.start(initializer=tasks.die_with_parent)
         self._events = self._manager.Queue()
+        self._flags = self._ctx.RawArray("b", max(len(self._free_slots), 1))
+        self._starts = self._ctx.RawArray("d", max(len(self._free_slots), 1))
         self._pool = self._new_pool()
+        self._ipool = self._new_interactive_pool()
         for _ in range(self.workers):
             self._pool.submit(tasks.warm_up)
+        for _ in range(self.interactive_workers):
+            self._ipool.submit(tasks.warm_up)
         self._relay = threading.Thread(target=self._relay_loop, name="swarmshow-job-relay", daemon=True)
         self._relay.start()
         self._watchdog = threading.Thread(target=self._watchdog_loop, name="swarmshow-job-watchdog", daemon=True)
@@ -200,16 +260,20 @@ class JobManager:
             unfinished = [j for j in self._jobs.values() if not j.terminal]
         for job in unfinished:
             self._cancel_job(job, reason="server shutting down")
-        pool = self._pool
-        if pool is not None:
-            processes = list(getattr(pool, "_processes", {}).values())
-            pool.shutdown(wait=False, cancel_futures=True)
-            # A worker deep in a long step (a big check) reports no progress; give it a moment, then stop it.
-            deadline = time.monotonic() + 3.0
-            for p in processes:
-                p.join(max(0.0, deadline - time.monotonic()))
-                if p.is_alive():
-                    p.terminate()
+        if self._flags is not None:
+            for i in range(len(self._flags)):
+                self._flags[i] = 1  # every interactive task stops at its next tick
+        processes = []
+        for pool in (self._pool, self._ipool):
+            if pool is not None:
+                processes += list(getattr(pool, "_processes", {}).values())
+                pool.shutdown(wait=False, cancel_futures=True)
+        # A worker deep in a long step (a big check) reports no progress; give it a moment, then stop it.
+        deadline = time.monotonic() + 3.0
+        for p in processes:
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.terminate()
         if self._events is not None:
             try:
                 self._events.put(None)
@@ -221,7 +285,13 @@ class JobManager:
             self._manager.shutdown()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx, initializer=tasks.worker_init)
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx, initializer=tasks.worker_init,
+                                   initargs=(self.settings.worker_memory_mb << 20,))
+
+    def _new_interactive_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=self.interactive_workers, mp_context=self._ctx,
+                                   initializer=tasks.interactive_init,
+                                   initargs=(self._flags, self._starts, self.settings.worker_memory_mb << 20))
 
     def _submit(self, fn: Callable[..., Any], *args: Any) -> Future:
         self.wait_started()
@@ -238,7 +308,7 @@ class JobManager:
     def _watchdog_loop(self) -> None:
         """Fail jobs running longer than ``timeout_s``; stop a worker that ignores the cancel event."""
         stuck: list[tuple[Future, float]] = []
-        period = min(1.0, self.timeout_s / 4)
+        period = min(1.0, self.timeout_s / 4, self.task_timeout_s / 4)
         while not self._closed:
             time.sleep(period)
             now = time.time()
@@ -248,7 +318,7 @@ class JobManager:
             for job in late:
                 fut = job.future
                 self._cancel_job(job, reason=f"timed out after {self.timeout_s:g} s (SWARMSHOW_JOB_TIMEOUT_S)",
-                                 state=JobState.FAILED, status=504)
+                                 state=JobState.FAILED, kind=ErrorKind.TIMEOUT)
                 if fut is not None:
                     stuck.append((fut, time.monotonic() + TIMEOUT_GRACE_S))
             overdue = [f for f, t in stuck if not f.done() and time.monotonic() > t]
@@ -257,14 +327,81 @@ class JobManager:
                 # The task reports no progress (a numerical loop gone wrong): only ending its process stops it.
                 log.warning("%d timed-out job(s) ignored cancellation; restarting the worker pool", len(overdue))
                 self._recycle_pool()
+            now_m = time.monotonic()
+            with self._lock:
+                late_tasks = [f for slot, (f, budget) in self._slot_budget.items()
+                              if not f.done() and 0 < self._starts[slot] < now_m - budget - TIMEOUT_GRACE_S]
+            if late_tasks:
+                # A task stuck in one C call (no bytecode, so no timer tick): end its worker.
+                log.warning("%d interactive task(s) over their hard deadline; restarting that pool", len(late_tasks))
+                self._recycle_pool(self._ipool)
 
-    def _recycle_pool(self) -> None:
-        pool = self._pool
+    def _recycle_pool(self, pool: ProcessPoolExecutor | None = None) -> None:
+        pool = pool or self._pool
         if pool is None:
             return
         for p in list(getattr(pool, "_processes", {}).values()):
             if p.is_alive():
                 p.terminate()
+
+    # -- job records in the store ----------------------------------------------------------
+
+    def _save(self, job: Job) -> None:
+        """Write the job's current record to the store.
+
+        Taking the record and writing it happen under one lock of their own (not the jobs' lock: a
+        write waits for an fsync), so a late "running" can never overwrite a "done" written before it.
+        """
+        with self._persist_lock:
+            with self._lock:
+                snap = job.snapshot(with_result=False)
+                snap.update(cache_key=job.cache_key, client=job.client)
+                state = job.state.value
+            self._persist(job.id, (json.dumps(snap), state))
+
+    def _persist(self, job_id: str, record: tuple[str, str]) -> None:
+        try:
+            self.store.put_job(job_id, record[0], state=record[1], keep=self.max_jobs_kept)
+        except Exception as exc:  # a full disk must not fail the job itself
+            log.warning("job %s: record not written: %s", job_id, exc)
+
+    def _mark_interrupted(self) -> None:
+        try:
+            records = self.store.unfinished_jobs()
+        except Exception:
+            log.exception("could not read the job records")
+            return
+        now = time.time()
+        for text in records:
+            rec = json.loads(text)
+            rec.update(state=JobState.FAILED.value, finished_at=_iso(now), error={
+                "kind": ErrorKind.INTERRUPTED.value,
+                "message": "the server stopped while this job was queued or running; start it again"})
+            self._persist(rec["id"], (json.dumps(rec), rec["state"]))
+        if records:
+            log.warning("%d job(s) were interrupted by the last server stop", len(records))
+
+    def _stored_job(self, job_id: str) -> Job | None:
+        """A finished job of an earlier server, from its record (its result from the cache), or None."""
+        try:
+            text = self.store.get_job(job_id)
+        except Exception:
+            return None
+        if text is None:
+            return None
+        rec = json.loads(text)
+        job = Job(id=rec["id"], kind=rec["kind"], content_hash=rec["content_hash"], options=rec["options"],
+                  show_id=rec.get("show_id"), show_revision=rec.get("show_revision"),
+                  state=JobState(rec["state"]), progress=float(rec["progress"]), error=rec.get("error"),
+                  cached=bool(rec.get("cached")), cache_key=rec.get("cache_key", ""), client=rec.get("client", ""))
+        for name in ("created_at", "started_at", "finished_at"):
+            value = rec.get(name)
+            setattr(job, name, _parse_iso(value) if value else None)
+        if job.state == JobState.DONE and job.cache_key:
+            job.result = self.cached_result(job.cache_key)
+        if not job.terminal:  # written by this server an instant ago and not yet in memory: not ours to show
+            return None
+        return job
 
     def _relay_loop(self) -> None:
         while True:
@@ -279,10 +416,12 @@ class JobManager:
             if item is None:
                 return
             job_id, what, value = item
+            save = False
             with self._lock:
                 job = self._jobs.get(job_id)
                 if job is None or job.terminal:
                     continue
+                was = job.state
                 if what == "running" and job.state == JobState.QUEUED:
                     job.state, job.started_at = JobState.RUNNING, time.time()
                 elif what == "progress":
@@ -290,24 +429,138 @@ class JobManager:
                     if job.state == JobState.QUEUED:
                         job.state, job.started_at = JobState.RUNNING, time.time()
                 job.version += 1
+                if job.state != was or time.monotonic() - job.persisted_at >= PERSIST_PROGRESS_S:
+                    job.persisted_at = time.monotonic()
+                    save = True
+            if save:
+                self._save(job)
 
     # -- synchronous tasks (awaited by a request) -------------------------------------------
 
-    async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """Run ``fn(*args)`` in a worker and await its result (a client that leaves cancels a queued task)."""
+    async def run(self, fn: Callable[..., Any], *args: Any, gone: Callable[[], Awaitable[bool]] | None = None,
+                  budget_s: float | None = None) -> Any:
+        """Run ``fn(*args)`` in the interactive pool under a time budget and await its result.
+
+        Args:
+            gone: polled while waiting; once it says the client has gone, the task is stopped.
+            budget_s: the task's time budget (default ``task_timeout_s``).
+
+        Raises:
+            JobsBusy: ``max_interactive_tasks`` tasks are already waiting or running.
+            TaskError: timed out, cancelled (its client left), or its worker died.
+            app.tasks.TaskFailure: the task refused its input.
+        """
         if not self._started.is_set():
             await asyncio.to_thread(self.wait_started)
-        return await asyncio.wrap_future(self._submit(fn, *args))
+        budget = float(budget_s or self.task_timeout_s)
+        slot = self._take_slot()
+        fut: Future | None = None
+        try:
+            fut = self._submit_interactive(slot, budget, fn, *args)
+            waiting = asyncio.wrap_future(fut)
+            # An abandoned task still ends (cancelled, with an error): retrieve it so that asyncio does not warn.
+            waiting.add_done_callback(lambda f: f.cancelled() or f.exception())
+            while True:
+                done, _ = await asyncio.wait({waiting}, timeout=0.25 if gone is not None else None)
+                if done:
+                    break
+                if gone is not None and await gone():
+                    raise TaskError(ErrorKind.CANCELLED, "the client has gone")
+            try:
+                return waiting.result()
+            except tasks.TaskTimeout as exc:
+                raise TaskError(ErrorKind.TIMEOUT, f"{exc} (SWARMSHOW_TASK_TIMEOUT_S)") from None
+            except tasks.TaskCancelled:
+                raise TaskError(ErrorKind.CANCELLED, "cancelled") from None
+            except (BrokenProcessPool, CancelledError):
+                self._replace_broken_interactive_pool()
+                raise TaskError(ErrorKind.WORKER_DIED, "the worker process died (killed, out of memory, or "
+                                "ended for running over its time budget)") from None
+        finally:
+            self._release_slot(slot, fut)
+
+    def run_sync(self, fn: Callable[..., Any], *args: Any, budget_s: float | None = None) -> Any:
+        """:meth:`run` for a thread that is not the event loop's (the viewer's loader)."""
+        self.wait_started()
+        budget = float(budget_s or self.task_timeout_s)
+        slot = self._take_slot()
+        fut: Future | None = None
+        try:
+            fut = self._submit_interactive(slot, budget, fn, *args)
+            try:
+                return fut.result()
+            except tasks.TaskTimeout as exc:
+                raise TaskError(ErrorKind.TIMEOUT, f"{exc} (SWARMSHOW_TASK_TIMEOUT_S)") from None
+            except (BrokenProcessPool, CancelledError):
+                self._replace_broken_interactive_pool()
+                raise TaskError(ErrorKind.WORKER_DIED, "the worker process died") from None
+        finally:
+            self._release_slot(slot, fut)
+
+    def _take_slot(self) -> int:
+        with self._lock:
+            if not self._free_slots:
+                raise JobsBusy(f"{self.settings.max_interactive_tasks} interactive requests are queued or "
+                               "running (SWARMSHOW_MAX_INTERACTIVE_TASKS); try again shortly")
+            slot = self._free_slots.pop()
+        self._flags[slot] = 0
+        self._starts[slot] = 0.0
+        return slot
+
+    def _release_slot(self, slot: int, fut: Future | None) -> None:
+        """Free ``slot`` once its task is over; a task still queued or running is told to stop first."""
+        def free(_: Any = None) -> None:
+            with self._lock:
+                self._slot_budget.pop(slot, None)
+                self._free_slots.append(slot)
+
+        if fut is None or fut.done():
+            free()
+            return
+        self._flags[slot] = 1
+        fut.cancel()
+        fut.add_done_callback(free)
+
+    def _submit_interactive(self, slot: int, budget_s: float, fn: Callable[..., Any], *args: Any) -> Future:
+        if self._closed or self._ipool is None:
+            raise RuntimeError("the job manager is not running")
+        try:
+            fut = self._ipool.submit(tasks.budgeted, slot, budget_s, fn, *args)
+        except BrokenProcessPool:
+            self._replace_broken_interactive_pool()
+            fut = self._ipool.submit(tasks.budgeted, slot, budget_s, fn, *args)
+        with self._lock:
+            self._slot_budget[slot] = (fut, budget_s)
+        return fut
+
+    def _replace_broken_interactive_pool(self) -> None:
+        with self._lock:
+            pool = self._ipool
+            if pool is None or self._closed or not getattr(pool, "_broken", False):
+                return
+            log.warning("interactive worker pool broken; starting a new one")
+            self._ipool = self._new_interactive_pool()
+
+    def interactive_busy(self) -> int:
+        """Interactive tasks queued or running."""
+        with self._lock:
+            return self.settings.max_interactive_tasks - len(self._free_slots)
+
+    def saturated(self) -> bool:
+        """True when new work would wait: every interactive worker busy with others queued, or the job
+        queue full."""
+        return self.interactive_busy() > self.interactive_workers or self.pending() >= self.max_pending
 
     async def run_cached(
-        self, kind: str, content_hash: str, options: dict[str, Any], fn: Callable[..., Any], *args: Any
+        self, kind: str, content_hash: str, options: dict[str, Any], fn: Callable[..., Any], *args: Any,
+        gone: Callable[[], Awaitable[bool]] | None = None,
     ) -> tuple[Any, bool]:
         """Like :meth:`run`, through the result cache; returns ``(result, was_cached)``."""
         key = cache_key(kind, content_hash, options)
         hit = self.cached_result(key)  # a memory lookup or one indexed read: no thread needed
         if hit is not None:
             return hit, True
-        result = await self.run(fn, *args)
+        result = await self.run(fn, *args, gone=gone)
         await asyncio.to_thread(self._remember, key, kind, content_hash, result)
         return result, False
 
@@ -331,7 +584,8 @@ class JobManager:
                 key, kind=kind, content_hash=content_hash, text=json.dumps(result, allow_nan=False),
                 keep=self.max_cached,
             )
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, sqlite3.Error) as exc:
+            # Not JSON-safe, or the disk is full: the result is still answered, only not kept on disk.
             log.warning("result of %s not cached on disk: %s", key, exc)
 
     def _memo_put(self, key: str, value: Any) -> None:
@@ -353,23 +607,27 @@ class JobManager:
         options: dict[str, Any],
         show_id: str | None = None,
         show_revision: int | None = None,
+        client: str = "",
+        task_options: dict[str, Any] | None = None,
     ) -> Job:
-        """Start a job ``fn(show_text, options, job_id, progress_queue, cancel_event)``.
+        """Start a job ``fn(show_text, task_options, job_id, progress_queue, cancel_event)``.
 
         A result in the cache gives a job that is already done (``cached``); an
-        identical job still queued or running is returned instead of a new one.
+        identical job of the same ``client`` still queued or running is returned
+        instead of a new one. ``options`` key the cache; ``task_options`` (default:
+        ``options``) are what the task gets, resolved with the server's settings.
 
         Raises:
-            JobsBusy: ``max_pending`` jobs are already queued or running.
+            JobsBusy: ``max_pending`` jobs, or ``max_jobs_per_client`` of this client, are queued or running.
         """
         key = cache_key(kind, content_hash, options)
         with self._lock:
-            same = self._jobs.get(self._inflight.get(key, ""))
+            same = self._jobs.get(self._inflight.get(f"{client}|{key}", ""))
             if same is not None and not same.terminal:
                 return same
         job = Job(
             id=secrets.token_hex(8), kind=kind, content_hash=content_hash, options=options,
-            show_id=show_id, show_revision=show_revision, cache_key=key,
+            show_id=show_id, show_revision=show_revision, cache_key=key, client=client,
         )
         hit = self.cached_result(key)
         if hit is not None:
@@ -379,16 +637,22 @@ class JobManager:
             self._add(job)
             return job
         with self._lock:
-            pending = sum(1 for j in self._jobs.values() if not j.terminal)
-        if pending >= self.max_pending:
-            raise JobsBusy(f"{pending} jobs are queued or running; try again when some have finished")
+            live = [j for j in self._jobs.values() if not j.terminal]
+            mine = sum(1 for j in live if j.client == client)
+        if len(live) >= self.max_pending:
+            raise JobsBusy(f"{len(live)} jobs are queued or running; try again when some have finished")
+        if mine >= self.max_per_client:
+            raise JobsBusy(f"you have {mine} jobs queued or running, the limit per client "
+                           "(SWARMSHOW_MAX_JOBS_PER_CLIENT); try again when some have finished")
         self.wait_started()
         job.cancel_event = self._manager.Event()
         self._add(job, inflight=True)
         try:
-            job.future = self._submit(fn, show_text, options, job.id, self._events, job.cancel_event)
-        except Exception as exc:
-            self._finish(job, JobState.FAILED, error={"status": 500, "message": f"could not start: {exc}"})
+            job.future = self._submit(fn, show_text, options if task_options is None else task_options, job.id,
+                                      self._events, job.cancel_event)
+        except Exception:
+            log.exception("job %s (%s) could not start", job.id, job.kind)
+            self._finish(job, JobState.FAILED, error={"kind": ErrorKind.FAILED.value, "message": "could not start"})
             return job
         job.future.add_done_callback(lambda fut, job_id=job.id: self._on_done(job_id, fut))
         return job
@@ -396,12 +660,14 @@ class JobManager:
     def _add(self, job: Job, *, inflight: bool = False) -> None:
         with self._lock:
             self._jobs[job.id] = job
+            job.persisted_at = time.monotonic()
             if inflight:
-                self._inflight[job.cache_key] = job.id
+                self._inflight[f"{job.client}|{job.cache_key}"] = job.id
             excess = len(self._jobs) - self.max_jobs_kept
             if excess > 0:
                 for old_id in [k for k, j in self._jobs.items() if j.terminal][:excess]:
                     del self._jobs[old_id]
+        self._save(job)
 
     def _on_done(self, job_id: str, fut: Future) -> None:
         """Runs in the pool's management thread when a job's task ends."""
@@ -412,21 +678,30 @@ class JobManager:
         try:
             result = fut.result()
         except CancelledError:
-            self._finish(job, JobState.CANCELLED, error={"status": 499, "message": "cancelled before it started"})
+            self._finish(job, JobState.CANCELLED, error={"kind": ErrorKind.CANCELLED.value,
+                                                         "message": "cancelled before it started"})
             return
         except tasks.TaskCancelled:
-            self._finish(job, JobState.CANCELLED, error={"status": 499, "message": "cancelled"})
+            self._finish(job, JobState.CANCELLED, error={"kind": ErrorKind.CANCELLED.value, "message": "cancelled"})
             return
         except tasks.TaskFailure as exc:
-            self._finish(job, JobState.FAILED, error={"status": exc.status, "message": str(exc), "detail": exc.detail})
+            self._finish(job, JobState.FAILED, error={"kind": exc.kind.value, "message": str(exc),
+                                                      "detail": exc.detail})
             return
         except BrokenProcessPool:
             self._finish(job, JobState.FAILED, error={
-                "status": 500, "message": "the worker process died (killed or out of memory)"})
+                "kind": ErrorKind.WORKER_DIED.value, "message": "the worker process died (killed or out of memory)"})
             return
-        except Exception as exc:
+        except MemoryError:
+            self._finish(job, JobState.FAILED, error={
+                "kind": tasks.FailureKind.TOO_LARGE.value,
+                "message": "the job needs more memory than a worker may use (SWARMSHOW_WORKER_MEMORY_MB)"})
+            return
+        except Exception:
+            # A bug: the traceback goes to the log, the client gets no exception text.
             log.exception("job %s (%s) failed", job.id, job.kind)
-            self._finish(job, JobState.FAILED, error={"status": 500, "message": f"{type(exc).__name__}: {exc}"})
+            self._finish(job, JobState.FAILED, error={"kind": ErrorKind.FAILED.value,
+                                                      "message": f"internal error (job {job.id}; see the server log)"})
             return
         try:
             self._remember(job.cache_key, job.kind, job.content_hash, result)
@@ -436,8 +711,8 @@ class JobManager:
 
     def _finish(self, job: Job, state: JobState, *, result: Any = None, error: dict[str, Any] | None = None) -> None:
         with self._lock:
-            if self._inflight.get(job.cache_key) == job.id:
-                del self._inflight[job.cache_key]
+            if self._inflight.get(f"{job.client}|{job.cache_key}") == job.id:
+                del self._inflight[f"{job.client}|{job.cache_key}"]
             if job.terminal:
                 return  # cancelled meanwhile: the late result or error is dropped
             job.state, job.result, job.error = state, result, error
@@ -447,11 +722,14 @@ class JobManager:
             job.started_at = job.started_at or job.finished_at
             job.version += 1
             job.future, job.cancel_event = None, None
+        self._save(job)
 
     def get(self, job_id: str) -> Job:
         """The job. Raises :class:`JobNotFound`."""
         with self._lock:
             job = self._jobs.get(job_id)
+        if job is None:
+            job = self._stored_job(job_id)  # an earlier server's job, or one forgotten from memory
         if job is None:
             raise JobNotFound(job_id)
         return job
@@ -474,7 +752,8 @@ class JobManager:
         self._cancel_job(job, reason="cancelled")
         return job
 
-    def _cancel_job(self, job: Job, *, reason: str, state: JobState = JobState.CANCELLED, status: int = 499) -> None:
+    def _cancel_job(self, job: Job, *, reason: str, state: JobState = JobState.CANCELLED,
+                    kind: ErrorKind = ErrorKind.CANCELLED) -> None:
         event, fut = job.cancel_event, job.future
         if event is not None:
             try:
@@ -483,7 +762,7 @@ class JobManager:
                 pass
         if fut is not None:
             fut.cancel()  # succeeds only while the task waits in the pool's queue
-        self._finish(job, state, error={"status": status, "message": reason})
+        self._finish(job, state, error={"kind": kind.value, "message": reason})
 
     def pending(self) -> int:
         """Jobs queued or running."""

@@ -39,6 +39,30 @@ class AppSettings(BaseSettings):
     job_timeout_s: float = Field(
         3600.0, gt=0, le=7 * 86_400, description="A background job running longer than this is stopped and fails."
     )
+    interactive_workers: int = Field(
+        1, ge=1, le=16, description="Worker processes kept for interactive requests (checks, formations, "
+        "exports, large saves, viewer planning), apart from the simulation workers.",
+    )
+    task_timeout_s: float = Field(
+        60.0, gt=0, le=3600, description="Time budget of one interactive request's work, seconds (504 after).",
+    )
+    max_interactive_tasks: int = Field(
+        64, ge=1, le=4096, description="Interactive requests queued or running at once before 429.",
+    )
+    max_jobs_per_client: int = Field(
+        16, ge=1, description="Queued or running jobs of one client (session cookie, X-Swarmshow-Client "
+        "header or address) before 429.",
+    )
+    header_timeout_s: float = Field(
+        10.0, gt=0, le=600, description="A connection must send its request headers within this many seconds "
+        "(slow-loris connections are closed).",
+    )
+    timeout_keep_alive_s: float = Field(5.0, gt=0, le=600, description="Idle keep-alive connections close "
+                                        "after this many seconds.")
+    worker_memory_mb: int = Field(
+        2048, ge=256, le=1 << 20, description="Memory (heap and private mappings) each worker process may use, "
+        "MiB; past it the task fails with 413 instead of the process being killed.",
+    )
     max_cached_results: int = Field(500, ge=1, description="Results kept in the content-hash cache.")
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")
@@ -46,6 +70,11 @@ class AppSettings(BaseSettings):
     token: SecretStr | None = Field(
         None,
         description="Bearer token every /api and /viser request must carry (required off loopback).",
+    )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="Host names besides loopback ones a tokenless server answers to (JSON list); any other "
+        "Host or Origin gets 421, so that a DNS-rebinding web page cannot reach a loopback server.",
     )
     session_ttl_s: int = Field(
         3600, ge=60, le=86_400, description="Lifetime of the session cookie POST /api/session sets, seconds."

@@ -74,6 +74,18 @@ MIGRATIONS: tuple[str, ...] = (
     INSERT INTO revisions (show_id, revision, name, content_hash, drones, formations, json, created_at)
         SELECT id, revision, name, content_hash, drones, formations, json, updated_at FROM shows;
     """,
+    # 4: job records (state, progress, error), so that a job's id still answers after a crash or a
+    #    restart: the jobs that were queued or running are then marked interrupted.
+    """
+    CREATE TABLE jobs (
+        id TEXT PRIMARY KEY,
+        record TEXT NOT NULL,
+        state TEXT NOT NULL,
+        updated_at TEXT NOT NULL
+    );
+    CREATE INDEX jobs_by_updated ON jobs (updated_at);
+    CREATE INDEX jobs_by_state ON jobs (state);
+    """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -420,3 +432,24 @@ class ShowStore:
                 "(SELECT key FROM results ORDER BY created_at DESC LIMIT -1 OFFSET ?)",
                 (keep,),
             )
+
+    # -- job records ------------------------------------------------------------------------
+
+    def put_job(self, job_id: str, record: str, *, state: str, keep: int = 1000) -> None:
+        """Write a job's record (JSON text), keeping only the ``keep`` most recently changed."""
+        with self._tx() as db:
+            db.execute("INSERT OR REPLACE INTO jobs (id, record, state, updated_at) VALUES (?, ?, ?, ?)",
+                       (job_id, record, state, _now()))
+            db.execute("DELETE FROM jobs WHERE id IN "
+                       "(SELECT id FROM jobs ORDER BY updated_at DESC LIMIT -1 OFFSET ?)", (keep,))
+
+    def get_job(self, job_id: str) -> str | None:
+        """A job's record (JSON text), or None."""
+        with self._read() as db:
+            row = db.execute("SELECT record FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        return None if row is None else row[0]
+
+    def unfinished_jobs(self) -> list[str]:
+        """Records of the jobs stored as queued or running (after a restart: interrupted)."""
+        with self._read() as db:
+            return [r[0] for r in db.execute("SELECT record FROM jobs WHERE state IN ('queued', 'running')")]

@@ -2,34 +2,59 @@
 
 Every function here is top level (picklable by name) and takes plain data: the
 show as its JSON text, options as dicts. Known failures are raised as
-:class:`TaskFailure` (HTTP status + detail), because library exceptions with
-keyword arguments (``PlanError.path``, ``FormationError.max_n``) lose them when
-pickled back to the server process.
+:class:`TaskFailure` (a :class:`FailureKind` + detail; the API maps kinds to HTTP
+statuses), because library exceptions with keyword arguments (``PlanError.path``,
+``FormationError.max_n``) lose them when pickled back to the server process.
+Nothing here reads the environment: what the server's settings decide (the Dask
+scheduler, time budgets) arrives as arguments.
 
 Long tasks report progress through a queue shared with the server and stop at
-their next progress report once their cancel event is set.
+their next progress report once their cancel event is set. Interactive tasks run
+under :func:`budgeted`: a timer interrupts them when their time budget is spent or
+their client has gone.
 """
 
 from __future__ import annotations
 
 import os
+import signal
 import time
+from enum import StrEnum
 from typing import Any
 
 #: Fraction of a simulation job spent planning (the flight is the rest).
 PLAN_SHARE = 0.05
+#: Most trajectory samples (drones x recorded frames) a simulation may keep: 20 M samples are about
+#: 1 GB of positions, colours and errors in the worker (``output_hz=1000`` on a 1,000-drone 10-minute
+#: show asked for 600 M and was killed at 3 GB).
+MAX_OUTPUT_SAMPLES = 20_000_000
+#: Most drone-seconds the 3D viewer flies inside one request (the numba engine does about 18,000 per
+#: second on an idle core at 1 kHz, so this stays well inside the interactive time budget).
+MAX_VIEWER_FLIGHT_DRONE_S = 300_000
+#: Seconds between two looks of :func:`budgeted` at the clock and the cancel flag.
+BUDGET_TICK_S = 0.05
+
+
+class FailureKind(StrEnum):
+    """Why a task refused its input; the API maps each to an HTTP status."""
+
+    INVALID = "invalid"  # 422: the input (a show, an option) breaks a rule
+    TOO_LARGE = "too_large"  # 413: the input, or the work it implies, is over a limit
+    UNAVAILABLE = "unavailable"  # 503: a service the task needs (the Dask cluster) is down
+    NOT_FOUND = "not_found"  # 404: no such source or format
+    NOT_IMPLEMENTED = "not_implemented"  # 501: not in this installation
 
 
 class TaskFailure(Exception):
-    """A task failed for a reason the client should see: ``status`` (HTTP) and ``detail`` (JSON-safe)."""
+    """A task failed for a reason the client should see: ``kind`` and ``detail`` (JSON-safe)."""
 
-    def __init__(self, status: int, detail: Any) -> None:
-        super().__init__(status, detail)
+    def __init__(self, kind: FailureKind | str, detail: Any) -> None:
+        super().__init__(str(FailureKind(kind)), detail)
 
     @property
-    def status(self) -> int:
-        """HTTP status the API answers with (422 bad input, 413 too large, 500 internal)."""
-        return int(self.args[0])
+    def kind(self) -> FailureKind:
+        """What went wrong (see :class:`FailureKind`)."""
+        return FailureKind(self.args[0])
 
     @property
     def detail(self) -> Any:
@@ -46,6 +71,71 @@ class TaskFailure(Exception):
 
 class TaskCancelled(Exception):
     """Raised inside a task by its progress callback after the job was cancelled."""
+
+
+class TaskTimeout(Exception):
+    """Raised inside a task by :func:`budgeted` when its time budget is spent."""
+
+    def __init__(self, budget_s: float) -> None:
+        super().__init__(budget_s)
+        self.budget_s = budget_s
+
+    def __str__(self) -> str:
+        return f"took longer than its time budget of {self.budget_s:g} s"
+
+
+#: Cancel flags of the interactive pool's task slots (shared memory, set by the server), or None.
+_FLAGS: Any = None
+#: When each slot's task started (``time.monotonic()``, system-wide on Linux; 0: not running), or None.
+_STARTS: Any = None
+
+
+def interactive_init(flags: Any, starts: Any = None, memory_bytes: int | None = None) -> None:
+    """Initializer of the interactive pool's workers: end with the server, keep the cancel flags.
+
+    They run at normal CPU priority, above the batch workers (:data:`WORKER_NICE`), so that a check
+    or a formation never waits behind simulations for the CPU.
+    """
+    global _FLAGS, _STARTS
+    die_with_parent()
+    limit_memory(memory_bytes)
+    _FLAGS, _STARTS = flags, starts
+
+
+def budgeted(slot: int, budget_s: float, fn: Any, *args: Any) -> Any:
+    """Run ``fn(*args)``, raising :class:`TaskTimeout` once ``budget_s`` is spent and
+    :class:`TaskCancelled` once the server sets cancel flag ``slot`` (its client has gone).
+
+    A ``SIGALRM`` interval timer looks every :data:`BUDGET_TICK_S`; Python raises from the handler in
+    the task's own thread at its next bytecode, so pure-Python and numpy-level loops stop within a
+    tick. A single C call that never returns is ended by the server killing the worker (the
+    hard deadline in :class:`app.jobs.JobManager`).
+    """
+    started = time.monotonic()
+    deadline = started + budget_s
+    if _FLAGS is not None and 0 <= slot < len(_FLAGS) and _FLAGS[slot]:
+        raise TaskCancelled(f"slot {slot}")  # its client left while it waited in the queue
+    if _STARTS is not None and 0 <= slot < len(_STARTS):
+        _STARTS[slot] = started
+
+    def tick(_signum: int, _frame: Any) -> None:
+        if _FLAGS is not None and 0 <= slot < len(_FLAGS) and _FLAGS[slot]:
+            raise TaskCancelled(f"slot {slot}")
+        if time.monotonic() > deadline:
+            raise TaskTimeout(budget_s)
+
+    previous = signal.signal(signal.SIGALRM, tick)
+    signal.setitimer(signal.ITIMER_REAL, BUDGET_TICK_S, BUDGET_TICK_S)
+    try:
+        return fn(*args)
+    except MemoryError:
+        raise TaskFailure(FailureKind.TOO_LARGE, "the request needs more memory than a worker may use "
+                          "(SWARMSHOW_WORKER_MEMORY_MB)") from None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+        if _STARTS is not None and 0 <= slot < len(_STARTS):
+            _STARTS[slot] = 0.0
 
 
 class Progress:
@@ -91,9 +181,24 @@ class Progress:
 WORKER_NICE = 10
 
 
-def worker_init() -> None:
-    """Run once in each worker process: end with the server, and run at a lower CPU priority."""
+def limit_memory(memory_bytes: int | None) -> None:
+    """Cap this process's data (heap and private mappings, ``RLIMIT_DATA``): an allocation past it
+    raises ``MemoryError`` in the task instead of the kernel's OOM killer ending the process, or the
+    machine swapping."""
+    if not memory_bytes:
+        return
+    try:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_DATA, (memory_bytes, memory_bytes))
+    except (ImportError, ValueError, OSError):  # not on this platform, or above the hard limit
+        pass
+
+
+def worker_init(memory_bytes: int | None = None) -> None:
+    """Run once in each worker process: end with the server, cap its memory, run at a lower CPU priority."""
     die_with_parent()
+    limit_memory(memory_bytes)
     try:
         os.nice(WORKER_NICE)
     except (AttributeError, OSError):  # not on this platform, or not permitted: run at normal priority
@@ -148,7 +253,7 @@ def validate_task(data: bytes | dict[str, Any]) -> dict[str, Any]:
     try:
         show = parse_show(data)
     except ShowValidationError as exc:
-        raise TaskFailure(422, exc.errors) from None
+        raise TaskFailure(FailureKind.INVALID, exc.errors) from None
     d = ShowData.of(show)
     return {"text": d.text, "content_hash": d.content_hash, "name": d.name, "drones": d.drones,
             "formations": d.formations}
@@ -159,7 +264,7 @@ def _plan_failure(exc: Exception) -> TaskFailure:
     problem: dict[str, Any] = {"loc": ["show", *_path_loc(path)], "path": path, "msg": str(exc)}
     if getattr(exc, "minimum_s", None) is not None:
         problem["minimum_s"] = exc.minimum_s  # type: ignore[attr-defined]
-    return TaskFailure(422, [problem])
+    return TaskFailure(FailureKind.INVALID, [problem])
 
 
 def _path_loc(path: str) -> list[str | int]:
@@ -220,9 +325,13 @@ def _add_violation_points(plan: Any, formations: int, report: dict[str, Any]) ->
 def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: Any, cancel: Any) -> dict[str, Any]:
     """Plan a show and fly it in simulation, reporting progress; returns the flight summary.
 
+    ``options`` are ``fly_show``'s keyword arguments as the server resolved them (see
+    :func:`flight_options`).
+
     Raises:
         TaskCancelled: the job was cancelled.
-        TaskFailure: the show cannot be planned, or the simulation is not available.
+        TaskFailure: the show cannot be planned, its recording would be too large, or the
+            simulation cluster is not available.
     """
     progress = Progress(job_id, queue, cancel)
     progress.started()
@@ -234,36 +343,49 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     except PlanError as exc:
         raise _plan_failure(exc) from None
     progress.check_cancelled(force=True)
+    check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
     fly_show = _fly_show()
     try:
-        result = fly_show(plan, **_flight_options(options), progress=progress.scaled(PLAN_SHARE, 1.0))
+        result = fly_show(plan, **options, progress=progress.scaled(PLAN_SHARE, 1.0))
     except TaskCancelled:
         raise
     except ConnectionError as exc:
         # The Dask scheduler of SWARMSHOW_DASK_SCHEDULER is down or has no worker.
         progress.check_cancelled(force=True)
-        raise TaskFailure(503, f"simulation cluster unavailable: {exc}") from None
-    except ValueError as exc:
-        # A wrapped cancellation still counts as one; anything else is a bad option.
-        progress.check_cancelled(force=True)
-        raise TaskFailure(422, [{"loc": ["body"], "path": "", "msg": str(exc)}]) from None
+        raise TaskFailure(FailureKind.UNAVAILABLE, f"simulation cluster unavailable: {exc}") from None
     except Exception:
+        # A wrapped cancellation still counts as one; anything else is a failure (options were
+        # validated by the API before the job started, so it is not the client's input).
         progress.check_cancelled(force=True)
         raise
     progress(1.0)
     return {"plan": plan_summary(plan), "flight": result.summary()}
 
 
-def _flight_options(options: dict[str, Any]) -> dict[str, Any]:
+def check_output_samples(drones: int, duration_s: float, output_hz: float) -> None:
+    """Refuse a simulation whose recording would hold more than :data:`MAX_OUTPUT_SAMPLES` samples.
+
+    Raises:
+        TaskFailure: ``too_large``, naming ``output_hz`` and the limit.
+    """
+    frames = int(duration_s * output_hz) + 2
+    if drones * frames > MAX_OUTPUT_SAMPLES:
+        most_hz = max(MAX_OUTPUT_SAMPLES / drones - 2, 0) / max(duration_s, 1e-9)
+        raise TaskFailure(FailureKind.TOO_LARGE, [{
+            "loc": ["body", "output_hz"], "path": "output_hz",
+            "msg": f"{drones} drones x {frames} frames ({duration_s:g} s at {output_hz:g} Hz) = "
+                   f"{drones * frames} samples exceeds the limit of {MAX_OUTPUT_SAMPLES}; "
+                   f"use output_hz <= {most_hz:.3g}"}])
+
+
+def flight_options(options: dict[str, Any], dask_scheduler: str | None) -> dict[str, Any]:
     """``options`` with the Dask engine swapped in for the local one when the server has a scheduler.
 
-    The setting is read here, in the worker process (which inherits the server's
-    environment), so that ``SWARMSHOW_DASK_SCHEDULER`` switches every simulation job;
-    an explicit ``numpy`` (reference) engine is left alone.
+    Called in the server with its settings (workers never read the environment), so that
+    ``SWARMSHOW_DASK_SCHEDULER`` (or ``AppSettings(dask_scheduler=...)``) switches every
+    simulation job; an explicit ``numpy`` (reference) engine is left alone.
     """
-    from app.settings import AppSettings
-
-    scheduler = (AppSettings().dask_scheduler or "").strip()
+    scheduler = (dask_scheduler or "").strip()
     if not scheduler or options.get("engine", "numba") not in ("numba", "local"):
         return dict(options)
     return {**options, "engine": "dask", "scheduler": scheduler}
@@ -280,7 +402,7 @@ def _fly_show() -> Any:
             continue
         if fn is not None:
             return fn
-    raise TaskFailure(501, "flight simulation is not available in this installation")
+    raise TaskFailure(FailureKind.NOT_IMPLEMENTED, "flight simulation is not available in this installation")
 
 
 def formation_task(source: str, params: dict[str, Any], data: bytes | None = None) -> dict[str, Any]:
@@ -312,17 +434,44 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
             p = dict(params)
             points = sources.svg_points(data or b"", p.pop("n"), **p)
         else:
-            raise TaskFailure(404, f"unknown formation source {source!r}")
+            raise TaskFailure(FailureKind.NOT_FOUND, f"unknown formation source {source!r}")
     except InputTooLargeError as exc:
-        raise TaskFailure(413, str(exc)) from None
+        raise TaskFailure(FailureKind.TOO_LARGE, str(exc)) from None
     except FormationError as exc:
         problem: dict[str, Any] = {"loc": ["body"], "path": "", "msg": str(exc)}
         if getattr(exc, "max_n", None) is not None:
             problem["max_n"] = exc.max_n
-        raise TaskFailure(422, [problem]) from None
+        raise TaskFailure(FailureKind.INVALID, [problem]) from None
+    _check_formation_result(source, points.points_m)
     out = points.to_json()
     out["count"] = len(out["points"])
     return out
+
+
+def _check_formation_result(source: str, points_m: Any) -> None:
+    """Refuse a formation no show could use: non-finite points, below the ground or above the highest
+    ceiling a show may have, or outside the largest show area (a 1 x 400,000 pixel image once gave
+    points 8,000 km below the ground).
+
+    Raises:
+        TaskFailure: ``invalid``, naming the source and the bound.
+    """
+    import numpy as np
+
+    from formations._show import MAX_CEILING_M as ceiling_m
+    from formations._show import MAX_HORIZONTAL_EXTENT_M
+    pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+    problem = None
+    if not np.isfinite(pts).all():
+        problem = "some points are not finite numbers"
+    elif pts.size and (pts[:, 2].min() < 0 or pts[:, 2].max() > ceiling_m):
+        problem = (f"points reach altitudes {pts[:, 2].min():.4g} .. {pts[:, 2].max():.4g} m, outside "
+                   f"[0, {ceiling_m:g}] m; lower the size or move the centre")
+    elif pts.size and np.abs(pts[:, :2]).max() > MAX_HORIZONTAL_EXTENT_M:
+        problem = (f"points reach {np.abs(pts[:, :2]).max():.4g} m from the origin, outside the largest show "
+                   f"area +-{MAX_HORIZONTAL_EXTENT_M:g} m; lower the size")
+    if problem is not None:
+        raise TaskFailure(FailureKind.INVALID, [{"loc": ["body"], "path": "", "msg": f"{source}: {problem}"}])
 
 
 def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, Any]:
@@ -337,7 +486,7 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
     try:
         res = exports.export_show(show, fmt, **options)
     except exports.ExportError as exc:
-        raise TaskFailure(422, [{"loc": ["query"], "path": "", "msg": str(exc)}]) from None
+        raise TaskFailure(FailureKind.INVALID, [{"loc": ["query"], "path": "", "msg": str(exc)}]) from None
     except Exception as exc:
         from sim import PlanError
 
@@ -350,3 +499,37 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
         "content": bytes(res.content),
         "warnings": list(res.warnings or []),
     }
+
+
+def viewer_plan_task(show_text: str) -> Any:
+    """Plan a stored show for the 3D viewer (in a worker: the server process stays free of CPU work).
+
+    Returns:
+        The ``ShowPlan`` (pickled back to the server).
+
+    Raises:
+        TaskFailure: the show cannot be planned.
+    """
+    from sim import PlanError, plan_show
+
+    try:
+        return plan_show(_show(show_text))
+    except PlanError as exc:
+        raise _plan_failure(exc) from None
+
+
+def viewer_flight_task(show_text: str, options: dict[str, Any]) -> tuple[Any, Any]:
+    """Plan and fly a stored show for the 3D viewer; returns ``(plan, flight)``.
+
+    Raises:
+        TaskFailure: the show cannot be planned, or its recording would be too large.
+    """
+    plan = viewer_plan_task(show_text)
+    check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
+    work = plan.drone_count * plan.duration_s
+    if work > MAX_VIEWER_FLIGHT_DRONE_S:
+        raise TaskFailure(FailureKind.TOO_LARGE, (
+            f"{plan.drone_count} drones x {plan.duration_s:g} s = {work:.3g} drone-seconds of flight exceeds the "
+            f"3D viewer's limit of {MAX_VIEWER_FLIGHT_DRONE_S} (a request waits for it); fly it as a job with "
+            "POST /api/shows/{id}/simulate"))
+    return plan, _fly_show()(plan, **options)

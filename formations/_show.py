@@ -46,6 +46,24 @@ MAX_FORMATIONS = 500
 MAX_SHOW_FILE_BYTES = 20 * 1024 * 1024
 #: Longest name (show or formation), characters.
 MAX_NAME_CHARS = 200
+#: Most home positions per drone (grid cells or points): landing may use any of them, so planning
+#: work grows with their number; a 1-drone show with a 20,000 x 20,000 grid must not be accepted.
+HOME_SLOTS_PER_DRONE = 4
+#: Home positions always allowed, whatever the drone count (a 1-drone show may sit on a 4 x 4 grid).
+MIN_HOME_SLOTS = 16
+#: Default half-width of the show area, metres (``settings.max_horizontal_extent_m``): every point's
+#: x and y lie within +-this of the origin. The exact check's work grows with the area over the
+#: minimum distance; one point at x = 1e9 m made it build about 3e8 search trees.
+DEFAULT_HORIZONTAL_EXTENT_M = 2_000.0
+#: Highest ``settings.max_altitude_m`` a show may set, metres.
+MAX_CEILING_M = 10_000.0
+#: Largest show area a show file may ask for, metres (half-width).
+MAX_HORIZONTAL_EXTENT_M = 20_000.0
+#: Shortest hold or forced transition, seconds: a subnormal 1e-320 is "> 0" but no real duration.
+MIN_DURATION_S = 0.01
+#: Smallest limit values (speeds m/s, acceleration m/s^2, distances m): tinier ones turn a metre of
+#: travel into years of show (and as many samples in an export).
+MIN_LIMIT = 0.1
 
 SHOW_FORMAT = "swarmshow/1"
 
@@ -95,18 +113,20 @@ class Settings(BaseModel):
 
     model_config = _CONFIG
 
-    min_distance_m: float = Field(3.0, gt=0, le=100, description="Minimum distance between any two drones, metres.")
-    max_speed_xy_mps: float = Field(10.0, gt=0, le=100, description="Peak horizontal speed, m/s.")
-    max_speed_z_mps: float = Field(2.0, gt=0, le=100, description="Peak vertical speed, m/s.")
-    max_accel_mps2: float = Field(4.0, gt=0, le=100, description="Peak acceleration magnitude, m/s^2.")
-    max_altitude_m: float = Field(150.0, gt=0, le=10_000, description="Highest allowed altitude, metres.")
-    takeoff_altitude_m: float = Field(10.0, gt=0, le=10_000, description="Altitude of the vertical takeoff, metres.")
+    min_distance_m: float = Field(3.0, ge=MIN_LIMIT, le=100,
+                                  description="Minimum distance between any two drones, metres.")
+    max_speed_xy_mps: float = Field(10.0, ge=MIN_LIMIT, le=100, description="Peak horizontal speed, m/s.")
+    max_speed_z_mps: float = Field(2.0, ge=MIN_LIMIT, le=100, description="Peak vertical speed, m/s.")
+    max_accel_mps2: float = Field(4.0, ge=MIN_LIMIT, le=100, description="Peak acceleration magnitude, m/s^2.")
+    max_altitude_m: float = Field(150.0, gt=0, le=MAX_CEILING_M, description="Highest allowed altitude, metres.")
+    takeoff_altitude_m: float = Field(10.0, ge=MIN_LIMIT, le=10_000,
+                                      description="Altitude of the vertical takeoff, metres.")
     max_jerk_mps3: float = Field(
-        10.0, gt=0, le=1000,
+        10.0, ge=MIN_LIMIT, le=1000,
         description="Peak jerk of the minimum-time time law, m/s^3 (PX4's auto-mission jerk is 4-8 m/s^3).",
     )
     max_descent_speed_mps: float | None = Field(
-        None, gt=0, le=100, description="Peak descent speed, m/s (default: max_speed_z_mps, as for climbing).",
+        None, ge=MIN_LIMIT, le=100, description="Peak descent speed, m/s (default: max_speed_z_mps, as for climbing).",
     )
     time_law: Literal["min_time", "quintic"] = Field(
         "min_time",
@@ -117,6 +137,18 @@ class Settings(BaseModel):
         "any_home", description="'any_home': each drone lands on the nearest free home (CAPT); "
         "'own_home': every drone lands where it took off.",
     )
+    # None (left out of the file) means the default, so that shows written before this setting keep
+    # their canonical JSON and content hash.
+    max_horizontal_extent_m: float | None = Field(
+        None, ge=1, le=MAX_HORIZONTAL_EXTENT_M,
+        description=f"Half-width of the show area, metres: every x and y (home and formations) lies within "
+        f"+-this of the origin (default {DEFAULT_HORIZONTAL_EXTENT_M:g}).",
+    )
+
+    @property
+    def horizontal_extent_m(self) -> float:
+        """``max_horizontal_extent_m``, or its default when not given."""
+        return self.max_horizontal_extent_m or DEFAULT_HORIZONTAL_EXTENT_M
 
     @model_validator(mode="after")
     def _takeoff_below_ceiling(self) -> Settings:
@@ -136,7 +168,7 @@ class HomeGrid(BaseModel):
 
     rows: int = Field(ge=1, le=MAX_DRONES)
     cols: int = Field(ge=1, le=MAX_DRONES)
-    spacing_m: float = Field(3.0, gt=0, le=1000, description="Grid spacing, metres.")
+    spacing_m: float = Field(3.0, ge=MIN_LIMIT, le=1000, description="Grid spacing, metres.")
     center_m: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
         default_factory=lambda: [0.0, 0.0], description="Grid centre [x, y], metres."
     )
@@ -174,12 +206,12 @@ class Formation(_ArrayCachingModel):
     model_config = _CONFIG
 
     name: Name
-    hold_s: float = Field(gt=0, le=86_400, description="Hold time at the formation, seconds.")
+    hold_s: float = Field(ge=MIN_DURATION_S, le=86_400, description="Hold time at the formation, seconds.")
     points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
     colors: list[Color] | None = None
     color: Color | None = None
     transition_s: float | None = Field(
-        None, gt=0, le=86_400, description="Duration of the transition into this formation, seconds."
+        None, ge=MIN_DURATION_S, le=86_400, description="Duration of the transition into this formation, seconds."
     )
 
     @field_validator("name")
@@ -316,18 +348,43 @@ def _path(loc: tuple[str | int, ...]) -> str:
     return out
 
 
+def _outside_area(pts: np.ndarray, extent_m: float) -> tuple[int, int, str] | None:
+    """(point index, axis, reason) of the first point of ``pts`` (M, 3) whose x or y is outside
+    +-``extent_m``, or None."""
+    bad = np.abs(pts[:, :2]) > extent_m
+    if not bad.any():
+        return None
+    i, axis = (int(v) for v in np.argwhere(bad)[0])
+    return i, axis, (f"{'xy'[axis]} = {pts[i, axis]:g} m is outside the show area +-{extent_m:g} m "
+                     "(settings.max_horizontal_extent_m)")
+
+
 def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str] | None:
     """The first cross-field rule the show breaks, as (JSON path, reason), or None."""
     s = show.settings
     n = show.drones
     tol = 1e-9  # points exactly min_distance apart are allowed despite float rounding
 
+    slots = max(HOME_SLOTS_PER_DRONE * n, MIN_HOME_SLOTS)
+    extent = s.horizontal_extent_m
     if isinstance(show.home, HomeFromGrid):
         g = show.home.grid
         if g.rows * g.cols < n:
             return ("home", "grid"), (
                 f"grid of {g.rows} x {g.cols} = {g.rows * g.cols} positions is smaller than drones = {n}"
             )
+        if g.rows * g.cols > slots:
+            return ("home", "grid"), (
+                f"grid of {g.rows} x {g.cols} = {g.rows * g.cols} positions is more than {slots} "
+                f"(at most {HOME_SLOTS_PER_DRONE} per drone)"
+            )
+        for axis, count, centre in ((0, g.cols, g.center_m[0]), (1, g.rows, g.center_m[1])):
+            half = (count - 1) / 2.0 * g.spacing_m
+            if abs(centre) + half > extent:
+                return ("home", "grid"), (
+                    f"the grid reaches {'xy'[axis]} = {abs(centre) + half:g} m, outside the show area "
+                    f"+-{extent:g} m (settings.max_horizontal_extent_m)"
+                )
         if g.rows * g.cols > 1 and g.spacing_m < s.min_distance_m - tol:
             return ("home", "grid", "spacing_m"), (
                 f"spacing {g.spacing_m} m is less than settings.min_distance_m {s.min_distance_m} m"
@@ -336,6 +393,13 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
         pts = np.asarray(show.home.points, dtype=np.float64)
         if len(pts) < n:
             return ("home", "points"), f"{len(pts)} home points for drones = {n}; need at least {n}"
+        if len(pts) > slots:
+            return ("home", "points"), (
+                f"{len(pts)} home points for drones = {n}; at most {slots} ({HOME_SLOTS_PER_DRONE} per drone)"
+            )
+        outside = _outside_area(pts, extent)
+        if outside is not None:
+            return ("home", "points", outside[0], outside[1]), outside[2]
         bad = np.flatnonzero((pts[:, 2] < 0) | (pts[:, 2] > s.max_altitude_m))
         if bad.size:
             return ("home", "points", int(bad[0]), 2), (
@@ -354,6 +418,9 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
             return ("formations", k, "points"), (
                 f"{len(pts)} points for {n} drones; a formation needs at least as many points as drones"
             )
+        outside = _outside_area(pts, extent)
+        if outside is not None:
+            return ("formations", k, "points", outside[0], outside[1]), outside[2]
         z = pts[:, 2]
         high = np.flatnonzero(z > s.max_altitude_m)
         if high.size:

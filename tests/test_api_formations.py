@@ -17,7 +17,7 @@ from app.settings import AppSettings
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=1))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 

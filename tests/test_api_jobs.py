@@ -31,7 +31,7 @@ def show_doc(name: str = "job test", *, hold_s: float = 1.0, transition_s: float
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=2))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 

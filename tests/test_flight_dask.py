@@ -253,13 +253,15 @@ def test_server_setting_switches_simulate_jobs_to_dask(client, small_show, monke
 
     text = dump_show(small_show)
     options = {"engine": "numba", "controller": "ismc", "disturbance": "none", "output_hz": 10.0, "seed": 0}
-    monkeypatch.delenv("SWARMSHOW_DASK_SCHEDULER", raising=False)
-    local = tasks.simulate_task(text, options, "job-local", queue.SimpleQueue(), threading.Event())
+    # The environment is not read by the task: a stray variable changes nothing.
+    monkeypatch.setenv("SWARMSHOW_DASK_SCHEDULER", "tcp://127.0.0.1:1")
+    local = tasks.simulate_task(text, tasks.flight_options(options, None), "job-local", queue.SimpleQueue(),
+                                threading.Event())
     assert local["flight"]["engine"] == "numba"
 
-    monkeypatch.setenv("SWARMSHOW_DASK_SCHEDULER", client.scheduler.address)
     updates: queue.SimpleQueue = queue.SimpleQueue()
-    out = tasks.simulate_task(text, options, "job-dask", updates, threading.Event())
+    out = tasks.simulate_task(text, tasks.flight_options(options, client.scheduler.address), "job-dask", updates,
+                              threading.Event())
     assert out["flight"]["engine"] == "dask"
     assert out["flight"]["tracking_max_m"] == local["flight"]["tracking_max_m"]
     assert out["flight"]["flown_min_distance_m"] == local["flight"]["flown_min_distance_m"]
@@ -273,9 +275,10 @@ def test_server_setting_switches_simulate_jobs_to_dask(client, small_show, monke
 
     # An unreachable cluster is a 503 of the job, not an internal error (after a 1 s
     # instead of the default 10 s connection timeout, to keep the test short).
-    monkeypatch.setenv("SWARMSHOW_DASK_SCHEDULER", f"tcp://127.0.0.1:{_unused_port()}")
-    options_of = tasks._flight_options
-    monkeypatch.setattr(tasks, "_flight_options", lambda o: {**options_of(o), "connect_timeout_s": 1.0})
+    # The server resolves the engine from its settings (workers never read the environment).
+    down = tasks.flight_options({**options, "engine": "numba"}, f"tcp://127.0.0.1:{_unused_port()}")
+    assert down["engine"] == "dask"
     with pytest.raises(tasks.TaskFailure) as exc:
-        tasks.simulate_task(text, {**options, "engine": "numba"}, "job-down", queue.SimpleQueue(), threading.Event())
-    assert exc.value.status == 503 and "cluster unavailable" in str(exc.value)
+        tasks.simulate_task(text, {**down, "connect_timeout_s": 1.0}, "job-down", queue.SimpleQueue(),
+                            threading.Event())
+    assert exc.value.kind == tasks.FailureKind.UNAVAILABLE and "cluster unavailable" in str(exc.value)

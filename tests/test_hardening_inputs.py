@@ -81,7 +81,7 @@ SHOW_CASES = [
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("inputs"), workers=1, viewer=False))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         r = c.post("/api/shows", json=SHOW)
         assert r.status_code == 201
         c.existing = r.json()["id"]

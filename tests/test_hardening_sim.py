@@ -21,7 +21,7 @@ from tests.test_api_live import SHOW
 @pytest.fixture(scope="module")
 def client(tmp_path_factory):
     app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("sim"), workers=2, viewer=False, job_timeout_s=4))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 

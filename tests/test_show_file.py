@@ -75,7 +75,7 @@ def test_zero_or_negative_hold_is_rejected(hold: float) -> None:
     doc["formations"][0]["hold_s"] = hold
     err = _reject(doc)
     assert err.errors[0]["path"] == "formations[0].hold_s"
-    assert "greater than 0" in err.errors[0]["msg"]
+    assert "greater than or equal to 0.01" in err.errors[0]["msg"]
 
 
 def test_fewer_points_than_drones_is_rejected() -> None:

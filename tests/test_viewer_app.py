@@ -26,7 +26,7 @@ def decode_viser_message(data: bytes) -> list[dict]:
 @pytest.fixture
 def client(tmp_path, small_show):
     app = create_app(AppSettings(data_dir=tmp_path, workers=1))
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -56,7 +56,7 @@ def test_relay_passes_subprotocol_and_messages(client, show_id):
     viewer = client.app.state.viewer
     assert viewer.current and viewer.current.startswith("test [")
     for path in ("/viser", "/viser/"):
-        with client.websocket_connect(path, subprotocols=[PROTOCOL]) as ws:
+        with client.websocket_connect(f"ws://127.0.0.1{path}", subprotocols=[PROTOCOL]) as ws:
             assert ws.accepted_subprotocol == PROTOCOL
             messages = decode_viser_message(ws.receive_bytes())
             types = {m["type"] for m in messages}
@@ -93,7 +93,7 @@ def test_simulated_playback(client, show_id):
 
 def test_viewer_stops_with_the_app(tmp_path):
     app = create_app(AppSettings(data_dir=tmp_path, workers=1))
-    with TestClient(app):
+    with TestClient(app, base_url="http://127.0.0.1"):
         viewer = app.state.viewer
         assert viewer is not None and viewer.host == "127.0.0.1"
     assert viewer._stop.is_set() and app.state.viewer is None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import hashlib
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -39,3 +40,26 @@ async def write(request: Request, fn: Callable[..., T], /, *args: Any, **kwargs:
     """
     loop = asyncio.get_running_loop()
     return await loop.run_in_executor(request.app.state.store_writer, functools.partial(fn, *args, **kwargs))
+
+
+async def run(request: Request, fn: Callable[..., T], /, *args: Any) -> T:
+    """Run ``fn(*args)`` in the interactive worker pool under its time budget; stopped if the client leaves."""
+    return await jobs(request).run(fn, *args, gone=request.is_disconnected)
+
+
+def client_id(request: Request) -> str:
+    """Who is asking, for the per-client job limit and for sharing identical jobs.
+
+    The session cookie when there is one (a browser behind the token), else the
+    ``X-Swarmshow-Client`` header (a random id a client may send to keep its tabs or
+    scripts apart), else the peer address.
+    """
+    from app.server._auth import COOKIE
+
+    cookie = request.cookies.get(COOKIE)
+    if cookie:
+        return "session:" + hashlib.sha256(cookie.encode()).hexdigest()[:16]
+    given = request.headers.get("x-swarmshow-client", "").strip()
+    if given:
+        return "client:" + given[:64]
+    return "addr:" + (request.client.host if request.client else "")

@@ -1,12 +1,18 @@
 """Mapping of failures to HTTP answers; every error body has a ``detail``.
 
 422 bodies always list ``{"loc", "path", "msg"}`` problems, whether the request
-failed FastAPI's parameter validation or the show file's own rules.
+failed FastAPI's parameter validation or the show file's own rules. Job and task
+errors carry a kind (:class:`app.jobs.ErrorKind`, :class:`app.tasks.FailureKind`);
+:data:`STATUS_OF_KIND` is the one place that turns kinds into HTTP statuses. Any
+other exception is a bug: its traceback is logged with a request id, and the
+client gets ``{"detail": "internal error", "request_id": ...}``, never its text.
 """
 
 from __future__ import annotations
 
 import logging
+import secrets
+import sqlite3
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -14,9 +20,49 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from app.api.models import error_responses as error_responses  # documented next to the handlers
-from app.jobs import JobFinished, JobNotFound, JobsBusy
+from app.jobs import ErrorKind, JobFinished, JobNotFound, JobsBusy, TaskError
 from app.store import RevisionConflict, ShowNotFound, StoreError
-from app.tasks import TaskFailure
+from app.tasks import FailureKind, TaskFailure
+
+#: HTTP status of each job / task error kind (499: the client closed the request, nginx's code).
+STATUS_OF_KIND: dict[str, int] = {
+    ErrorKind.CANCELLED: 499,
+    ErrorKind.TIMEOUT: 504,
+    ErrorKind.WORKER_DIED: 500,
+    ErrorKind.FAILED: 500,
+    ErrorKind.INTERRUPTED: 503,
+    FailureKind.INVALID: 422,
+    FailureKind.TOO_LARGE: 413,
+    FailureKind.UNAVAILABLE: 503,
+    FailureKind.NOT_FOUND: 404,
+    FailureKind.NOT_IMPLEMENTED: 501,
+}
+
+
+def status_of(kind: str | None) -> int:
+    """The HTTP status of an error kind (500 for an unknown one)."""
+    return STATUS_OF_KIND.get(str(kind), 500)
+
+
+def job_body(snapshot: dict[str, Any]) -> dict[str, Any]:
+    """A job snapshot as the API answers it: its error also carries the HTTP ``status`` of its kind."""
+    error = snapshot.get("error")
+    if error is not None and "status" not in error:
+        snapshot = {**snapshot, "error": {**error, "status": status_of(error.get("kind"))}}
+    return snapshot
+
+
+def disk_full(exc: BaseException) -> bool:
+    """True when ``exc`` (or what caused it) says the disk or the database is full."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        text = str(seen).lower()
+        if isinstance(seen, OSError) and seen.errno == 28:  # ENOSPC
+            return True
+        if isinstance(seen, sqlite3.OperationalError) and ("full" in text or "disk i/o" in text):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
 
 log = logging.getLogger("swarmshow.api")
 
@@ -81,8 +127,18 @@ def install_error_handlers(app: FastAPI) -> None:
                      {"ETag": f'"{exc.current_revision}"'})
 
     @app.exception_handler(StoreError)
-    async def _store(_: Request, exc: StoreError) -> JSONResponse:
-        return _json(500, {"detail": f"show store: {exc}"})
+    async def _store(request: Request, exc: StoreError) -> JSONResponse:
+        if disk_full(exc):
+            return _json(507, {"detail": "the disk of the show store is full: nothing was changed; stored shows "
+                                         "stay readable. Free some space and try again."})
+        return _internal_error(request, exc)
+
+    @app.exception_handler(sqlite3.OperationalError)
+    async def _sqlite(request: Request, exc: sqlite3.OperationalError) -> JSONResponse:
+        if disk_full(exc):
+            return _json(507, {"detail": "the disk of the show store is full: nothing was changed; stored shows "
+                                         "stay readable. Free some space and try again."})
+        return _internal_error(request, exc)
 
     @app.exception_handler(JobNotFound)
     async def _job_missing(_: Request, exc: JobNotFound) -> JSONResponse:
@@ -98,10 +154,26 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(TaskFailure)
     async def _task_failed(_: Request, exc: TaskFailure) -> JSONResponse:
-        return _json(exc.status, {"detail": exc.detail})
+        return _json(status_of(exc.kind), {"detail": exc.detail})
+
+    @app.exception_handler(TaskError)
+    async def _task_error(request: Request, exc: TaskError) -> JSONResponse:
+        if exc.kind in (ErrorKind.FAILED, ErrorKind.WORKER_DIED):
+            log.error("%s %s: %s", request.method, request.url.path, exc)
+        return _json(status_of(exc.kind), {"detail": str(exc), "kind": exc.kind.value})
+
+    @app.exception_handler(RecursionError)
+    async def _too_deep(_: Request, exc: RecursionError) -> JSONResponse:
+        # Deeply nested JSON (or SVG) that a parser followed until the stack ran out: the input's fault.
+        return _json(422, {"detail": [{"loc": ["body"], "path": "", "msg": "nested too deeply"}]})
 
     @app.exception_handler(Exception)
     async def _internal(request: Request, exc: Exception) -> JSONResponse:
-        # A bug, not bad input: say what broke (clients show it) and keep the traceback in the log.
-        log.error("%s %s failed", request.method, request.url.path, exc_info=exc)
-        return _json(500, {"detail": f"internal error ({type(exc).__name__}): {exc}"})
+        return _internal_error(request, exc)
+
+
+def _internal_error(request: Request, exc: BaseException) -> JSONResponse:
+    """A bug, not bad input: the traceback goes to the log under a request id the client is given."""
+    request_id = secrets.token_hex(6)
+    log.error("%s %s failed (request %s)", request.method, request.url.path, request_id, exc_info=exc)
+    return _json(500, {"detail": "internal error", "request_id": request_id})

@@ -25,13 +25,13 @@ async def shape(request: Request, body: ShapeRequest) -> dict[str, Any]:
     """``n`` points of a grid, circle, polygon, star, heart, sphere, helix or cube, at least
     ``min_spacing_m`` apart. If they do not fit, 422 says how many do (``max_n``)."""
     params = body.model_dump()
-    return await deps.jobs(request).run(tasks.formation_task, "shape", params, None)
+    return await deps.run(request, tasks.formation_task, "shape", params, None)
 
 
 @router.post("/text", response_model=FormationPoints, summary="Points spelling a text", responses=_ERRORS)
 async def text(request: Request, body: TextRequest) -> dict[str, Any]:
     """``n`` points spread over the letters of ``text``."""
-    return await deps.jobs(request).run(tasks.formation_task, "text", body.model_dump(), None)
+    return await deps.run(request, tasks.formation_task, "text", body.model_dump(), None)
 
 
 def _center(value: str) -> list[float]:
@@ -70,7 +70,7 @@ async def image(
     data = await _read(file, limit=limit, what="an image")
     params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
               "min_spacing_m": min_spacing_m, "mode": mode}
-    return await deps.jobs(request).run(tasks.formation_task, "image", params, data)
+    return await deps.run(request, tasks.formation_task, "image", params, data)
 
 
 @router.post("/svg", response_model=FormationPoints, summary="Points from an SVG drawing", responses=_UPLOAD_ERRORS)
@@ -90,4 +90,4 @@ async def svg(
     data = await _read(file, limit=limit, what="an SVG file")
     params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
               "min_spacing_m": min_spacing_m, "color": color}
-    return await deps.jobs(request).run(tasks.formation_task, "svg", params, data)
+    return await deps.run(request, tasks.formation_task, "svg", params, data)

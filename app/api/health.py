@@ -13,11 +13,14 @@ router = APIRouter(tags=["health"])
 
 @router.get("/health", response_model=HealthOut, summary="Server status")
 async def health(request: Request) -> HealthOut:
-    """The server answers, its show store is open and its worker pool runs."""
+    """The server answers, its show store is open and its worker pools run (``busy``: saturated)."""
     jobs = deps.jobs(request)
     return HealthOut(
+        status="busy" if jobs.saturated() else "ok",
         version=__version__,
         schema_version=deps.store(request).schema_version,
         workers=jobs.workers,
+        interactive_workers=jobs.interactive_workers,
         jobs_pending=jobs.pending(),
+        interactive_pending=jobs.interactive_busy(),
     )

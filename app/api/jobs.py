@@ -9,6 +9,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import StreamingResponse
 
 from app.api import deps
+from app.api.errors import job_body
 from app.api.models import JobList, JobOut, error_responses
 from app.jobs import JobManager
 
@@ -22,13 +23,13 @@ HEARTBEAT_S = 15.0
 async def list_jobs(request: Request) -> JobList:
     """Jobs the server remembers (the newest first; results omitted, read them per job)."""
     jobs = deps.jobs(request).list()
-    return JobList(items=[JobOut(**j.snapshot(with_result=False)) for j in reversed(jobs)])
+    return JobList(items=[JobOut(**job_body(j.snapshot(with_result=False))) for j in reversed(jobs)])
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut, summary="Read a job", responses=error_responses(404))
 async def get_job(request: Request, job_id: str) -> JobOut:
     """State (queued, running, done, failed, cancelled), progress 0..1, and the result or why it failed."""
-    return JobOut(**deps.jobs(request).get(job_id).snapshot())
+    return JobOut(**job_body(deps.jobs(request).get(job_id).snapshot()))
 
 
 @router.delete(
@@ -37,7 +38,7 @@ async def get_job(request: Request, job_id: str) -> JobOut:
 def cancel_job(request: Request, job_id: str) -> JobOut:
     """Cancel a queued or running job; it reads ``cancelled`` at once and its worker stops at its next
     progress report. A job that is already done or failed gets 409; cancelling twice is harmless."""
-    return JobOut(**deps.jobs(request).cancel(job_id).snapshot())
+    return JobOut(**job_body(deps.jobs(request).cancel(job_id).snapshot()))
 
 
 _EVENTS_DOC = """Server-sent events (`text/event-stream`) following the job until it ends:
@@ -80,6 +81,7 @@ async def _events(jobs: JobManager, job_id: str) -> AsyncIterator[str]:
         if snap is None:
             yield ": keep-alive\n\n"
             continue
+        snap = job_body(snap)
         terminal = snap["state"] in ("done", "failed", "cancelled")
         if not terminal:
             snap = {k: snap[k] for k in ("id", "kind", "state", "progress", "show_id", "cached")}

@@ -74,11 +74,14 @@ def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
 class HealthOut(BaseModel):
     """The server is up, its store open and its worker pool running."""
 
-    status: Literal["ok"] = "ok"
+    status: Literal["ok", "busy"] = Field("ok", description="'busy' when the worker pools are saturated: new "
+                                          "work waits (interactive tasks queued, or the job queue full).")
     version: str
     schema_version: int = Field(description="Schema version of the show store.")
-    workers: int = Field(description="Worker processes for planning, checks and simulations.")
+    workers: int = Field(description="Worker processes for simulations.")
+    interactive_workers: int = Field(0, description="Worker processes for interactive requests.")
     jobs_pending: int = Field(description="Jobs queued or running.")
+    interactive_pending: int = Field(0, description="Interactive tasks queued or running.")
 
 
 # -- shows ------------------------------------------------------------------------------------
@@ -189,7 +192,9 @@ class JobError(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    status: int = Field(description="The HTTP status the reason corresponds to (499: cancelled).")
+    kind: str = Field(description="Why: cancelled, timeout, worker_died, failed (a bug; see the server log), "
+                      "or the task's own reason: invalid, too_large, unavailable, not_found, not_implemented.")
+    status: int = Field(description="The HTTP status the kind corresponds to (499: cancelled).")
     message: str
     detail: Any = None
 

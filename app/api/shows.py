@@ -13,7 +13,7 @@ from fastapi.responses import JSONResponse
 
 from app import tasks
 from app.api import deps
-from app.api.errors import ApiError, show_problems
+from app.api.errors import ApiError, job_body, show_problems
 from app.api.models import (
     CheckOut,
     JobOut,
@@ -74,13 +74,13 @@ async def _parse_show(request: Request, data: bytes | dict[str, Any], *, size: i
 
     try:
         if size > INLINE_PARSE_BYTES:
-            return ShowData(**await deps.jobs(request).run(tasks.validate_task, data))
+            return ShowData(**await deps.run(request, tasks.validate_task, data))
         # Validation, canonical JSON and its hash all in the thread: none of it on the event loop.
         return await asyncio.to_thread(lambda: ShowData.of(parse_show(data)))
     except ShowValidationError as exc:
         raise ApiError(422, show_problems(exc.errors, prefix=prefix)) from None
     except tasks.TaskFailure as exc:
-        if exc.status != 422:
+        if exc.kind != tasks.FailureKind.INVALID:
             raise
         raise ApiError(422, show_problems(exc.detail, prefix=prefix)) from None
 
@@ -174,14 +174,39 @@ async def get_revision(request: Request, show_id: str, revision: int = Path(ge=1
     return Response(record.json, media_type="application/json", headers={"ETag": f'"{revision}"'})
 
 
+#: PUT bodies larger than this are parsed in a thread, not on the event loop.
+INLINE_JSON_BYTES = 64 * 1024
+
+
+def _load_json(raw: bytes) -> Any:
+    """Parse a request body as strict UTF-8 JSON; 422 for anything a parser refuses (bad bytes, bad
+    syntax, integers of thousands of digits, nesting deeper than the parser's stack)."""
+    try:
+        # Strictly UTF-8 (RFC 8259), as for a new show: json.loads alone would also take UTF-16/32 bytes.
+        return json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise _invalid(f"not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise _invalid(f"not valid JSON: {exc}") from None
+    except RecursionError:
+        raise _invalid("not valid JSON: nested too deeply") from None
+    except ValueError as exc:  # "Exceeds the limit (4300 digits) for integer string conversion"
+        raise _invalid(f"not valid JSON: {exc}") from None
+
+
 def _revision_from(body_value: Any, if_match: str | None) -> int:
-    if body_value is None and if_match:
-        body_value = if_match.strip().removeprefix("W/").strip('"')
+    if if_match:
+        header = if_match.strip().removeprefix("W/").strip('"')
         try:
-            body_value = int(body_value)
+            given = int(header)
         except ValueError:
             raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match",
                                   "msg": "must be a revision number, e.g. \"3\""}]) from None
+        # If-Match is a precondition whether or not the body names a revision too: both must agree.
+        if body_value is not None and body_value != given:
+            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match",
+                                  "msg": f"If-Match {given} and the body's revision {body_value!r} disagree"}])
+        body_value = given
     if body_value is None:
         raise _invalid("required: the revision you read (so that a concurrent change is never overwritten)",
                        loc=("revision",), path="revision")
@@ -207,13 +232,8 @@ async def update_show(request: Request, show_id: str) -> Response:
     raw = await request.body()
     if not raw.strip():
         raise _invalid("the body is empty; send {\"revision\": r, \"show\": {...}}")
-    try:
-        # Strictly UTF-8 (RFC 8259), as for a new show: json.loads alone would also take UTF-16/32 bytes.
-        body = json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise _invalid(f"not UTF-8 text (byte {exc.start})") from None
-    except json.JSONDecodeError as exc:
-        raise _invalid(f"not valid JSON: {exc}") from None
+    # Megabytes of JSON take a second to parse: off the event loop (other clients' requests go on).
+    body = _load_json(raw) if len(raw) <= INLINE_JSON_BYTES else await asyncio.to_thread(_load_json, raw)
     if not isinstance(body, dict):
         raise _invalid("must be a JSON object {\"revision\": r, \"show\": {...}}")
     if "show" in body and "format" not in body:
@@ -266,7 +286,7 @@ async def check_show(request: Request, show_id: str) -> JSONResponse:
     """
     record = deps.store(request).get(show_id)
     result, cached = await deps.jobs(request).run_cached(
-        "check", record.content_hash, {}, tasks.check_task, record.json
+        "check", record.content_hash, {}, tasks.check_task, record.json, gone=request.is_disconnected
     )
     return JSONResponse({
         "show_id": record.id, "revision": record.revision, "content_hash": record.content_hash,
@@ -293,11 +313,13 @@ async def simulate_show(
     """
     record = deps.store(request).get(show_id)
     opts = (options or SimulateOptions()).model_dump()
+    manager = deps.jobs(request)
     job = await asyncio.to_thread(
-        deps.jobs(request).submit, "simulate", tasks.simulate_task, show_text=record.json,
+        manager.submit, "simulate", tasks.simulate_task, show_text=record.json,
         content_hash=record.content_hash, options=opts, show_id=record.id, show_revision=record.revision,
+        client=deps.client_id(request), task_options=tasks.flight_options(opts, manager.settings.dask_scheduler),
     )
-    return JSONResponse(job.snapshot(), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
+    return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
 
 
 def export_formats() -> tuple[str, ...]:
@@ -352,7 +374,11 @@ async def export_show(
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
     record = deps.store(request).get(show_id)
     if fmt == "show":
-        text = json.dumps(json.loads(record.json), indent=2) + "\n"
+        def pretty() -> str:
+            return json.dumps(json.loads(record.json), indent=2) + "\n"
+
+        # Re-indenting megabytes is CPU work: off the event loop for large shows.
+        text = pretty() if len(record.json) <= INLINE_JSON_BYTES else await asyncio.to_thread(pretty)
         return Response(text, media_type="application/json", headers={
             "Content-Disposition": f'attachment; filename="{_slug(record.name)}.json"',
             "ETag": f'"{record.revision}"'})
@@ -361,7 +387,7 @@ async def export_show(
         options["fps"] = fps
     if origin is not None:
         options["origin"] = _parse_origin(origin)
-    out = await deps.jobs(request).run(tasks.export_task, record.json, fmt, options)
+    out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',
         "X-Swarmshow-Warnings": json.dumps(out["warnings"]),

@@ -11,7 +11,9 @@ callable ``(args) -> int``.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -76,14 +78,53 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns (and exits with) the process exit code."""
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    if sys.stdout is None:  # started with stdout closed (``>&-``): results must not vanish silently
+        sys.stdout = _ClosedStdout()
     try:
         code = int(args.func(args))
+        sys.stdout.flush()
     except CliError as exc:
         print(f"swarmshow: error: {exc}", file=sys.stderr)
         code = exc.exit_code
+    except (BrokenPipeError, OSError) as exc:
+        if not _stdout_failed(exc):
+            raise
+        print(f"swarmshow: error: cannot write to stdout: {exc.strerror or exc}", file=sys.stderr)
+        # Python would flush stdout again at exit and print a traceback: point it at /dev/null.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        code = 2
     except KeyboardInterrupt:
         print("swarmshow: interrupted", file=sys.stderr)
         code = 130
     if argv is None:
         sys.exit(code)
     return code
+
+
+class _ClosedStdout:
+    """Stands in for a closed stdout: any write is a one-line error (exit 2), not a silent loss."""
+
+    def write(self, _text: str) -> int:
+        raise CliError("stdout is closed; nothing was written")
+
+    @property
+    def buffer(self) -> _ClosedStdout:
+        return self
+
+    def flush(self) -> None:
+        pass
+
+    def fileno(self) -> int:
+        raise OSError(errno.EBADF, "stdout is closed")
+
+    def isatty(self) -> bool:
+        return False
+
+
+def _stdout_failed(exc: OSError) -> bool:
+    """True when ``exc`` came from writing stdout (a closed pipe, a closed or full descriptor)."""
+    return isinstance(exc, BrokenPipeError) or exc.errno in (errno.EPIPE, errno.EBADF, errno.ENOSPC)

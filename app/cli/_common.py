@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import select
+import stat
 import sys
+import tempfile
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,16 +28,96 @@ class CliError(Exception):
         self.exit_code = exit_code
 
 
-def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for start-up time)
-    """Read and validate a show file; bad input becomes a ``CliError`` (exit 2)."""
-    from formations import ShowValidationError, load_show
+#: Seconds a pipe or device given as input may take to deliver its bytes.
+READ_TIMEOUT_S = 30.0
 
+
+def read_bounded(path: str, limit: int, *, what: str = "file", timeout_s: float = READ_TIMEOUT_S) -> bytes:
+    """The bytes of ``path``, refused past ``limit`` without reading further.
+
+    Pipes and devices are read too (``<(cat show.json)``), but never hang: the file is
+    opened non-blocking (a FIFO without a writer would block ``open`` forever) and read
+    with ``select`` under ``timeout_s``; ``/dev/zero`` stops at the limit.
+
+    Raises:
+        CliError: missing, a directory, unreadable, a symlink loop, too large or too slow.
+    """
     try:
-        return load_show(Path(path))
-    except FileNotFoundError as exc:
-        raise CliError(f"{path}: no such file") from exc
-    except IsADirectoryError as exc:
-        raise CliError(f"{path}: is a directory") from exc
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise CliError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise CliError(f"{path}: is a directory") from None
+    except OSError as exc:  # ELOOP (a symlink loop), EACCES, ENAMETOOLONG, ...
+        raise CliError(f"{path}: {exc.strerror or exc}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise CliError(f"{path}: is a directory")
+        chunks: list[bytes] = []
+        size, deadline = 0, time.monotonic() + timeout_s
+        while size <= limit:
+            try:
+                # A FIFO that no writer has opened reads as end of file at once (non-blocking open).
+                chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            except BlockingIOError:  # a pipe whose writer has not written yet
+                ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+                if not ready:
+                    raise CliError(f"{path}: nothing to read for {timeout_s:g} s") from None
+                continue
+            except OSError as exc:
+                raise CliError(f"{path}: {exc.strerror or exc}") from None
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > limit:
+            raise CliError(f"{path}: the {what} is larger than the limit of {limit} bytes")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same directory, an fsync and a rename.
+
+    A reader never sees a half-written file; a full disk (or any failure) leaves the previous
+    file, if any, untouched and no temporary behind; a symlink at ``path`` is replaced, never
+    written through to its target.
+
+    Raises:
+        CliError: the directory is not writable, the disk is full, ...
+    """
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".swarmshow-", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        reason = "the disk is full" if exc.errno in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT) else exc.strerror
+        raise CliError(f"{path}: cannot write: {reason or exc}; nothing was written") from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for start-up time)
+    """Read (bounded, see :func:`read_bounded`) and validate a show file; bad input becomes a
+    ``CliError`` (exit 2)."""
+    from formations import MAX_SHOW_FILE_BYTES, ShowValidationError, parse_show
+
+    data = read_bounded(path, MAX_SHOW_FILE_BYTES, what="show file")
+    if not data.strip():
+        raise CliError(f"{path}: is empty; expected a show file (JSON)")
+    try:
+        return parse_show(data)
     except ShowValidationError as exc:
         raise CliError(f"{path}: {exc.one_line()}") from exc
 

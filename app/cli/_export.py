@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 from app.cli._common import EXIT_OK, CliError, load_show_arg, progress_bar
+from app.cli._common import write_atomically as write_atomically
 
 #: Shows with at least this many drones draw a progress bar (smaller ones finish in a blink).
 _PROGRESS_MIN_DRONES = 200
@@ -96,25 +95,3 @@ def _target_dir_check(output: str) -> Path | None:
     if path.exists() and not path.is_file():
         raise CliError(f"{output}: exists and is not a regular file")
     return path
-
-
-def write_atomically(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same directory and a rename.
-
-    A reader never sees a half-written file, and an interrupted export leaves
-    any previous file untouched.
-    """
-    fd, tmp = tempfile.mkstemp(prefix=".swarmshow-", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from exc
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, CliError
+from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, read_bounded, write_atomically
 
 
 def _center(text: str) -> tuple[float, float, float]:
@@ -97,16 +97,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _read(path: str, limit: int) -> bytes:
-    """At most ``limit + 1`` bytes of a file (so an oversize file is refused without reading it all)."""
-    try:
-        with Path(path).open("rb") as fh:
-            return fh.read(limit + 1)
-    except FileNotFoundError:
-        raise CliError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise CliError(f"{path}: is a directory") from None
-    except OSError as exc:
-        raise CliError(f"{path}: {exc.strerror or exc}") from None
+    """The file's bytes, refused past ``limit`` without reading further (a pipe or a device never
+    hangs, see :func:`app.cli._common.read_bounded`)."""
+    return read_bounded(path, limit)
 
 
 def _write(obj: dict[str, Any], output: str) -> None:
@@ -114,10 +107,8 @@ def _write(obj: dict[str, Any], output: str) -> None:
     if output == "-":
         print(text)
         return
-    try:
-        Path(output).write_text(text + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise CliError(f"{output}: {exc.strerror or exc}") from None
+    # Atomic, and a symlink at OUT is replaced, never written through to its target.
+    write_atomically(Path(output), (text + "\n").encode("utf-8"))
     n, d = len(obj["points"]), obj.get("min_spacing_m")
     spacing = f", min spacing {d:.3f} m" if d is not None else ""
     print(f"wrote {n} points{spacing} to {output}", file=sys.stderr)

@@ -93,7 +93,9 @@ def _serve(args: argparse.Namespace) -> int:
         print(f"demo show {'added' if added else 'already in the store'}: {url}/api/shows/{show_id}", file=sys.stderr)
     print(f"swarmshow {'demo' if args.seed_demo else 'server'}: {url}/  (API docs: {url}/api/docs)",
           flush=True)
+    from app.server._http import protocol_class
+
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info",
-                access_log=settings.access_log,
-                timeout_graceful_shutdown=5)
+                access_log=settings.access_log, http=protocol_class(settings.header_timeout_s),
+                timeout_keep_alive=settings.timeout_keep_alive_s, timeout_graceful_shutdown=5)
     return EXIT_OK

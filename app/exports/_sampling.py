@@ -30,6 +30,11 @@ def sample_times_ms(duration_s: float, fps: float) -> np.ndarray:
     return np.append(t, end)
 
 
+def frame_count(duration_s: float, fps: float) -> int:
+    """How many sample times :func:`sample_times_ms` gives (at most; computed without building them)."""
+    return int(np.floor(duration_s * fps + 1e-9)) + 2
+
+
 def check_sample_count(ctx: ExportContext, n_times: int) -> None:
     """Refuse exports that would hold more than :data:`MAX_SAMPLES` samples."""
     total = n_times * ctx.show.drones

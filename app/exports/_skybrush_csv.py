@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from app.exports._archive import ZipBuilder, base_manifest, safe_stem
 from app.exports._core import ExportContext, ExportResult
-from app.exports._sampling import check_sample_count, sample_times_ms, write_sample_csvs
+from app.exports._sampling import check_sample_count, frame_count, sample_times_ms, write_sample_csvs
 from app.exports._text import column_bytes
 
 HEADER = "Time [msec],x [m],y [m],z [m],Red,Green,Blue\n"
@@ -27,8 +27,8 @@ DEFAULT_FPS = 4.0
 def export_skybrush_csv(ctx: ExportContext) -> ExportResult:
     """Build the Skybrush CSV zip (see the module docstring)."""
     fps = ctx.options.fps_or(DEFAULT_FPS)
+    check_sample_count(ctx, frame_count(ctx.plan.duration_s, fps))  # before any array is built
     times_ms = sample_times_ms(ctx.plan.duration_s, fps)
-    check_sample_count(ctx, len(times_ms))
     z = ZipBuilder()
     write_sample_csvs(
         ctx, z, times_s=times_ms / 1000.0, time_column=column_bytes(times_ms, 0), header=HEADER.encode()

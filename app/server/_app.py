@@ -36,6 +36,7 @@ from app.api.models import ShowUpdate
 from app.jobs import JobManager
 from app.server._auth import TokenMiddleware
 from app.server._headers import SecurityHeadersMiddleware
+from app.server._hosts import LoopbackHostMiddleware
 from app.server._limits import ENVELOPE_BYTES, BodyLimit, BodyLimitMiddleware
 from app.settings import AppSettings
 from app.store import ShowStore
@@ -55,8 +56,12 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 * Uploads over the limits get **413**: show file 20 MB, image 40 megapixels (50 MB), SVG 5 MB.
 * With a server token (`SWARMSHOW_TOKEN`), every request needs `Authorization: Bearer <token>` or the
   cookie set by `POST /api/session`; otherwise **401**.
-* A full job queue answers **429** with `Retry-After`; a job running longer than `SWARMSHOW_JOB_TIMEOUT_S`
-  fails (status 504 in its error).
+* A full job queue (or a client's `SWARMSHOW_MAX_JOBS_PER_CLIENT` jobs) answers **429** with `Retry-After`;
+  a job running longer than `SWARMSHOW_JOB_TIMEOUT_S` fails (kind `timeout`, status 504 in its error).
+  Interactive work (check, formations, exports) has its own worker pool and a time budget
+  (`SWARMSHOW_TASK_TIMEOUT_S`: **504**); work over a size limit is refused before it starts (**413**/**422**).
+* Without a token, only loopback `Host` and `Origin` names are answered (**421** otherwise).
+* An unexpected error answers **500** `{"detail": "internal error", "request_id": ...}`; a full disk **507**.
 * Heavy work (checks, simulations, formation sampling, exports) runs in worker processes; simulations are
   jobs (`202`) with progress as server-sent events. Results are cached by the show's content hash.
 """
@@ -66,11 +71,7 @@ _DESCRIPTION = """Design, plan, verify, fly and export drone light shows.
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: AppSettings = app.state.settings
     store = await asyncio.to_thread(ShowStore, settings.db_path, keep_revisions=settings.keep_revisions)
-    manager = JobManager(
-        store=store, workers=settings.workers, max_jobs_kept=settings.max_jobs_kept,
-        max_pending=settings.max_pending_jobs, max_cached=settings.max_cached_results,
-        timeout_s=settings.job_timeout_s,
-    )
+    manager = JobManager(store=store, settings=settings)
     # The pool starts in the background: the API answers (and the store serves) a few hundred ms
     # sooner after a restart; the first job waits for it (JobManager.wait_started).
     starting = asyncio.get_running_loop().run_in_executor(None, manager.start)
@@ -150,6 +151,9 @@ def create_app(settings: AppSettings | None = None) -> FastAPI:
     app.add_middleware(BodyLimitMiddleware, limits=limits, default=default)
     if settings.token is not None:
         app.add_middleware(TokenMiddleware, token=settings.token.get_secret_value())
+    else:
+        # No token: the server is on loopback, and only loopback names may address it (DNS rebinding).
+        app.add_middleware(LoopbackHostMiddleware, extra_hosts=settings.allowed_hosts)
     app.add_middleware(SecurityHeadersMiddleware)
     for module in (health, shows, jobs, formations, session):
         app.include_router(module.router, prefix="/api")

@@ -60,14 +60,15 @@ class _Loader:
     def load(self, show_id: str, source: Source = "planned") -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
 
-        Runs in a worker thread; progress goes to the viewer's busy bar.
+        Called from a thread; the planning and the flight run in the job manager's interactive pool
+        under its time budget, never in the server process.
 
         Returns:
             ``(record, plan, cached)``.
         """
-        from formations import parse_show
-        from sim import cached_plan_show as plan_show  # shared with exports and the CLI: planned once per show
+        from app import tasks
 
+        jobs = self.app.state.jobs
         record = self.app.state.store.get(show_id)
         label = _label(record)
         with self._lock:
@@ -76,17 +77,15 @@ class _Loader:
         cached = plan is not None and (source == "planned" or flight is not None)
         viewer = self.viewer
         try:
-            if plan is None:
-                viewer.set_busy(f"Planning {record.name}", 0.0)
-                plan = plan_show(parse_show(record.json), progress=lambda f: viewer.set_busy(
-                    f"Planning {record.name}", 0.3 * f if source == "simulated" else f))
             if source == "simulated" and flight is None:
-                from app.tasks import _fly_show
-
-                fly_show = _fly_show()
-                viewer.set_busy(f"Simulating {record.name}", 0.3)
-                flight = fly_show(plan, progress=lambda f: viewer.set_busy(
-                    f"Simulating {record.name}", 0.3 + 0.7 * f))
+                viewer.set_busy(f"Simulating {record.name}", 0.0)
+                options = tasks.flight_options({}, jobs.settings.dask_scheduler)
+                # Interactive pool and budget: a request waits for it (a long show answers 504, the job
+                # API flies it without a time budget).
+                plan, flight = jobs.run_sync(tasks.viewer_flight_task, record.json, options)
+            elif plan is None:
+                viewer.set_busy(f"Planning {record.name}", 0.0)
+                plan = jobs.run_sync(tasks.viewer_plan_task, record.json)
         finally:
             viewer.set_busy(None)
         with self._lock:
@@ -121,20 +120,13 @@ def playback_router() -> APIRouter:
         """Plan the stored show (and for ``simulated`` fly it) off the event loop and load it into the
         3D viewer at ``/viser/``; every connected browser sees it. Progress shows in the viewer."""
         from app.api.errors import ApiError
-        from app.tasks import TaskFailure, _plan_failure
-        from sim import PlanError
 
         loader: _Loader | None = getattr(request.app.state, "viewer_loader", None)
         if loader is None:
             raise ApiError(503, "the 3D viewer is not running")
         source: Source = (body or PlaybackRequest()).source
-        try:
-            record, plan, cached = await asyncio.to_thread(loader.load, show_id, source)
-        except PlanError as exc:
-            failure = _plan_failure(exc)
-            raise ApiError(failure.status, failure.detail) from None
-        except TaskFailure as exc:
-            raise ApiError(exc.status, exc.detail) from None
+        # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).
+        record, plan, cached = await asyncio.to_thread(loader.load, show_id, source)
         return PlaybackOut(
             show_id=record.id, revision=record.revision, name=record.name, source=source,
             drones=plan.drone_count, duration_s=plan.duration_s, viewer_url="/viser/", cached=cached,

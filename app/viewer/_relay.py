@@ -82,8 +82,16 @@ def viewer_router(viewer: ViewerRef = None) -> APIRouter:
     @router.get("/viser/{path:path}", include_in_schema=False)
     async def viser_asset(path: str) -> FileResponse:
         # The current build is a single page; this serves any file a future build adds next to it.
-        target = (CLIENT_BUILD_DIR / path).resolve()
-        if not target.is_file() or CLIENT_BUILD_DIR not in target.parents:
+        # A NUL or an over-long name makes the OS call fail (ValueError, ENAMETOOLONG): still just 404,
+        # never a 500 whose traceback names the install path.
+        if "\x00" in path or len(path) > 1024 or any(len(part) > 255 for part in path.split("/")):
+            raise HTTPException(status_code=404, detail="not found")
+        try:
+            target = (CLIENT_BUILD_DIR / path).resolve()
+            found = target.is_file() and CLIENT_BUILD_DIR in target.parents
+        except (OSError, ValueError):
+            found = False
+        if not found:
             raise HTTPException(status_code=404, detail="not found")
         return FileResponse(target)
 

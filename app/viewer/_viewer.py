@@ -118,6 +118,10 @@ class Viewer:
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(lambda c: self._notifications.pop(c.client_id, None))
         self._pair_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-closest-pair")
+        # One loader thread for every browser's picks; a pick while one loads is refused, not queued
+        # (a client sending selections in a loop once started one thread, and one plan, each).
+        self._load_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-catalog-load")
+        self._loading = threading.Lock()
         self._thread: threading.Thread | None = None
         if start_thread:
             self._thread = threading.Thread(target=self._run, name="viewer-playback", daemon=True)
@@ -143,6 +147,7 @@ class Viewer:
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         self._pair_pool.shutdown(wait=True)
+        self._load_pool.shutdown(wait=False, cancel_futures=True)
         with contextlib.redirect_stdout(io.StringIO()):
             self.server.stop()
 
@@ -311,8 +316,23 @@ class Viewer:
                 return
             key = self._catalog_keys.get(label)
         if key is not None and self._catalog_load is not None:
+            if not self._loading.acquire(blocking=False):
+                client = getattr(event, "client", None)
+                if client is not None:
+                    self._notify(client, "Another show is loading; pick again when it is on screen.")
+                return
             load = self._catalog_load
-            threading.Thread(target=load, args=(key,), name="viewer-catalog-load", daemon=True).start()
+
+            def run() -> None:
+                try:
+                    load(key)
+                finally:
+                    self._loading.release()
+
+            try:
+                self._load_pool.submit(run)
+            except RuntimeError:  # the viewer is stopping
+                self._loading.release()
 
     # ----------------------------------------------------------------- loading
 
