@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 import re
 from typing import Any
-from xml.etree.ElementTree import ParseError
+from xml.etree.ElementTree import Element, ParseError
 
 import numpy as np
 import svgelements as se
@@ -90,7 +90,7 @@ def check_svg_bytes(data: bytes) -> bytes:
 MAX_SVG_ELEMENTS = 20_000
 
 
-def _expanded_elements(root) -> int:
+def _expanded_elements(root: Element) -> int:
     """How many elements the document holds once every ``<use>`` is replaced by what it refers to,
     counted without expanding anything (memoised per id; stops early past the limit).
 
@@ -101,7 +101,7 @@ def _expanded_elements(root) -> int:
     memo: dict[int, int] = {}
     visiting: set[int] = set()
 
-    def size(el, depth: int) -> int:
+    def size(el: Element, depth: int) -> int:
         key = id(el)
         if key in memo:
             return memo[key]

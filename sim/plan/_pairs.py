@@ -37,7 +37,11 @@ import math
 
 import numba
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
+
+_F = NDArray[np.float64]
+_I = NDArray[np.int64]
 
 #: Undecided intervals narrower than this count as conflicts, seconds.
 H_MIN_S = 1e-5
@@ -45,7 +49,7 @@ _STACK = 256
 
 
 @numba.njit(cache=True, inline="always")
-def _prof(breaks, coeffs, row, u, deriv):  # pragma: no cover - numba
+def _prof(breaks: _F, coeffs: _F, row: int, u: float, deriv: int) -> float:  # pragma: no cover - numba
     """σ_row(u) (deriv 0) or σ_row'(u) (deriv 1), rest outside [0, duration]."""
     dur = breaks[row, 7]
     if u <= 0.0:
@@ -68,12 +72,12 @@ def _prof(breaks, coeffs, row, u, deriv):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, inline="always")
-def _s(breaks, coeffs, row, dep, scale, t):  # pragma: no cover - numba
+def _s(breaks: _F, coeffs: _F, row: int, dep: float, scale: float, t: float) -> float:  # pragma: no cover - numba
     return _prof(breaks, coeffs, row, (t - dep) / scale, 0)
 
 
 @numba.njit(cache=True)
-def seg_seg_dist(p0, p1, q0, q1):  # pragma: no cover - numba
+def seg_seg_dist(p0: _F, p1: _F, q0: _F, q1: _F) -> float:  # pragma: no cover - numba
     """Distance between segments [p0, p1] and [q0, q1] (3-vectors), closed form (Ericson 5.1.9)."""
     d1x, d1y, d1z = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
     d2x, d2y, d2z = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
@@ -111,7 +115,7 @@ def seg_seg_dist(p0, p1, q0, q1):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, inline="always")
-def _point_seg_origin(r0, r1):  # pragma: no cover - numba
+def _point_seg_origin(r0: _F, r1: _F) -> float:  # pragma: no cover - numba
     cx, cy, cz = r1[0] - r0[0], r1[1] - r0[1], r1[2] - r0[2]
     cc = cx * cx + cy * cy + cz * cz
     b = 0.0
@@ -122,8 +126,9 @@ def _point_seg_origin(r0, r1):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def pair_conflict(i, j, a_m, d_m, breaks, coeffs, prof_row, dep, scale, arr, peak_s2, length,
-                  required_m):  # pragma: no cover - numba
+def pair_conflict(i: int, j: int, a_m: _F, d_m: _F, breaks: _F, coeffs: _F, prof_row: _I, dep: _F,
+                  scale: _F, arr: _F, peak_s2: _F, length: _F, required_m: float,
+                  ) -> tuple[bool, float]:  # pragma: no cover - numba
     """Certified check of one pair over all time.
 
     Returns (conflict, time_s): conflict is False iff the distance provably stays >= required_m.
@@ -244,11 +249,11 @@ def close_path_pairs(a_m: np.ndarray, b_m: np.ndarray, radius_m: float) -> np.nd
     keys = np.unique(lo * n + hi)
     pairs = np.stack([keys // n, keys % n], axis=1)
     dist = _seg_dists(a_m, b_m, pairs)
-    return pairs[dist < radius_m]
+    return np.asarray(pairs[dist < radius_m], dtype=np.int64)
 
 
 @numba.njit(cache=True)
-def _seg_dists(a_m, b_m, pairs):  # pragma: no cover - numba
+def _seg_dists(a_m: _F, b_m: _F, pairs: _I) -> _F:  # pragma: no cover - numba
     out = np.empty(len(pairs))
     for k in range(len(pairs)):
         i, j = pairs[k, 0], pairs[k, 1]
@@ -257,7 +262,7 @@ def _seg_dists(a_m, b_m, pairs):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def point_seg_dists(points, a_m, b_m, pt_idx, seg_idx):  # pragma: no cover - numba
+def point_seg_dists(points: _F, a_m: _F, b_m: _F, pt_idx: _I, seg_idx: _I) -> _F:  # pragma: no cover - numba
     """Distance from points[pt_idx[k]] to segment A B [seg_idx[k]], for every k."""
     out = np.empty(len(pt_idx))
     for k in range(len(pt_idx)):
@@ -267,8 +272,9 @@ def point_seg_dists(points, a_m, b_m, pt_idx, seg_idx):  # pragma: no cover - nu
 
 
 @numba.njit(cache=True)
-def pairs_conflicts(pairs, a_m, d_m, breaks, coeffs, prof_row, dep, scale, arr, peak_s2, length,
-                    required_m):  # pragma: no cover - numba
+def pairs_conflicts(pairs: _I, a_m: _F, d_m: _F, breaks: _F, coeffs: _F, prof_row: _I, dep: _F,
+                    scale: _F, arr: _F, peak_s2: _F, length: _F, required_m: float,
+                    ) -> tuple[NDArray[np.bool_], _F]:  # pragma: no cover - numba
     """pair_conflict over (K, 2) pairs: (K,) conflict flags and times."""
     flags = np.zeros(len(pairs), dtype=np.bool_)
     times = np.zeros(len(pairs))

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -127,7 +127,7 @@ class TransitionInfo:
     @property
     def guaranteed_separation_m(self) -> float:
         """CAPT's bound min(start, goal spacing)/√2, metres."""
-        return min(self.start_spacing_m, self.goal_spacing_m) / np.sqrt(2.0)
+        return float(min(self.start_spacing_m, self.goal_spacing_m) / np.sqrt(2.0))
 
 
 class PlanSample(NamedTuple):
@@ -335,7 +335,8 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                ceiling_m=s.max_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed)
 
-    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray) -> tuple[np.ndarray, dict]:
+    def commit(tp: TransitionPlan, from_name: str, to_name: str,
+               goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         start = positions[-1]
         goal_index = tp.goal_index
         end = tp.legs[-1].b_m

@@ -56,6 +56,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
@@ -253,9 +254,14 @@ def precedence_order(a_m: np.ndarray, b_m: np.ndarray, pairs: np.ndarray, own_s:
     return np.array(out, dtype=np.int64)
 
 
+_F = NDArray[np.float64]
+_I = NDArray[np.int64]
+
+
 @numba.njit(cache=True)
-def _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2, length,
-         required_m, hint):  # pragma: no cover - numba
+def _try(i: int, indptr: _I, nbrs: _I, placed: NDArray[np.bool_], a_m: _F, d_m: _F, breaks: _F, coeffs: _F,
+         row: _I, dep: _F, scale: _F, arr: _F, peak_s2: _F, length: _F, required_m: float, hint: int,
+         ) -> tuple[int, float]:  # pragma: no cover - numba
     """(conflicting neighbour or -1, its time); checks the last conflicting neighbour first."""
     if hint >= 0:
         c, t = pair_conflict(i, hint, a_m, d_m, breaks, coeffs, row, dep, scale, arr, peak_s2, length, required_m)
@@ -272,8 +278,10 @@ def _try(i, indptr, nbrs, placed, a_m, d_m, breaks, coeffs, row, dep, scale, arr
 
 
 @numba.njit(cache=True)
-def _place_all(order, indptr, nbrs, a_m, d_m, breaks, coeffs, peak_s2, length, own_dur, sync_s,
-               step, max_extra, max_trials, required_m):  # pragma: no cover - numba
+def _place_all(order: _I, indptr: _I, nbrs: _I, a_m: _F, d_m: _F, breaks: _F, coeffs: _F, peak_s2: _F,
+               length: _F, own_dur: _F, sync_s: float, step: float, max_extra: float, max_trials: int,
+               required_m: float,
+               ) -> tuple[_F, _I, _F, _F, NDArray[np.bool_], _I, _F]:  # pragma: no cover - numba
     """Place drones in ``order``; each takes the first safe (arrival, departure) candidate.
 
     Candidates, by increasing arrival: the synchronised profile (depart 0, arrive sync_s);
@@ -541,7 +549,7 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
         normal, flat = np.array([0.0, 0.0, 1.0]), True
     if flat and abs(normal[2]) > 0.9 and not similar:
         proj = centred - np.outer(centred @ normal, normal)
-        return points + (k - 1.0) * proj
+        return np.asarray(points + (k - 1.0) * proj, dtype=np.float64)
     if flat and not similar:
         lam = float(np.sqrt(max(k * k - 1.0, 0.0)))
         colour = _greedy_colours(points, k * min_distance_m * (1.0 + 1e-9))
@@ -549,7 +557,7 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
         out = points + offset[:, None] * normal[None, :]
         if out[:, 2].min() < 0 or out[:, 2].max() > ceiling_m:
             return None
-        return out
+        return np.asarray(out, dtype=np.float64)
     lo_z, hi_z = float(points[:, 2].min()), float(points[:, 2].max())
     # anchor a keeps lo' = a + k(lo - a) >= 0 and hi' = a + k(hi - a) <= ceiling.
     a_min = (k * hi_z - ceiling_m) / (k - 1.0)
@@ -557,7 +565,7 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
     if a_min > a_max + 1e-9:
         return None
     anchor = np.array([c[0], c[1], min(max(lo_z, a_min), a_max)])
-    return anchor + k * (points - anchor)
+    return np.asarray(anchor + k * (points - anchor), dtype=np.float64)
 
 
 def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,

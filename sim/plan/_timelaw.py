@@ -73,7 +73,7 @@ class DoubleS(NamedTuple):
 
     @property
     def duration_s(self) -> np.ndarray:
-        return 2.0 * self.ta + self.tv
+        return np.asarray(2.0 * self.ta + self.tv, dtype=np.float64)
 
 
 def double_s_phases(h: ArrayLike, v: ArrayLike, a: ArrayLike, j: ArrayLike) -> DoubleS:
@@ -244,7 +244,7 @@ def quintic_leg_duration(d: np.ndarray, *, v_xy: float, v_z: float, a: float,
     """(n,) shortest times (s) of quintic legs: peak speed 1.875·L/T and peak accel (10/√3)·L/T² within limits."""
     length = np.linalg.norm(d, axis=1)
     v = path_speed_limit(d, v_xy, v_z, v_down)
-    return np.maximum(1.875 * length / v, np.sqrt(10.0 / math.sqrt(3.0) * length / a))
+    return np.asarray(np.maximum(1.875 * length / v, np.sqrt(10.0 / math.sqrt(3.0) * length / a)), dtype=np.float64)
 
 
 __all__ = [

@@ -48,6 +48,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 from scipy.spatial import cKDTree
 
+from formations import ShowFile
 from sim.plan._plan import ShowPlan
 from sim.plan._trajectory import Trajectories
 from sim.verify import _poly
@@ -164,13 +165,13 @@ class CheckReport(BaseModel):
     violations: list[Violation]
     violations_total: int
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dict with DESIGN.md's key names (``from``, not ``from_``)."""
         return self.model_dump(mode="json", by_alias=True)
 
     def worst_transitions(self) -> list[TransitionCheck]:
         """``by_transition`` with failing ones first, smallest minimum distance first."""
-        def key(g: TransitionCheck) -> tuple:
+        def key(g: TransitionCheck) -> tuple[bool, float, int]:
             d = g.min_distance_m if g.min_distance_m >= 0 else math.inf
             return (g.ok, d, g.segment)
         return sorted(self.by_transition, key=key)
@@ -457,7 +458,7 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
     )
 
 
-def _worst_first(v: Violation) -> tuple:
+def _worst_first(v: Violation) -> tuple[int, float, float]:
     """Distance violations first, smallest distance first; then the others by how far over the limit."""
     if v.kind == "min_distance":
         return (0, v.value, v.time_s)
@@ -552,7 +553,7 @@ def _finite(x: float) -> float:
     return float(x) if math.isfinite(x) else -1.0
 
 
-def check_show(show, *, progress: Callable[[float], None] | None = None) -> CheckReport:
+def check_show(show: ShowFile, *, progress: Callable[[float], None] | None = None) -> CheckReport:
     """Plan ``show`` (forced durations flown as asked) and verify it exactly.
 
     Args:

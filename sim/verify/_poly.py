@@ -146,7 +146,7 @@ def piece_at(breaks: np.ndarray, i: int, t: float) -> int:  # pragma: no cover -
             hi = mid
         else:
             lo = mid + 1
-    return min(lo - 1, p_count - 1)
+    return int(min(lo - 1, p_count - 1))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -125,7 +125,7 @@ def _ismc_law(
 
 
 @nb.njit(inline="always", cache=True)
-def _piece_state(coeffs, i: int, p: int, a: int, u: float, inside: bool) -> tuple:
+def _piece_state(coeffs: np.ndarray, i: int, p: int, a: int, u: float, inside: bool) -> tuple[float, float, float]:
     """Position, velocity, acceleration of axis ``a`` of drone i's piece p at local time u (Horner).
 
     The derivative coefficients are formed as ``Trajectories.evaluate`` forms them (k·c_k, then
