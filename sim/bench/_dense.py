@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 import time
 import tracemalloc
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numba
 import numpy as np
@@ -35,6 +36,9 @@ from scipy.sparse import csr_matrix
 from scipy.spatial import cKDTree
 
 from formations import ShowFile, parse_show
+
+if TYPE_CHECKING:
+    from sim.plan import ShowPlan
 
 #: Formation kinds of the dense suite, in show order.
 DENSE_KINDS = ("disc", "star", "ball", "text", "image", "wall", "cloud")
@@ -70,10 +74,10 @@ def _star_norm(uv: np.ndarray, points: int = 5, inner: float = 0.5) -> np.ndarra
     ang = np.mod(np.arctan2(uv[:, 0], uv[:, 1]), 2 * np.pi / points) / (2 * np.pi / points)
     # Star boundary radius along the angle: linear between tip (1) and notch (inner) in polar terms.
     edge = 1.0 - (1.0 - inner) * (1.0 - np.abs(2.0 * ang - 1.0))
-    return r / edge
+    return np.asarray(r / edge, dtype=np.float64)
 
 
-def _mask_points(n: int, spacing: float, inside) -> np.ndarray:
+def _mask_points(n: int, spacing: float, inside: Callable[[np.ndarray, float], np.ndarray]) -> np.ndarray:
     """N lattice points inside a growing mask ``inside(uv, scale) -> bool``, most central first."""
     scale = spacing * math.sqrt(n) * 0.6
     for _ in range(60):
@@ -91,7 +95,7 @@ def _smiley(uv: np.ndarray, scale: float) -> np.ndarray:
     ring = (r > 0.78) & (r <= 1.0)
     eyes = (np.hypot(np.abs(uv[:, 0]) / scale - 0.35, uv[:, 1] / scale - 0.3) < 0.15)
     mouth = (r > 0.42) & (r < 0.6) & (uv[:, 1] < -0.1 * scale)
-    return ring | eyes | mouth
+    return np.asarray(ring | eyes | mouth, dtype=np.bool_)
 
 
 def _text(n: int, spacing: float, text: str = "HELLO") -> np.ndarray:
@@ -134,7 +138,7 @@ def _cloud(n: int, spacing: float, rng: np.random.Generator) -> np.ndarray:
     pts = np.zeros((0, 3))
     while len(pts) < n:
         cand = rng.uniform(-side / 2, side / 2, size=(4 * n, 3))
-        accepted = []
+        accepted: list[np.ndarray] = []
         tree = cKDTree(pts) if len(pts) else None
         for c in cand:
             if tree is not None and tree.query(c)[0] < spacing:
@@ -212,7 +216,7 @@ def leg_time_lower_bound(x: np.ndarray, g: np.ndarray, *, v_xy: float, v_z: floa
     txy = _trap_time(np.hypot(d[..., 0], d[..., 1]), v_xy, a)
     vz = np.where(d[..., 2] < 0, v_z if v_down is None else v_down, v_z)
     tz = np.where(vz > 0, _trap_time_vec(np.abs(d[..., 2]), vz, a), 0.0)
-    return np.maximum(txy, tz)
+    return np.asarray(np.maximum(txy, tz), dtype=np.float64)
 
 
 def _trap_time_vec(d: np.ndarray, v: np.ndarray, a: float) -> np.ndarray:
@@ -220,7 +224,8 @@ def _trap_time_vec(d: np.ndarray, v: np.ndarray, a: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def hopcroft_karp(indptr, indices, n_left, n_right):  # pragma: no cover - numba
+def hopcroft_karp(indptr: np.ndarray, indices: np.ndarray, n_left: int,
+                 n_right: int) -> int:  # pragma: no cover - numba
     """Size of a maximum matching of the bipartite graph (CSR rows = left vertices).
 
     Hopcroft & Karp, "An n^5/2 algorithm for maximum matchings in bipartite graphs",
@@ -320,7 +325,7 @@ def bottleneck_time(x: np.ndarray, g: np.ndarray, *, tol_s: float = 0.05, **lim:
 
     def feasible(tau: float) -> bool:
         graph = csr_matrix(t <= tau)
-        return hopcroft_karp(graph.indptr.astype(np.int64), graph.indices.astype(np.int64), n, m) == n
+        return bool(hopcroft_karp(graph.indptr.astype(np.int64), graph.indices.astype(np.int64), n, m) == n)
 
     lo = float(max(t.min(axis=1).max(), t.min(axis=0).max() if m == n else 0.0)) - 1e-4
     if feasible(lo):
@@ -335,10 +340,19 @@ def bottleneck_time(x: np.ndarray, g: np.ndarray, *, tol_s: float = 0.05, **lim:
     return lo
 
 
+class _Limits(TypedDict):
+    """Keyword arguments of :func:`leg_time_lower_bound` taken from a show's settings."""
+
+    v_xy: float
+    v_z: float
+    a: float
+    v_down: float | None
+
+
 def show_lower_bound(show: ShowFile) -> dict[str, Any]:
     """The show-length lower bound of the module docstring, seconds, with its terms."""
     s = show.settings
-    lim = {"v_xy": s.max_speed_xy_mps, "v_z": s.max_speed_z_mps, "a": s.max_accel_mps2,
+    lim: _Limits = {"v_xy": s.max_speed_xy_mps, "v_z": s.max_speed_z_mps, "a": s.max_accel_mps2,
            "v_down": s.max_descent_speed_mps}
     lift = np.array([0.0, 0.0, s.takeoff_altitude_m])
     home = np.asarray(show.home_positions_m)
@@ -358,7 +372,7 @@ def show_lower_bound(show: ShowFile) -> dict[str, Any]:
     return {"lower_bound_s": holds + sum(terms), "holds_s": holds, "transition_bounds_s": terms}
 
 
-def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = None, **settings: Any) -> dict:
+def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = None, **settings: Any) -> dict[str, Any]:
     """Plan + check one dense show: violations, show length vs the lower bound, time and peak memory."""
     from sim.plan import plan_show
     from sim.verify import check_plan
@@ -397,7 +411,7 @@ def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = Non
     return out
 
 
-def sampled_separation(plan, *, dt_s: float = 0.05) -> dict:
+def sampled_separation(plan: ShowPlan, *, dt_s: float = 0.05) -> dict[str, Any]:
     """Independent dense-sampling check of the plan's motion: sampled minimum and a certified lower bound.
 
     Between samples h apart, |r(t)| >= (|r(t0)| + |r(t1)|)/2 - v_rel·h/2 (Lipschitz), with
