@@ -39,6 +39,7 @@
 from __future__ import annotations
 
 import asyncio
+import functools
 import hashlib
 import json
 import logging
@@ -654,7 +655,7 @@ class JobManager:
             log.exception("job %s (%s) could not start", job.id, job.kind)
             self._finish(job, JobState.FAILED, error={"kind": ErrorKind.FAILED.value, "message": "could not start"})
             return job
-        job.future.add_done_callback(lambda fut, job_id=job.id: self._on_done(job_id, fut))
+        job.future.add_done_callback(functools.partial(self._on_done, job.id))
         return job
 
     def _add(self, job: Job, *, inflight: bool = False) -> None:

@@ -14,6 +14,7 @@ transaction. A database written by a newer swarmshow is refused, not altered.
 
 from __future__ import annotations
 
+import builtins
 import secrets
 import sqlite3
 import threading
@@ -22,7 +23,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from formations import ShowFile
@@ -146,6 +147,12 @@ class RevisionRecord:
 
 
 _REV_COLUMNS = "show_id, revision, name, content_hash, drones, formations, created_at"
+
+
+def _revision_record(row: Any, has_json: bool, json: str | None = None) -> RevisionRecord:
+    """A :class:`RevisionRecord` from a row starting with the :data:`_REV_COLUMNS`."""
+    show_id, revision, name, content_hash, drones, formations, created_at = row[:7]
+    return RevisionRecord(show_id, revision, name, content_hash, drones, formations, created_at, has_json, json)
 
 
 @dataclass(frozen=True)
@@ -384,7 +391,9 @@ class ShowStore:
             db.execute("DELETE FROM shows WHERE id = ?", (show_id,))
             db.execute("DELETE FROM revisions WHERE show_id = ?", (show_id,))
 
-    def revisions(self, show_id: str, *, limit: int = 100, offset: int = 0) -> tuple[list[RevisionRecord], int]:
+    def revisions(
+        self, show_id: str, *, limit: int = 100, offset: int = 0
+    ) -> tuple[builtins.list[RevisionRecord], int]:
         """A page of a show's revisions, newest first, and how many there are. Raises :class:`ShowNotFound`."""
         with self._read() as db:
             db.execute("BEGIN")  # one snapshot for the show, the page and the count
@@ -399,7 +408,7 @@ class ShowStore:
                 total = int(db.execute("SELECT COUNT(*) FROM revisions WHERE show_id = ?", (show_id,)).fetchone()[0])
             finally:
                 db.execute("COMMIT")
-        return [RevisionRecord(*r[:7], bool(r[7])) for r in rows], total
+        return [_revision_record(r, bool(r[7])) for r in rows], total
 
     def get_revision(self, show_id: str, revision: int) -> RevisionRecord:
         """One revision with its text (None once pruned). Raises :class:`ShowNotFound`."""
@@ -410,7 +419,7 @@ class ShowStore:
             ).fetchone()
         if row is None:
             raise ShowNotFound(f"{show_id}@{revision}")
-        return RevisionRecord(*row[:7], bool(row[7]), row[8])
+        return _revision_record(row, bool(row[7]), row[8])
 
     # -- cached results ---------------------------------------------------------------------
 
@@ -449,7 +458,7 @@ class ShowStore:
             row = db.execute("SELECT record FROM jobs WHERE id = ?", (job_id,)).fetchone()
         return None if row is None else row[0]
 
-    def unfinished_jobs(self) -> list[str]:
+    def unfinished_jobs(self) -> builtins.list[str]:
         """Records of the jobs stored as queued or running (after a restart: interrupted)."""
         with self._read() as db:
             return [r[0] for r in db.execute("SELECT record FROM jobs WHERE state IN ('queued', 'running')")]

@@ -242,7 +242,8 @@ async def update_show(request: Request, show_id: str) -> Response:
             raise _invalid(f"unknown field {unknown[0]!r} (expected 'revision' and 'show')", loc=(unknown[0],),
                            path=unknown[0])
         revision = _revision_from(body.get("revision"), request.headers.get("if-match"))
-        show_data, prefix = body["show"], ("show",)
+        show_data = body["show"]
+        prefix: tuple[str, ...] = ("show",)
         if not isinstance(show_data, dict):
             raise _invalid("must be a show file object", loc=prefix, path="show")
     else:
@@ -312,6 +313,7 @@ async def simulate_show(
     already done (``cached``); the same simulation already running is shared.
     """
     record = deps.store(request).get(show_id)
+    assert record.json is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
     opts = (options or SimulateOptions()).model_dump()
     manager = deps.jobs(request)
     job = await asyncio.to_thread(
@@ -374,11 +376,14 @@ async def export_show(
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
     record = deps.store(request).get(show_id)
     if fmt == "show":
+        show_text = record.json
+        assert show_text is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
+
         def pretty() -> str:
-            return json.dumps(json.loads(record.json), indent=2) + "\n"
+            return json.dumps(json.loads(show_text), indent=2) + "\n"
 
         # Re-indenting megabytes is CPU work: off the event loop for large shows.
-        text = pretty() if len(record.json) <= INLINE_JSON_BYTES else await asyncio.to_thread(pretty)
+        text = pretty() if len(show_text) <= INLINE_JSON_BYTES else await asyncio.to_thread(pretty)
         return Response(text, media_type="application/json", headers={
             "Content-Disposition": f'attachment; filename="{_slug(record.name)}.json"',
             "ETag": f'"{record.revision}"'})
