@@ -1,3 +1,4 @@
+// @ts-check
 // "Check": plan and verify the stored show, show the report; clicking a violation selects the
 // formation and the drones involved.
 
@@ -84,7 +85,7 @@ export class ReportPanel {
     this.parts = parts;
     this.result = null;
     this.checkedVersion = -1;
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "load") this.clear();
       if (e.detail.kind === "edit" && this.result) this.body.querySelector(".stale")?.removeAttribute("hidden");
     });
@@ -101,7 +102,7 @@ export class ReportPanel {
   async run() {
     const st = this.state;
     if (!st.meta) return;
-    const btn = document.getElementById("btn-check");
+    const btn = /** @type {HTMLButtonElement} */ (document.getElementById("btn-check"));
     btn.disabled = true;
     btn.setAttribute("aria-busy", "true");
     this.body.innerHTML = '<p class="muted" role="status">Checking…</p>';

@@ -1,3 +1,4 @@
+// @ts-check
 // The timeline: formations in order with hold times and names; add, duplicate, drag to reorder,
 // delete; the planned transition durations between them once the show has been checked.
 
@@ -62,7 +63,7 @@ export class Timeline {
     this.checks = [];
     /** @type {any[]} the checks of takeoff and of the way back (landing approach, landing) */
     this.ends = [];
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "load") this.setCheck(0, [], []);
       if (e.detail.kind !== "selection" && e.detail.kind !== "live") this.render();
     });
