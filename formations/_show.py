@@ -88,6 +88,37 @@ def _check_name(value: str) -> str:
 Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS)]
 
 
+class Geofence(BaseModel):
+    """An axis-aligned horizontal box, metres in show coordinates: x in [x_min_m, x_max_m], y in [y_min_m, y_max_m].
+
+    The audience-side no-fly zone is everything outside it (typically y < y_min_m, in front of the show).
+    """
+
+    model_config = _CONFIG
+
+    x_min_m: float = Field(ge=-100_000, le=100_000)
+    x_max_m: float = Field(ge=-100_000, le=100_000)
+    y_min_m: float = Field(ge=-100_000, le=100_000)
+    y_max_m: float = Field(ge=-100_000, le=100_000)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Geofence:
+        if not (self.x_min_m < self.x_max_m and self.y_min_m < self.y_max_m):
+            raise PydanticCustomError("geofence_empty", "the geofence needs x_min_m < x_max_m and y_min_m < y_max_m")
+        return self
+
+
+class GeoPlacement(BaseModel):
+    """The show's origin on Earth (WGS84) and the compass heading of its +y axis, for geographic exports."""
+
+    model_config = _CONFIG
+
+    origin_lat_deg: float = Field(ge=-90, le=90, description="Latitude of the origin, degrees.")
+    origin_lon_deg: float = Field(ge=-180, le=180, description="Longitude of the origin, degrees.")
+    origin_alt_m: float = Field(0.0, ge=-1_000, le=10_000, description="Altitude of the origin above MSL, metres.")
+    heading_deg: float = Field(0.0, ge=0, lt=360, description="Compass heading of +y, degrees clockwise from north.")
+
+
 class Settings(BaseModel):
     """Show-wide limits (defaults: Skybrush's, a de facto standard)."""
 
@@ -99,6 +130,25 @@ class Settings(BaseModel):
     max_accel_mps2: float = Field(4.0, gt=0, le=100, description="Peak acceleration magnitude, m/s^2.")
     max_altitude_m: float = Field(150.0, gt=0, le=10_000, description="Highest allowed altitude, metres.")
     takeoff_altitude_m: float = Field(10.0, gt=0, le=10_000, description="Altitude of the vertical takeoff, metres.")
+    # Issue 17: an altitude floor, a geofence and the show's place on Earth (all checked or used by name).
+    min_altitude_m: float = Field(
+        2.5, ge=0, le=10_000,
+        description="Lowest altitude outside takeoff and landing, metres (Skybrush's minimum navigation altitude).",
+    )
+    geofence: Geofence | None = Field(
+        None, description="Horizontal box the drones stay inside from takeoff to touchdown (the audience is outside).",
+    )
+    geo: GeoPlacement | None = Field(None, description="Where the show's origin is on Earth, for geographic exports.")
+
+    @model_validator(mode="after")
+    def _floor_below_ceiling(self) -> Settings:
+        if self.min_altitude_m >= self.max_altitude_m:
+            raise PydanticCustomError(
+                "floor_above_ceiling",
+                "min_altitude_m {floor} must be below max_altitude_m {ceiling}",
+                {"floor": self.min_altitude_m, "ceiling": self.max_altitude_m},
+            )
+        return self
 
     @model_validator(mode="after")
     def _takeoff_below_ceiling(self) -> Settings:

@@ -175,8 +175,19 @@ viewSelect.addEventListener("change", () => {
 $("btn-fit-view").addEventListener("click", () => view.fit());
 $("depth-input").addEventListener("change", (e) => { view.depth = Number(e.target.value) || 0; });
 
-$("btn-undo").addEventListener("click", () => state.undo());
-$("btn-redo").addEventListener("click", () => state.redo());
+/**
+ * Undo or redo, and forget the planned transition durations of the last check: they belong to
+ * the document before the step (the next check plans them again).
+ * @param {"undo"|"redo"} which
+ */
+function undoRedo(which) {
+  if (!(which === "undo" ? state.undo() : state.redo())) return;
+  timeline.transitions = [];
+  timeline.minDurations = [];
+  timeline.render();
+}
+$("btn-undo").addEventListener("click", () => undoRedo("undo"));
+$("btn-redo").addEventListener("click", () => undoRedo("redo"));
 $("btn-save").addEventListener("click", () => persist.save({ force: !state.dirty }));
 const autosave = /** @type {HTMLInputElement} */ ($("chk-autosave"));
 autosave.checked = persist.autosave;
@@ -230,8 +241,8 @@ function nudge(e) {
 
 const shortcuts = installShortcuts({
   save: () => persist.save({ force: !state.dirty }),
-  undo: () => state.undo(),
-  redo: () => state.redo(),
+  undo: () => undoRedo("undo"),
+  redo: () => undoRedo("redo"),
   shows: () => shows.open(),
   check: () => state.show && report.run(),
   exportNow: () => state.show && exportMenu.run(),
