@@ -101,3 +101,33 @@ def test_bug7_clicking_a_cards_problem_selects_that_formation(ui: Page):
     assert ui.state("s.current") == 0
     problem.click()
     assert ui.state("s.current") == 1
+
+
+def _preview_source(ui: Page) -> str:
+    """Open (or reopen) the 3D preview; the source the editor loaded into the viewer."""
+    page = ui.page
+    with page.expect_response(lambda r: r.url.endswith("/playback") and r.request.method == "POST",
+                              timeout=120_000) as resp:
+        if page.locator("#preview-wrap").is_hidden():
+            page.get_by_role("button", name="3D preview").click()
+        else:
+            page.get_by_role("button", name="Reload the 3D preview with the saved show").click()
+    body = resp.value.json()
+    assert resp.value.status == 200, body
+    return body["source"]
+
+
+def test_bug4_preview_plays_the_simulated_flight_after_a_simulation(ui: Page):
+    page = ui.page
+    _two_formations(ui, "Preview flown", drones=4)
+    assert _preview_source(ui) == "planned"
+    page.get_by_role("button", name="Close the 3D preview").click()
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-percent")).to_have_text("100%", timeout=120_000)
+    assert _preview_source(ui) == "simulated"
+    # An edit makes the flight stale: the preview goes back to the plan.
+    page.get_by_role("button", name="Close the 3D preview").click()
+    page.get_by_label("Hold time of formation 1, seconds").fill("6")
+    page.keyboard.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 6")
+    assert _preview_source(ui) == "planned"

@@ -57,8 +57,9 @@ const tools = new Tools(view, state, {
 const settingsForm = new SettingsForm(/** @type {HTMLFormElement} */ ($("form-settings")), state);
 new Sources(state, view);
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
-const simulate = new SimulatePanel(state, persist);
-const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()));
+const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
+const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
+  () => (simulate.hasFlight ? "simulated" : "planned"));
 const exportMenu = new ExportMenu(state, persist);
 const shows = new ShowsDialog(state, persist, opened);
 
