@@ -411,7 +411,11 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
             )
         low = np.flatnonzero(z < 0)
         if low.size:
-            return ("formations", k, "points", int(low[0]), 2), f"altitude {z[low[0]]} m is below the ground (0 m)"
+            # Name all of them at once: a scaled formation often has dozens underground.
+            return ("formations", k, "points", int(low[0]), 2), (
+                f"altitude {z[low[0]]} m is below the ground (0 m): {low.size} point{'s' if low.size > 1 else ''} "
+                f"below 0 m, the lowest {z.min():.2f} m; raise the formation by at least {-z.min():.2f} m"
+            )
         if len(pts) > 1:
             i, j, d = _closest_pair(pts)
             if d < s.min_distance_m - tol:

@@ -131,3 +131,101 @@ def test_bug4_preview_plays_the_simulated_flight_after_a_simulation(ui: Page):
     page.keyboard.press("Tab")
     page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 6")
     assert _preview_source(ui) == "planned"
+
+
+def test_bug3_points_below_the_floor_are_flagged_and_the_save_error_goes_away(ui: Page):
+    page = ui.page
+    _create_show(ui, "Underground", 9)
+    expect(page.locator("#st-spacing")).to_contain_text("✓")
+    page.fill("#scale-input", "1500")
+    page.get_by_role("button", name="Scale the selection").click()
+    lowest = min(p[2] for p in ui.state("s.formation.points"))
+    assert lowest < 0
+    bar = page.locator("#st-spacing")
+    expect(bar).to_contain_text("below the ground")
+    expect(bar).to_contain_text(f"lowest {lowest:.1f} m")
+    expect(bar).not_to_contain_text("✓")
+    page.keyboard.press("Control+s")
+    status = page.locator("#save-status")
+    expect(status).to_contain_text("Not saved")
+    below = sum(p[2] < 0 for p in ui.state("s.formation.points"))
+    expect(status).to_contain_text(f"{below} points below 0 m")
+    page.keyboard.press("Control+z")
+    expect(status).not_to_contain_text("Not saved")
+    expect(bar).to_contain_text("✓")
+
+
+def test_bug8_a_shape_that_does_not_fit_says_once_what_size_fits(ui: Page):
+    page = ui.page
+    _create_show(ui, "Too small", 200)
+    page.select_option("#shape-kind", "circle")
+    page.fill("#shape-size", "20")
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    err = page.locator('[data-error-for="shape"]')
+    expect(err).to_contain_text("fits all 200", timeout=30_000)
+    text = err.inner_text()
+    assert text.count("at most") == 1 and "largest N" not in text and "make it bigger" not in text
+    size = float(text.split(" m fits all 200")[0].rsplit(" ", 1)[1])
+    assert size > 20
+    # "Size to fit" finds (about) that size and the shape then builds with every drone.
+    page.get_by_role("button", name="Size the shape to fit all drones at the minimum distance").click()
+    page.wait_for_function("() => Number(document.getElementById('shape-size').value) > 20", timeout=30_000)
+    fitted = float(page.input_value("#shape-size"))
+    assert fitted == pytest.approx(size, rel=0.05)
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label.startsWith('Shape')")
+    assert ui.state("s.formation.points.length") == 200
+    # A circle's circumference holds 200 points 3 m apart from a diameter of 200·3/π ≈ 191 m.
+    assert 190 <= fitted <= 200
+
+
+def test_bug8_bug10_export_origin_lives_in_the_show(ui: Page, tmp_path):
+    page = ui.page
+    _create_show(ui, "Geo show", 4)
+    page.select_option("#export-format", "qgc-plan")
+    page.get_by_role("button", name="Export in the chosen format").click()
+    err = page.locator("#export-error")
+    expect(err).to_contain_text("origin", timeout=60_000)
+    assert "--origin" not in err.inner_text() and "LAT,LON" not in err.inner_text()
+    expect(page.locator("#exp-origin")).to_be_focused()  # the options open at the origin field
+    page.fill("#exp-origin", "47.3977, 8.5456, 410")
+    page.fill("#exp-heading", "30")
+    page.dispatch_event("#exp-heading", "change")
+    assert ui.state("s.show.settings.geo") == {"origin_lat_deg": 47.3977, "origin_lon_deg": 8.5456,
+                                               "origin_alt_m": 410, "heading_deg": 30}
+    page.keyboard.press("Control+s")
+    expect(page.locator("#dirty-indicator")).to_be_hidden()
+    show_id = ui.state("s.meta.id")
+    # Another browser (no localStorage) sees the origin, and the export uses it.
+    other = Page(page.context.browser, ui.base, tmp_path)
+    try:
+        other.page.goto(f"{ui.base}/?show={show_id}")
+        expect(other.page.locator("#show-title")).to_have_text("Geo show")
+        assert other.page.input_value("#exp-origin") == "47.3977, 8.5456, 410"
+        assert other.page.input_value("#exp-heading") == "30"
+        other.page.select_option("#export-format", "qgc-plan")
+        with other.page.expect_download(timeout=60_000) as dl:
+            other.page.get_by_role("button", name="Export in the chosen format").click()
+        assert dl.value.suggested_filename.endswith(".zip")
+    finally:
+        other.close()
+
+
+def test_bug10_importing_an_existing_name_adds_a_number(ui: Page, tmp_path):
+    import json
+
+    import httpx
+
+    page = ui.page
+    _create_show(ui, "Twice", 4)
+    page.keyboard.press("Control+s")
+    show_id = ui.state("s.meta.id")
+    doc = httpx.get(f"{ui.base}/api/shows/{show_id}").json()["show"]
+    path = tmp_path / "twice.json"
+    path.write_text(json.dumps(doc))
+    for expected in ("Twice (2)", "Twice (3)"):
+        page.get_by_role("button", name="Shows: open, create, rename, delete, import").click()
+        page.set_input_files("#import-file", str(path))
+        expect(page.locator("#show-title")).to_have_text(expected)
+    names = [r["name"] for r in httpx.get(f"{ui.base}/api/shows").json()["items"]]
+    assert sorted(n for n in names if n.startswith("Twice")) == ["Twice", "Twice (2)", "Twice (3)"]

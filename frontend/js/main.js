@@ -111,14 +111,27 @@ function updateSpacing() {
     const r = f ? closePairs(f.points, state.show.settings.min_distance_m) : { close: new Set(), pairs: [] };
     view.close = r.close;
     const el = $("st-spacing");
+    // Points below the altitude floor (or underground) are a problem the spacing tick must not hide.
+    const floor = f ? state.show.settings.min_altitude_m ?? 2.5 : 0;
+    let low = 0;
+    let lowest = Infinity;
+    for (const p of f ? f.points : []) {
+      if (p[2] < floor) low++;
+      if (p[2] < lowest) lowest = p[2];
+    }
+    const lowText = low ? `${low} point${low > 1 ? "s" : ""} below ${lowest < 0 ? "the ground" : `the ${floor} m floor`} (lowest ${lowest.toFixed(1)} m): raise by ${(floor - lowest).toFixed(1)} m` : "";
     if (!f) el.textContent = "";
     else if (r.pairs.length) {
-      el.textContent = `${r.close.size} points closer than ${state.show.settings.min_distance_m} m (closest ${r.minDistance.toFixed(2)} m): Repair spacing`;
+      el.textContent = `${r.close.size} points closer than ${state.show.settings.min_distance_m} m (closest ${r.minDistance.toFixed(2)} m): Repair spacing${lowText ? ` · ${lowText}` : ""}`;
+      el.className = "bad";
+    } else if (low) {
+      el.textContent = lowText;
       el.className = "bad";
     } else {
       el.textContent = `spacing ≥ ${state.show.settings.min_distance_m} m ✓`;
       el.className = "";
     }
+    el.title = el.textContent;
     view.redraw();
   });
 }
@@ -140,6 +153,8 @@ function updateStatusbar() {
 
 state.addEventListener("change", (e) => {
   const kind = e.detail.kind;
+  // A refused save's message is about the document before this edit: do not leave it on screen.
+  if (kind === "edit" && $("save-status").classList.contains("error")) status(state.dirty ? "Unsaved changes" : "");
   if (kind !== "live") refreshChrome();
   else updateStatusbar();
   if (kind === "load" || kind === "current") view.flagged = new Set();

@@ -96,8 +96,72 @@ export class Sources {
     return p;
   }
 
+  /**
+   * The smallest size (to 2 %) at which a source yields all the drones at the minimum distance,
+   * by bisection over the formation endpoint (the size that fails is the lower bound).
+   * @param {string} source endpoint name @param {any} body request body @param {string} sizeKey
+   * @param {File} [file] @param {number} [maxN] the largest N that fits at body[sizeKey], if known
+   * @returns {Promise<number|null>} metres, or null if none up to 64x the size fits
+   */
+  async _sizeToFit(source, body, sizeKey, file, maxN) {
+    const fits = async (size) => {
+      try {
+        await api.buildFormation(source, { ...body, [sizeKey]: size }, file);
+        return true;
+      } catch (err) {
+        if (err.problems && err.problems[0] && err.problems[0].max_n != null) return false;
+        throw err;
+      }
+    };
+    let hi = body[sizeKey] * (maxN ? Math.max(1.05, body.n / maxN) : 1.5);
+    let lo = 0;
+    while (!(await fits(hi))) {
+      lo = hi;
+      hi *= 2;
+      if (hi > body[sizeKey] * 64) return null;
+    }
+    if (lo === 0) lo = (await fits(body[sizeKey])) ? 0 : body[sizeKey];
+    if (lo === 0) lo = body[sizeKey] / 64;
+    while (hi / lo > 1.02) {
+      const mid = Math.sqrt(lo * hi);
+      if (await fits(mid)) hi = mid;
+      else lo = mid;
+    }
+    return Math.ceil(hi * 10) / 10;
+  }
+
   _form(id, key, params) {
     const form = /** @type {HTMLFormElement} */ (document.getElementById(id));
+    const sizeKey = { shape: "size_m", text: "height_m", upload: "width_m" }[key];
+    const request = (fd) => {
+      const st = this.state;
+      const body = { ...params(fd), n: st.show.drones, min_spacing_m: st.show.settings.min_distance_m };
+      let source = key;
+      let file;
+      if (key === "upload") {
+        file = /** @type {File} */ (fd.get("file"));
+        if (!file || !file.name) throw new Error("Choose a PNG, JPEG or SVG file.");
+        source = /svg/i.test(file.type) || /\.svg$/i.test(file.name) ? "svg" : "image";
+      }
+      return { body, source, file };
+    };
+    const fitButton = form.querySelector(".fit-size");
+    fitButton?.addEventListener("click", async () => {
+      setError(key, "");
+      if (!this.state.formation) return setError(key, "Open or create a show first.");
+      fitButton.disabled = true;
+      try {
+        const { body, source, file } = request(new FormData(form));
+        const size = await this._sizeToFit(source, body, sizeKey, file);
+        if (size == null) return setError(key, `${body.n} drones do not fit even at 64 times this size: use fewer drones or a smaller minimum distance.`);
+        /** @type {HTMLInputElement} */ (form.elements.namedItem(sizeKey)).value = String(size);
+        toast(`${size} m fits ${body.n} drones at ${body.min_spacing_m} m`);
+      } catch (err) {
+        setError(key, err.message);
+      } finally {
+        fitButton.disabled = false;
+      }
+    });
     form.addEventListener("submit", async (e) => {
       e.preventDefault();
       setError(key, "");
@@ -128,7 +192,12 @@ export class Sources {
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
-        if (p && p.max_n != null) msg = `${p.msg} (at most ${p.max_n} points fit at this size: make it bigger or use fewer drones)`;
+        if (p && p.max_n != null) {
+          // Say once what fits now and what size would fit them all.
+          const size = await this._sizeToFit(source, body, sizeKey, file, p.max_n).catch(() => null);
+          msg = `${body.n} drones do not fit at ${body[sizeKey]} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
+            (size != null ? ` ${size} m fits all ${body.n} ("Size to fit").` : " Use fewer drones or a smaller minimum distance.");
+        }
         setError(key, msg);
       } finally {
         button.disabled = false;
