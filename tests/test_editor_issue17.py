@@ -229,3 +229,63 @@ def test_bug10_importing_an_existing_name_adds_a_number(ui: Page, tmp_path):
         expect(page.locator("#show-title")).to_have_text(expected)
     names = [r["name"] for r in httpx.get(f"{ui.base}/api/shows").json()["items"]]
     assert sorted(n for n in names if n.startswith("Twice")) == ["Twice", "Twice (2)", "Twice (3)"]
+
+
+def _viewer_readout(page) -> tuple[float, str]:
+    """(time, '<N> drones') from a viewer page's readout."""
+    import re
+
+    text = page.get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
+    drones = page.get_by_text(re.compile(r"\d+ drones")).first.inner_text()
+    return float(re.search(r"Time\s+([\d.]+)", text).group(1)), re.search(r"(\d+) drones", drones).group(0)
+
+
+def test_bug5_each_browser_has_its_own_playback(ui: Page, tmp_path):
+    """Tab 1 plays show A; tab 2 opens show B: tab 1 keeps A and its clock; tab 2's controls are its own."""
+    import time
+
+    import httpx
+
+    from tests.conftest import make_show, ring
+
+    ids = []
+    for name, n in (("Show A", 4), ("Show B", 6)):
+        show = make_show([{"name": "ring", "hold_s": 20.0, "points": ring(n, 12.0)}], drones=n, rows=2,
+                         cols=(n + 1) // 2, spacing_m=4.0).model_copy(update={"name": name})
+        r = httpx.post(f"{ui.base}/api/shows", content=show.model_dump_json(),
+                       headers={"content-type": "application/json"})
+        assert r.status_code == 201, r.text
+        ids.append(r.json()["id"])
+    assert httpx.post(f"{ui.base}/api/shows/{ids[0]}/playback", json={}, timeout=120).status_code == 200
+    tab1 = ui.page
+    tab1.goto(f"{ui.base}/viser/")
+    tab1.get_by_text("4 drones").first.wait_for(timeout=30_000)
+    tab1.get_by_role("button", name="Play").click()
+    time.sleep(1.5)
+    t1_before, _ = _viewer_readout(tab1)
+    assert t1_before > 0.5
+
+    assert httpx.post(f"{ui.base}/api/shows/{ids[1]}/playback", json={}, timeout=120).status_code == 200
+    other = Page(tab1.context.browser, ui.base, tmp_path)
+    try:
+        tab2 = other.page
+        tab2.goto(f"{ui.base}/viser/")
+        tab2.get_by_text("6 drones").first.wait_for(timeout=30_000)
+        t2, _ = _viewer_readout(tab2)
+        assert t2 < 0.5  # tab 2 starts its show at the beginning, paused
+        time.sleep(1.0)
+        # Tab 1 still shows A and its clock kept running through tab 2's load.
+        t1_after, drones1 = _viewer_readout(tab1)
+        assert drones1 == "4 drones" and t1_after > t1_before + 0.5
+        # Tab 2 plays and pauses on its own; tab 1 is unaffected by it.
+        tab2.get_by_role("button", name="Play").click()
+        time.sleep(1.0)
+        tab2.get_by_role("button", name="Pause").click()
+        tab1.get_by_role("button", name="Pause").click()
+        time.sleep(0.5)
+        t1, t2 = _viewer_readout(tab1)[0], _viewer_readout(tab2)[0]
+        time.sleep(1.0)
+        assert _viewer_readout(tab1)[0] == t1 and _viewer_readout(tab2)[0] == t2 and abs(t1 - t2) > 0.5
+        assert _viewer_readout(tab2)[1] == "6 drones"
+    finally:
+        other.close()

@@ -103,8 +103,9 @@ def test_viewer_closest_pair_each_frame(viewer, plan):
 def test_slider_guard(viewer, plan, monkeypatch):
     viewer.load(plan, name="small")
     seeks: list[float] = []
-    original = viewer.seek
-    monkeypatch.setattr(viewer, "seek", lambda t: (seeks.append(t), original(t)))
+    playback = viewer._main  # the slider belongs to a playback (the server-wide one here)
+    original = playback.seek
+    monkeypatch.setattr(playback, "seek", lambda t: (seeks.append(t), original(t)))
     viewer.play()
     for _ in range(10):
         viewer.step(0.1)
