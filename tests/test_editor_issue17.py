@@ -289,3 +289,38 @@ def test_bug5_each_browser_has_its_own_playback(ui: Page, tmp_path):
         assert _viewer_readout(tab2)[1] == "6 drones"
     finally:
         other.close()
+
+
+def test_bug9_altitude_floor_and_geofence_in_settings_and_on_the_canvas(ui: Page):
+    page = ui.page
+    _create_show(ui, "Floor", 4)
+    page.locator("#settings-panel summary").click()
+    assert page.input_value("#set-floor") == "2.5"
+    page.evaluate("""() => { const s = window.swarmshow.state;
+        s.edit("Low", () => { s.formation.points = [[0, 0, 0.5], [4, 0, 0.5], [8, 0, 0.5], [12, 0, 0.5]]; }); }""")
+    expect(page.locator("#st-spacing")).to_contain_text("4 points below the 2.5 m floor (lowest 0.5 m)")
+    assert "min altitude 2.5 m" in page.evaluate("() => window.swarmshow.view.drawnLimits")
+    page.fill("#set-floor", "0.4")
+    page.dispatch_event("#set-floor", "change")
+    assert ui.state("s.show.settings.min_altitude_m") == 0.4
+    expect(page.locator("#st-spacing")).to_contain_text("✓")
+    assert "min altitude 0.4 m" in page.evaluate("() => window.swarmshow.view.drawnLimits")
+    # A geofence: all four edges make one undoable setting; it is drawn in both views.
+    page.fill("#set-fx0", "-50")
+    page.dispatch_event("#set-fx0", "change")
+    expect(page.locator('[data-error-for="settings.geofence"]')).to_contain_text("all four edges")
+    for sel, v in (("#set-fx1", "50"), ("#set-fy0", "-10"), ("#set-fy1", "30")):
+        page.fill(sel, v)
+        page.dispatch_event(sel, "change")
+    assert ui.state("s.show.settings.geofence") == {"x_min_m": -50, "x_max_m": 50, "y_min_m": -10, "y_max_m": 30}
+    page.select_option("#view-select", "top")
+    limits = page.evaluate("() => window.swarmshow.view.drawnLimits")
+    assert limits == ["geofence x -50..50 m, y -10..30 m"]
+    ui.shot("issue17-geofence-top")
+    # Saved and read back by the server's show model.
+    page.keyboard.press("Control+s")
+    expect(page.locator("#dirty-indicator")).to_be_hidden()
+    import httpx
+
+    saved = httpx.get(f"{ui.base}/api/shows/{ui.state('s.meta.id')}").json()["show"]["settings"]
+    assert saved["min_altitude_m"] == 0.4 and saved["geofence"]["y_min_m"] == -10
