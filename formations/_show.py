@@ -210,6 +210,11 @@ class Formation(_ArrayCachingModel):
     points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
     colors: list[Color] | None = None
     color: Color | None = None
+    source: dict[str, Any] | None = Field(
+        None,
+        description="How the editor made this formation (e.g. {kind: 'text', params: {...}}), so that it can be "
+        "made again for another drone count; at most 4 KB of JSON.",
+    )
     transition_s: float | None = Field(
         None, gt=0, le=86_400, description="Duration of the transition into this formation, seconds."
     )
@@ -218,6 +223,13 @@ class Formation(_ArrayCachingModel):
     @classmethod
     def _name_ok(cls, value: str) -> str:
         return _check_name(value)
+
+    @field_validator("source")
+    @classmethod
+    def _source_small(cls, value: dict[str, Any] | None) -> dict[str, Any] | None:
+        if value is not None and len(json.dumps(value)) > 4096:
+            raise PydanticCustomError("source_too_large", "'source' is limited to 4096 characters of JSON")
+        return value
 
     @model_validator(mode="after")
     def _colors_match(self) -> Formation:

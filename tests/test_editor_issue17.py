@@ -324,3 +324,46 @@ def test_bug9_altitude_floor_and_geofence_in_settings_and_on_the_canvas(ui: Page
 
     saved = httpx.get(f"{ui.base}/api/shows/{ui.state('s.meta.id')}").json()["show"]["settings"]
     assert saved["min_altitude_m"] == 0.4 and saved["geofence"]["y_min_m"] == -10
+
+
+def test_bug2_fit_makes_text_again_and_refuses_a_drawing_that_cannot_fit(ui: Page):
+    """Text fitted to more drones is the text made again (not points across the gaps); a stroke that
+    cannot hold the drones is left alone with a message saying what fits."""
+    import httpx
+
+    page = ui.page
+    _create_show(ui, "Fit source", 20)
+    page.locator("summary", has_text="Text").click()
+    page.fill("#text-input", "HI")
+    page.get_by_role("button", name="Replace the formation with this text").click()
+    page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label.startsWith('Text')")
+    source = ui.state("s.formation.source")
+    assert source["kind"] == "text" and source["params"]["text"] == "HI"
+    # More drones: "Fit them" makes the text again at 40.
+    page.locator("#settings-panel summary").click()
+    page.fill("#set-drones", "40")
+    page.dispatch_event("#set-drones", "change")
+    page.get_by_role("button", name="Fit them").click()
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].points.length === 40", timeout=30_000)
+    expected = httpx.post(f"{ui.base}/api/formations/text",
+                          json={**source["params"], "n": 40, "min_spacing_m": 3.0}).json()
+    got = ui.state("s.formation.points")
+    assert got == [[round(v, 3) for v in p] for p in expected["points"]] or got == expected["points"]
+    assert ui.state("s.formation.source.params.text") == "HI"
+
+    # A short stroke cannot hold 300 drones 3 m apart: nothing changes, the message says what fits.
+    page.fill("#set-drones", "300")
+    page.dispatch_event("#set-drones", "change")
+    page.get_by_role("button", name="Later").click()
+    page.get_by_role("button", name="Add a formation").click()
+    from tests.test_editor_browser import _draw_stroke
+
+    _draw_stroke(ui)
+    before = ui.state("s.formation.points")
+    page.get_by_role("button", name="Fit the formation to the drone count").click()
+    err = page.locator('[data-error-for="transform"]')
+    expect(err).to_contain_text("do not fit this drawing")
+    text = err.inner_text()
+    most = int(text.split("at most ")[1].split()[0])
+    assert 0 < most < 300 and "scale it by" in text
+    assert ui.state("s.formation.points") == before

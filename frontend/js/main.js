@@ -55,7 +55,8 @@ const tools = new Tools(view, state, {
   onError: (msg) => status(msg, true),
 });
 const settingsForm = new SettingsForm(/** @type {HTMLFormElement} */ ($("form-settings")), state);
-new Sources(state, view);
+const sources = new Sources(state, view);
+settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
 const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),

@@ -48,6 +48,8 @@ export class SettingsForm {
     this.form = form;
     this.state = state;
     this.inputs = [...form.querySelectorAll("[data-path]")];
+    /** @type {(() => Promise<unknown>)|null} fits every short formation (set by the editor) */
+    this.fitAll = null;
     form.addEventListener("submit", (e) => e.preventDefault());
     for (const input of this.inputs) input.addEventListener("change", () => this._changed(input));
     state.addEventListener("change", (e) => {
@@ -130,7 +132,8 @@ export class SettingsForm {
           message: `${short} formation${short > 1 ? "s have" : " has"} fewer than ${value} points. Fit them to ${value} drones now?`,
           buttons: [{ label: "Fit them", value: "fit", primary: true }, { label: "Later", value: "later" }],
         });
-        if (choice === "fit") fitAllFormations(st);
+        // Formations made from a source are made again at the new count (see Sources.fitAll).
+        if (choice === "fit") await (this.fitAll ? this.fitAll() : fitAllFormations(st));
       }
     }
   }

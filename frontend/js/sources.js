@@ -5,7 +5,7 @@ import * as api from "./api.js";
 import { toast } from "./dialogs.js";
 import { setError } from "./errors.js";
 import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
-import { repairSpacing } from "./spacing.js";
+import { closePairs, repairSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 
@@ -17,6 +17,26 @@ const SHAPE_PARAM = {
   star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
   helix: { key: "turns", label: "Turns", value: 3, integer: false, min: 0.1 },
 };
+
+/** Uploaded files of this page session by name, to make their formations again at another count. */
+const uploads = new Map();
+
+/** A request body without the count and spacing (what a formation's `source.params` keeps). */
+function withoutCount(body) {
+  const { n: _n, min_spacing_m: _d, ...rest } = body;
+  return rest;
+}
+
+/**
+ * A cheap fingerprint of a point set: count and rounded coordinate sums. A formation whose points
+ * still have the fingerprint stored in its `source` was not edited by hand since it was made.
+ * @param {number[][]} points
+ */
+export function fingerprint(points) {
+  const sum = [0, 0, 0];
+  for (const p of points) for (let c = 0; c < 3; c++) sum[c] += p[c];
+  return `${points.length}:${sum.map((v) => v.toFixed(2)).join(",")}`;
+}
 
 /** Wires the source forms and the transform buttons to the open show. */
 export class Sources {
@@ -182,9 +202,15 @@ export class Sources {
       try {
         const res = await api.buildFormation(source, body, file);
         const label = key === "shape" ? `Shape: ${body.kind}` : key === "text" ? `Text "${body.text.slice(0, 20)}"` : `From ${file.name}`;
+        const made = { kind: source, params: withoutCount(body) };
+        if (file) {
+          made.file = file.name;
+          uploads.set(file.name, file);
+        }
         st.edit(label, () => {
           st.formation.points = roundPoints(res.points);
           st.formation.colors = res.colors;
+          st.formation.source = { ...made, fingerprint: fingerprint(st.formation.points) };
           st.selection = new Set();
         });
         this.view.fit();
@@ -262,22 +288,90 @@ export class Sources {
     });
   }
 
-  /** Resample the formation to exactly the drone count, then repair its spacing. */
-  fitToN() {
+  /**
+   * Fit the current formation to exactly the drone count: made again from its source (text, shape,
+   * image) when it was not edited since, else the drawing resampled along its strokes and spread
+   * apart; never into a formation that breaks the minimum distance (a message says what fits).
+   */
+  async fitToN() {
     setError("transform", "");
     const st = this.state;
-    const f = st.formation;
-    if (!f) return;
+    if (!st.formation) return;
+    if (!st.formation.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
+    const msg = await this.fitFormation(st.current);
+    if (msg) setError("transform", msg);
+    else toast(`${st.show.drones} points`);
+  }
+
+  /** Fit every formation with fewer points than drones (see {@link fitFormation}); returns the messages. */
+  async fitAll() {
+    const st = this.state;
+    const msgs = [];
+    for (let k = 0; k < st.show.formations.length; k++) {
+      if (st.show.formations[k].points.length >= st.show.drones) continue;
+      const m = await this.fitFormation(k);
+      if (m) msgs.push(`"${st.show.formations[k].name}": ${m}`);
+    }
+    setError("transform", msgs.join(" "));
+    return msgs;
+  }
+
+  /**
+   * Fit formation `k` to the drone count (one undo step).
+   * @param {number} k
+   * @returns {Promise<string>} "" when done, else what is wrong and what would fit
+   */
+  async fitFormation(k) {
+    const st = this.state;
+    const f = st.show.formations[k];
     const n = st.show.drones;
-    if (!f.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
-    st.edit(`Fit to ${n} drones`, () => {
-      const fit = fitToCount(f.points, f.colors, n);
-      const fixed = repairSpacing(fit.points, st.show.settings.min_distance_m, { plane: VIEW_AXES[this.view.view].slice(0, 2) });
-      f.points = roundPoints(fixed.points);
-      f.colors = fit.colors;
-      st.selection = new Set();
+    const d = st.show.settings.min_distance_m;
+    const src = f.source;
+    const file = src && src.file ? uploads.get(src.file) : undefined;
+    if (src && src.fingerprint === fingerprint(f.points) && (!src.file || file)) {
+      const body = { ...src.params, n, min_spacing_m: d };
+      try {
+        const res = await api.buildFormation(src.kind, body, file);
+        st.edit(`Fit "${f.name}" to ${n} drones`, () => {
+          const g = st.show.formations[k];
+          g.points = roundPoints(res.points);
+          g.colors = res.colors;
+          g.source = { ...src, fingerprint: fingerprint(g.points) };
+          if (k === st.current) st.selection = new Set();
+        });
+        return "";
+      } catch (err) {
+        const p = err.problems && err.problems[0];
+        if (!p || p.max_n == null) return err.message;
+        const sizeKey = ["size_m", "height_m", "width_m"].find((key) => key in src.params);
+        const size = sizeKey ? await this._sizeToFit(src.kind, body, sizeKey, file, p.max_n).catch(() => null) : null;
+        return `${n} drones do not fit at ${sizeKey ? `${src.params[sizeKey]} m` : "this size"} with ${d} m between them: at most ${p.max_n} fit.` +
+          (size != null ? ` Make it ${size} m to fit all ${n}.` : "");
+      }
+    }
+    // A drawing (or an edited formation): resample it, spread it, and keep it only if it is spaced.
+    const plane = VIEW_AXES[this.view.view].slice(0, 2);
+    const fit = fitToCount(f.points, f.colors, n);
+    const fixed = repairSpacing(fit.points, d, { plane });
+    if (Number.isFinite(fixed.achieved)) {
+      // The largest count that keeps the spacing by resampling alone (bisection), and the scale for all.
+      let lo = 1;
+      let hi = n;
+      while (hi - lo > 1) {
+        const mid = (lo + hi) >> 1;
+        if (closePairs(fitToCount(f.points, f.colors, mid).points, d).pairs.length) hi = mid;
+        else lo = mid;
+      }
+      return `${n} points do not fit this drawing ${d} m apart (at most ${lo} do): scale it by ${Math.ceil((100 * n) / lo)}% first, or use fewer drones.`;
+    }
+    st.edit(`Fit "${f.name}" to ${n} drones`, () => {
+      const g = st.show.formations[k];
+      g.points = roundPoints(fixed.points);
+      g.colors = fit.colors;
+      delete g.source;
+      if (k === st.current) st.selection = new Set();
     });
-    toast(`${n} points`);
+    return "";
   }
 
   /** Push apart points closer than the minimum distance. */
