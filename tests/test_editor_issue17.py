@@ -367,3 +367,23 @@ def test_bug2_fit_makes_text_again_and_refuses_a_drawing_that_cannot_fit(ui: Pag
     most = int(text.split("at most ")[1].split()[0])
     assert 0 < most < 300 and "scale it by" in text
     assert ui.state("s.formation.points") == before
+
+
+def test_filled_presets_in_the_shape_menu(ui: Page):
+    """The filled presets come from the server: a filled star has points well inside it."""
+    import math
+
+    page = ui.page
+    _create_show(ui, "Filled", 60)
+    page.select_option("#shape-kind", "filled_star")
+    expect(page.locator("#shape-param-row")).to_be_visible()
+    page.fill("#shape-size", "80")
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label === 'Shape: filled_star'")
+    pts = ui.state("s.formation.points")
+    assert len(pts) == 60
+    cx = sum(p[0] for p in pts) / 60
+    cz = sum(p[2] for p in pts) / 60
+    # An outline keeps every point on the boundary (>= the inner radius, 20 m); filled puts some near the middle.
+    assert min(math.hypot(p[0] - cx, p[2] - cz) for p in pts) < 10
+    ui.shot("issue17-filled-star")

@@ -15,6 +15,7 @@ const PLANE_OF_VIEW = { front: "xz", top: "xy" };
 const SHAPE_PARAM = {
   polygon: { key: "sides", label: "Sides", value: 6, integer: true, min: 3 },
   star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
+  filled_star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
   helix: { key: "turns", label: "Turns", value: 3, integer: false, min: 0.1 },
 };
 
