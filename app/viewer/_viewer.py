@@ -60,6 +60,27 @@ class _Entry:
     flight: Any = None
 
 
+#: Eye height of the audience camera, metres.
+AUDIENCE_EYE_M = 1.7
+CAMERAS = ("free", "audience")
+
+
+def audience_camera(
+    lo: np.ndarray, hi: np.ndarray, *, fov_rad: float = 1.3, audience_y_m: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The audience's view (position, look-at), metres: from eye height on the audience side (−y),
+    facing +y towards the show's centre.
+
+    The audience stands at ``audience_y_m`` (the geofence's audience edge) when given, else
+    far enough back for the show's bounding sphere to fit the vertical field of view.
+    """
+    center = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 5.0)
+    back = radius / np.sin(fov_rad / 2.0) * 1.05
+    y = float(audience_y_m) if audience_y_m is not None else float(center[1]) - back
+    return np.array([center[0], y, AUDIENCE_EYE_M]), center
+
+
 class _Playback:
     """One playback: which show, source, time, speed and display toggles, with its own scene and GUI.
 
@@ -87,6 +108,9 @@ class _Playback:
         self._hold_knots = np.zeros(0, dtype=np.intp)
         #: A show picked in the selector that is being loaded (it switches when it arrives).
         self.wanted: str | None = None
+        #: "free" or "audience" (see :meth:`set_camera`).
+        self.camera = "free"
+        self._bounds = (np.zeros(3), np.ones(3))
         # Set while Python writes a GUI value, so that the write's own
         # synchronous on_update callback is not mistaken for a user's input.
         self._programmatic = 0
@@ -98,7 +122,7 @@ class _Playback:
             on = _Toggle(True)
             self._targets_cb = self._trails_cb = self._pair_cb = self._homes_cb = self._loop_cb = on
             # No widgets either: _set_gui ignores writes to them.
-            self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = None
+            self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = self._camera_dd = None
             self._readout = self._progress = self._busy_md = None
         else:
             self._setup_scene()
@@ -150,6 +174,8 @@ class _Playback:
         self._slider = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.05, initial_value=0.0, disabled=True)
         self._speed_dd = gui.add_dropdown("Speed", SPEEDS, initial_value="1x")
         self._loop_cb = gui.add_checkbox("Loop", initial_value=True)
+        self._camera_dd = gui.add_dropdown("Camera", CAMERAS, initial_value="free",
+                                           hint="audience: the front view from the audience side")
         with gui.add_folder("Display"):
             self._targets_cb = gui.add_checkbox("Next formation targets", initial_value=True)
             self._trails_cb = gui.add_checkbox("Trails", initial_value=True)
@@ -168,6 +194,7 @@ class _Playback:
         self._slider.on_update(self._user(lambda ev: self.seek(float(ev.target.value))))
         self._speed_dd.on_update(lambda ev: self._set_speed_label(ev.target.value))
         self._loop_cb.on_update(lambda ev: setattr(self, "_loop", bool(ev.target.value)))
+        self._camera_dd.on_update(self._user(lambda ev: self.set_camera(str(ev.target.value))))
         for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb):
             cb.on_update(lambda _ev: self._invalidate())
 
@@ -290,15 +317,34 @@ class _Playback:
                 self._set_gui(self._source_dd, "disabled", entry.flight is None)
                 self._set_gui(self._source_dd, "value", source)
                 self._set_gui(self._show_dd, "value", name)
-                server = self.viewer.server
-                position, look_at = framing_camera(lo, hi, fov_rad=server.initial_camera.fov)
-                if self.client is None:
-                    server.initial_camera.position = tuple(position)
-                    server.initial_camera.look_at = tuple(look_at)
-                for client in [self.client] if self.client is not None else server.get_clients().values():
-                    client.camera.position = tuple(position)
-                    client.camera.look_at = tuple(look_at)
+                self._bounds = (lo, hi)
+                self._place_camera()
             self.render()
+
+    def set_camera(self, mode: str) -> None:
+        """``"audience"``: the front view from the audience side; ``"free"``: the oblique overview (then orbit)."""
+        if mode not in CAMERAS:
+            raise ValueError(f"camera must be one of {CAMERAS}, got {mode!r}")
+        self.camera = mode
+        self._set_gui(self._camera_dd, "value", mode)
+        if self._current is not None and not self.headless:
+            self._place_camera()
+
+    def _place_camera(self) -> None:
+        server = self.viewer.server
+        lo, hi = self._bounds
+        fov = server.initial_camera.fov
+        if self.camera == "audience":
+            fence = self.viewer._shows[self._current].plan.settings.geofence if self._current else None
+            position, look_at = audience_camera(lo, hi, fov_rad=fov, audience_y_m=fence.y_min_m if fence else None)
+        else:
+            position, look_at = framing_camera(lo, hi, fov_rad=fov)
+        if self.client is None:
+            server.initial_camera.position = tuple(position)
+            server.initial_camera.look_at = tuple(look_at)
+        for client in [self.client] if self.client is not None else server.get_clients().values():
+            client.camera.position = tuple(position)
+            client.camera.look_at = tuple(look_at)
 
     def set_source(self, source: Source) -> None:
         """Switch between the plan and the simulated flight of the current show, keeping the time."""
@@ -729,6 +775,11 @@ class Viewer:
             if pb is self._main or pb.current == self._main.current:
                 pb.set_source(source)
 
+    def set_camera(self, mode: str) -> None:
+        """Put every playback's camera in ``mode`` (``"free"`` or ``"audience"``)."""
+        for pb in self.playbacks:
+            pb.set_camera(mode)
+
     def play(self) -> None:
         """Start every playback (from the start if at the end)."""
         for pb in self.playbacks:
@@ -860,4 +911,4 @@ class Viewer:
                 self._stop.wait(delay)
 
 
-__all__ = ["FRAME_RATE_HZ", "Viewer"]
+__all__ = ["FRAME_RATE_HZ", "Viewer", "audience_camera"]
