@@ -387,3 +387,29 @@ def test_filled_presets_in_the_shape_menu(ui: Page):
     # An outline keeps every point on the boundary (>= the inner radius, 20 m); filled puts some near the middle.
     assert min(math.hypot(p[0] - cx, p[2] - cz) for p in pts) < 10
     ui.shot("issue17-filled-star")
+
+
+def test_revision_history_lists_diffs_and_restores(ui: Page):
+    page = ui.page
+    _create_show(ui, "History", 4)
+    page.keyboard.press("Control+s")
+    expect(page.locator("#dirty-indicator")).to_be_hidden()
+    first = ui.state("s.show")
+    page.get_by_label("Hold time of formation 1, seconds").fill("9")
+    page.keyboard.press("Tab")
+    page.get_by_role("button", name="Add a formation").click()
+    page.keyboard.press("Control+s")
+    expect(page.locator("#save-status")).to_contain_text("revision 2")
+    page.locator("#history-panel summary").click()
+    revisions = page.get_by_role("list", name="Revisions")
+    expect(revisions.locator("li")).to_have_count(2)
+    page.get_by_role("button", name="What changed since revision 1").click()
+    diff = revisions.locator(".revision-diff").nth(1)
+    expect(diff).to_contain_text('added "Formation 2"')
+    expect(diff).to_contain_text("hold 5 → 9 s")
+    page.get_by_role("button", name="Restore revision 1").click()
+    page.wait_for_function("() => window.swarmshow.state.show.formations.length === 1")
+    assert ui.state("s.show") == first
+    assert ui.state("s.dirty")
+    page.keyboard.press("Control+z")  # the restore is one undo step
+    assert ui.state("s.show.formations.length") == 2

@@ -6,6 +6,7 @@ import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./col
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError } from "./errors.js";
 import { ExportMenu } from "./exportmenu.js";
+import { HistoryPanel } from "./history.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
@@ -63,6 +64,7 @@ const preview = new Preview(state, persist, () => requestAnimationFrame(() => vi
   () => (simulate.hasFlight ? "simulated" : "planned"));
 const exportMenu = new ExportMenu(state, persist);
 const shows = new ShowsDialog(state, persist, opened);
+new HistoryPanel($("history-body"), state);
 
 // ---- page state ------------------------------------------------------------------------------
 
