@@ -413,3 +413,47 @@ def test_revision_history_lists_diffs_and_restores(ui: Page):
     assert ui.state("s.dirty")
     page.keyboard.press("Control+z")  # the restore is one undo step
     assert ui.state("s.show.formations.length") == 2
+
+
+def test_undo_survives_a_reload(ui: Page):
+    page = ui.page
+    _create_show(ui, "Undo reload", 4)
+    page.keyboard.press("Control+s")
+    base = ui.state("s.show")
+    page.get_by_label("Hold time of formation 1, seconds").fill("8")
+    page.keyboard.press("Tab")
+    page.get_by_role("button", name="Add a formation").click()
+    page.keyboard.press("Control+s")
+    expect(page.locator("#dirty-indicator")).to_be_hidden()
+    edited = ui.state("s.show")
+    page.wait_for_timeout(600)  # the history is written shortly after the last change
+    page.reload()
+    expect(page.locator("#show-title")).to_have_text("Undo reload")
+    expect(page.get_by_role("button", name="Undo Add formation")).to_be_enabled()
+    assert ui.state("s.show") == edited and not ui.state("s.dirty")
+    page.keyboard.press("Control+z")
+    page.keyboard.press("Control+z")
+    assert ui.state("s.show") == base
+    assert ui.state("s.dirty")  # the stored document is the edited one
+    page.keyboard.press("Control+Shift+z")
+    assert ui.state("s.show.formations[0].hold_s") == 8
+
+
+def test_select_all_and_redraw_stay_fast_at_5000_drones(ui: Page):
+    """The editor's budget (issue 17): select-all plus a redraw under 50 ms at 5,000 drones."""
+    page = ui.page
+    _create_show(ui, "Big", 5000)
+    assert ui.state("s.formation.points.length") == 5000
+    page.locator("#canvas").focus()
+    times = page.evaluate("""() => { const s = window.swarmshow.state, v = window.swarmshow.view, out = [];
+        const all = s.formation.points.map((_, i) => i);
+        for (let k = 0; k < 7; k++) {
+          const t0 = performance.now();
+          s.setSelection(k % 2 ? [] : all);
+          v._draw();
+          out.push(performance.now() - t0);
+        }
+        return out.sort((a, b) => a - b); }""")
+    assert times[len(times) // 2] < 50, times
+    page.keyboard.press("Control+a")
+    assert ui.state("s.selection.size") == 5000

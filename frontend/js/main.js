@@ -20,10 +20,12 @@ import { closePairs } from "./spacing.js";
 import { EditorState } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { TOOLS, Tools } from "./tools.js";
+import { keepUndoAcrossReloads } from "./undostore.js";
 
 const $ = (id) => document.getElementById(id);
 
 const state = new EditorState();
+keepUndoAcrossReloads(state);
 const view = new CanvasView(/** @type {HTMLCanvasElement} */ ($("canvas")), state);
 const timeline = new Timeline(/** @type {HTMLOListElement} */ ($("timeline-list")), state);
 timeline.problems = formationProblems;
