@@ -457,3 +457,34 @@ def test_select_all_and_redraw_stay_fast_at_5000_drones(ui: Page):
     assert times[len(times) // 2] < 50, times
     page.keyboard.press("Control+a")
     assert ui.state("s.selection.size") == 5000
+
+
+def test_sidebar_accordion_file_inputs_and_refit_on_switch(ui: Page):
+    page = ui.page
+    _create_show(ui, "Layout", 9)
+    # Opening one source panel closes the others.
+    panels = page.locator("details.source-panel")
+    expect(panels.nth(0)).to_have_attribute("open", "")
+    page.locator("summary", has_text="Image / SVG").click()
+    expect(panels.nth(0)).not_to_have_attribute("open", "")
+    assert page.eval_on_selector_all("details.source-panel", "ds => ds.filter((d) => d.open).length") == 1
+    # The file input fits the sidebar.
+    side = page.locator("aside.sidebar.left").bounding_box()
+    for sel in ("#upload-file", "#color-image"):
+        box = page.locator(sel).bounding_box()
+        assert box["x"] >= side["x"] - 0.5 and box["x"] + box["width"] <= side["x"] + side["width"] + 0.5, sel
+    # Switching formations refits the canvas to the formation shown.
+    page.get_by_role("button", name="Add a formation").click()
+    page.evaluate("""() => { const s = window.swarmshow.state;
+        s.edit("Move", () => {
+          s.formation.points = s.formation.points.map((p) => [p[0] + 300, p[1], p[2] + 80]);
+        }); }""")
+    page.get_by_label("Formation 1: Formation 1", exact=True).locator(".tl-swatches").click()
+    page.wait_for_timeout(100)
+    c1 = page.evaluate("() => window.swarmshow.view.center")
+    page.get_by_label("Formation 2: Formation 2", exact=True).locator(".tl-swatches").click()
+    page.wait_for_timeout(100)
+    c2 = page.evaluate("() => window.swarmshow.view.center")
+    pts = ui.state("s.formation.points")
+    mid_x = (min(p[0] for p in pts) + max(p[0] for p in pts)) / 2
+    assert abs(c2[0] - mid_x) < 1e-6 and abs(c2[0] - c1[0]) > 250

@@ -163,6 +163,8 @@ state.addEventListener("change", (e) => {
   if (kind !== "live") refreshChrome();
   else updateStatusbar();
   if (kind === "load" || kind === "current") view.flagged = new Set();
+  // Another formation may sit elsewhere or be another size: show it whole.
+  if (kind === "current") requestAnimationFrame(() => view.fit());
   updateSpacing();
   view.redraw();
 });
@@ -173,6 +175,14 @@ view.onCursor = ([u, v]) => {
 };
 
 // ---- controls --------------------------------------------------------------------------------
+
+// The formation sources are an accordion: opening one closes the others (the sidebar stays short).
+const sourcePanels = /** @type {HTMLDetailsElement[]} */ ([...document.querySelectorAll("details.source-panel")]);
+for (const d of sourcePanels) {
+  d.addEventListener("toggle", () => {
+    if (d.open) for (const other of sourcePanels) if (other !== d) other.open = false;
+  });
+}
 
 function setTool(tool) {
   tools.setTool(tool);
