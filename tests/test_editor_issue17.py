@@ -124,6 +124,7 @@ def test_bug4_preview_plays_the_simulated_flight_after_a_simulation(ui: Page):
     page.get_by_role("button", name="Close the 3D preview").click()
     page.get_by_role("button", name="Simulate the flight").click()
     expect(page.locator("#sim-percent")).to_have_text("100%", timeout=120_000)
+    expect(page.locator("#sim-body")).to_contain_text("Flown min separation", timeout=60_000)
     assert _preview_source(ui) == "simulated"
     # An edit makes the flight stale: the preview goes back to the plan.
     page.get_by_role("button", name="Close the 3D preview").click()
