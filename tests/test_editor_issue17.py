@@ -60,12 +60,14 @@ def test_bug1_keyboard_into_timeline_field_replaces_its_value(ui: Page):
     assert ui.state("s.current") == 0
     page.keyboard.type("7")
     page.keyboard.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label === 'Change hold time'")
     assert ui.state("s.show.formations[0].hold_s") == 7
     page.keyboard.press("Tab")  # formation 2's name, through the transition button
     expect(page.get_by_label("Name of formation 2")).to_be_focused()
     assert ui.state("s.current") == 1
     page.keyboard.type("Hi")
     page.keyboard.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label === 'Rename formation'")
     assert ui.state("s.show.formations[1].name") == "Hi"
     assert ui.state("s.show.formations[0].name") != "Hi"
 
@@ -398,6 +400,7 @@ def test_revision_history_lists_diffs_and_restores(ui: Page):
     first = ui.state("s.show")
     page.get_by_label("Hold time of formation 1, seconds").fill("9")
     page.keyboard.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 9")
     page.get_by_role("button", name="Add a formation").click()
     page.keyboard.press("Control+s")
     expect(page.locator("#save-status")).to_contain_text("revision 2")
@@ -423,6 +426,7 @@ def test_undo_survives_a_reload(ui: Page):
     base = ui.state("s.show")
     page.get_by_label("Hold time of formation 1, seconds").fill("8")
     page.keyboard.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 8")
     page.get_by_role("button", name="Add a formation").click()
     page.keyboard.press("Control+s")
     expect(page.locator("#dirty-indicator")).to_be_hidden()
