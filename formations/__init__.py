@@ -13,6 +13,8 @@ from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
 from formations._show import Formation as Formation
+from formations._show import Geofence as Geofence
+from formations._show import GeoPlacement as GeoPlacement
 from formations._show import HomeFromGrid as HomeFromGrid
 from formations._show import HomeFromPoints as HomeFromPoints
 from formations._show import HomeGrid as HomeGrid
@@ -31,6 +33,8 @@ __all__ = [
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",
     "Formation",
+    "GeoPlacement",
+    "Geofence",
     "HomeFromGrid",
     "HomeFromPoints",
     "HomeGrid",

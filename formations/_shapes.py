@@ -1,4 +1,4 @@
-"""Shape presets: grid, circle, polygon, star, heart, sphere, helix, cube (metres)."""
+"""Shape presets: grid, circle, polygon, star, heart, sphere, helix, cube; filled disc, rings, star, heart (metres)."""
 
 from __future__ import annotations
 
@@ -30,6 +30,10 @@ SHAPE_KINDS: tuple[str, ...] = (
     "sphere",
     "helix",
     "cube",
+    "disc",
+    "rings",
+    "filled_star",
+    "filled_heart",
 )
 #: Kinds that are 3-D (they ignore ``plane``).
 SHAPE_KINDS_3D: tuple[str, ...] = ("sphere", "helix", "cube")
@@ -44,6 +48,10 @@ SHAPE_PARAMS: dict[str, dict[str, Any]] = {
     "sphere": {},
     "helix": {"turns": 3.0, "radius_m": None},
     "cube": {"filled": True},
+    "disc": {},
+    "rings": {},
+    "filled_star": {"points": 5, "inner_ratio": 0.5},
+    "filled_heart": {},
 }
 
 _GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
@@ -151,6 +159,84 @@ def _heart(n: int, size: float) -> np.ndarray:
     return _pinned_samples(_HEART * size, _HEART_CORNERS, n)
 
 
+def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """(m,) whether each 2-D point is inside the closed polygon (even-odd ray casting, vectorised)."""
+    x, y = points[:, :1], points[:, 1:2]
+    a, b = vertices, np.roll(vertices, -1, axis=0)
+    crosses = (a[:, 1] > y) != (b[:, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return (crosses & (x < x_at)).sum(axis=1) % 2 == 1
+
+
+def _hex_lattice(step: float, half: float) -> np.ndarray:
+    """A hexagonal lattice of spacing ``step`` covering [-half, half]² (rows alternate by step/2)."""
+    dy = step * math.sqrt(3.0) / 2.0
+    rows = np.arange(-math.floor(half / dy), math.floor(half / dy) + 1) * dy
+    cols = np.arange(-math.floor(half / step) - 1, math.floor(half / step) + 2) * step
+    u = cols[None, :] + (np.arange(len(rows))[:, None] % 2) * step / 2.0
+    v = np.broadcast_to(rows[:, None], u.shape)
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
+def _fill(inside: Callable[[np.ndarray], np.ndarray], n: int, size: float) -> np.ndarray:
+    """n points filling a region of extent ``size`` evenly: the sparsest hexagonal lattice with at
+    least n points inside, thinned evenly in lattice order to exactly n (spacing never drops)."""
+    if n == 1:
+        return np.zeros((1, 2))
+    half = size / 2.0
+
+    def lattice(step: float) -> np.ndarray:
+        pts = _hex_lattice(step, half)
+        return pts[inside(pts)]
+
+    # First guess from the region's area (counted on a fine lattice), then walk to the sparsest fit.
+    fine = size / 60.0
+    area = max(len(lattice(fine)), 1) * fine * fine * math.sqrt(3.0) / 2.0
+    step = math.sqrt(area * 2.0 / math.sqrt(3.0) / n)
+    while len(lattice(step)) < n:
+        step *= 0.97
+    while len(lattice(step * 1.01)) >= n:
+        step *= 1.01
+    pts = lattice(step)
+    keep = np.round(np.linspace(0, len(pts) - 1, n)).astype(np.intp)
+    return pts[keep]
+
+
+def _star_vertices(size: float, points: int, inner_ratio: float) -> np.ndarray:
+    k = 2 * points
+    a = math.pi / 2 + 2 * math.pi * np.arange(k) / k
+    r = np.where(np.arange(k) % 2 == 0, 1.0, inner_ratio) * (size / 2)
+    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+
+
+def _rings(n: int, size: float) -> np.ndarray:
+    """Concentric rings k·h (k = 0..K) filling a disc of diameter ``size``: ring k holds at most
+    ⌊2πk⌋ points h apart along it; the n points go to rings by circumference (largest remainder)."""
+    if n == 1:
+        return np.zeros((1, 2))
+    cap = [1]
+    while sum(cap) < n:
+        k = len(cap)
+        cap.append(math.floor(2 * math.pi * k))
+    h = (size / 2.0) / (len(cap) - 1)
+    weights = np.array([0.5, *range(1, len(cap))], dtype=np.float64)
+    counts = np.minimum(largest_remainder(weights, n), cap)
+    # Whatever the caps cut goes outwards, where rings have room.
+    for k in range(len(cap) - 1, -1, -1):
+        counts[k] += min(cap[k] - counts[k], n - int(counts.sum()))
+    out = []
+    for k, c in enumerate(counts):
+        if c == 0:
+            continue
+        if k == 0:
+            out.append(np.zeros((1, 2)))
+            continue
+        a = math.pi / 2 + 2 * math.pi * np.arange(c) / c
+        out.append(np.column_stack([np.cos(a), np.sin(a)]) * (k * h))
+    return np.vstack(out)
+
+
 def _sphere(n: int, size: float) -> np.ndarray:
     if n == 1:
         return np.zeros((1, 3))
@@ -198,7 +284,7 @@ def _params(kind: str, params: dict[str, Any], size: float) -> dict[str, Any]:
     p = {**allowed, **params}
     if kind == "polygon":
         p["sides"] = _int_param(p["sides"], "sides", 3, 1000)
-    elif kind == "star":
+    elif kind in ("star", "filled_star"):
         p["points"] = _int_param(p["points"], "points", 2, 1000)
         ratio = check_positive(p["inner_ratio"], name="inner_ratio")
         if ratio >= 1.0:
@@ -238,6 +324,13 @@ def shape_generator(
         "sphere": lambda n: _sphere(n, size_m),
         "helix": lambda n: _helix(n, size_m, p.get("turns", 3.0), p.get("radius_m", size_m / 4)),
         "cube": lambda n: _cube(n, size_m, p.get("filled", True)),
+        "disc": lambda n: _fill(lambda q: np.hypot(q[:, 0], q[:, 1]) <= size_m / 2, n, size_m),
+        "rings": lambda n: _rings(n, size_m),
+        "filled_star": lambda n: _fill(
+            lambda q: _inside_polygon(q, _star_vertices(size_m, p.get("points", 5), p.get("inner_ratio", 0.5))),
+            n, size_m,
+        ),
+        "filled_heart": lambda n: _fill(lambda q: _inside_polygon(q, _HEART * size_m), n, size_m),
     }
     return gens[kind]
 
@@ -259,7 +352,9 @@ def generate_shape(
         kind: one of SHAPE_KINDS. "grid" (near-square lattice), "circle" (ring), "polygon"
             (outline; ``sides``=6), "star" (outline; ``points``=5 tips, ``inner_ratio``=0.5),
             "heart" (outline), "sphere" (Fibonacci spread on the surface), "helix" (vertical
-            axis; ``turns``=3, ``radius_m``=size/4), "cube" (lattice; ``filled``=True, else shell).
+            axis; ``turns``=3, ``radius_m``=size/4), "cube" (lattice; ``filled``=True, else shell);
+            filled 2-D: "disc", "rings" (concentric), "filled_star" (as "star"), "filled_heart"
+            (hexagonal lattices thinned evenly to n).
         n: number of points, 1..20000.
         size_m: overall extent in metres (diameter, side or height).
         center_m: centre of the shape, metres (x, y, z).

@@ -108,6 +108,37 @@ def _check_name(value: str) -> str:
 Name = Annotated[str, Field(min_length=1, max_length=MAX_NAME_CHARS)]
 
 
+class Geofence(BaseModel):
+    """An axis-aligned horizontal box, metres in show coordinates: x in [x_min_m, x_max_m], y in [y_min_m, y_max_m].
+
+    The audience-side no-fly zone is everything outside it (typically y < y_min_m, in front of the show).
+    """
+
+    model_config = _CONFIG
+
+    x_min_m: float = Field(ge=-100_000, le=100_000)
+    x_max_m: float = Field(ge=-100_000, le=100_000)
+    y_min_m: float = Field(ge=-100_000, le=100_000)
+    y_max_m: float = Field(ge=-100_000, le=100_000)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Geofence:
+        if not (self.x_min_m < self.x_max_m and self.y_min_m < self.y_max_m):
+            raise PydanticCustomError("geofence_empty", "the geofence needs x_min_m < x_max_m and y_min_m < y_max_m")
+        return self
+
+
+class GeoPlacement(BaseModel):
+    """The show's origin on Earth (WGS84) and the compass heading of its +y axis, for geographic exports."""
+
+    model_config = _CONFIG
+
+    origin_lat_deg: float = Field(ge=-90, le=90, description="Latitude of the origin, degrees.")
+    origin_lon_deg: float = Field(ge=-180, le=180, description="Longitude of the origin, degrees.")
+    origin_alt_m: float = Field(0.0, ge=-1_000, le=10_000, description="Altitude of the origin above MSL, metres.")
+    heading_deg: float = Field(0.0, ge=0, lt=360, description="Compass heading of +y, degrees clockwise from north.")
+
+
 class Settings(BaseModel):
     """Show-wide limits (defaults: Skybrush's, a de facto standard)."""
 
@@ -145,10 +176,30 @@ class Settings(BaseModel):
         f"+-this of the origin (default {DEFAULT_HORIZONTAL_EXTENT_M:g}).",
     )
 
+    # Issue 17: an altitude floor, a geofence and the show's place on Earth (all checked or used by name).
+    min_altitude_m: float = Field(
+        2.5, ge=0, le=10_000,
+        description="Lowest altitude outside takeoff and landing, metres (Skybrush's minimum navigation altitude).",
+    )
+    geofence: Geofence | None = Field(
+        None, description="Horizontal box the drones stay inside from takeoff to touchdown (the audience is outside).",
+    )
+    geo: GeoPlacement | None = Field(None, description="Where the show's origin is on Earth, for geographic exports.")
+
     @property
     def horizontal_extent_m(self) -> float:
         """``max_horizontal_extent_m``, or its default when not given."""
         return self.max_horizontal_extent_m or DEFAULT_HORIZONTAL_EXTENT_M
+
+    @model_validator(mode="after")
+    def _floor_below_ceiling(self) -> Settings:
+        if self.min_altitude_m >= self.max_altitude_m:
+            raise PydanticCustomError(
+                "floor_above_ceiling",
+                "min_altitude_m {floor} must be below max_altitude_m {ceiling}",
+                {"floor": self.min_altitude_m, "ceiling": self.max_altitude_m},
+            )
+        return self
 
     @model_validator(mode="after")
     def _takeoff_below_ceiling(self) -> Settings:
@@ -210,6 +261,11 @@ class Formation(_ArrayCachingModel):
     points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
     colors: list[Color] | None = None
     color: Color | None = None
+    source: dict[str, Any] | None = Field(
+        None,
+        description="How the editor made this formation (e.g. {kind: 'text', params: {...}}), so that it can be "
+        "made again for another drone count; at most 4 KB of JSON.",
+    )
     transition_s: float | None = Field(
         None, ge=MIN_DURATION_S, le=86_400, description="Duration of the transition into this formation, seconds."
     )
@@ -218,6 +274,13 @@ class Formation(_ArrayCachingModel):
     @classmethod
     def _name_ok(cls, value: str) -> str:
         return _check_name(value)
+
+    @field_validator("source")
+    @classmethod
+    def _source_small(cls, value: dict[str, Any] | None) -> dict[str, Any] | None:
+        if value is not None and len(json.dumps(value)) > 4096:
+            raise PydanticCustomError("source_too_large", "'source' is limited to 4096 characters of JSON")
+        return value
 
     @model_validator(mode="after")
     def _colors_match(self) -> Formation:
@@ -429,7 +492,11 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
             )
         low = np.flatnonzero(z < 0)
         if low.size:
-            return ("formations", k, "points", int(low[0]), 2), f"altitude {z[low[0]]} m is below the ground (0 m)"
+            # Name all of them at once: a scaled formation often has dozens underground.
+            return ("formations", k, "points", int(low[0]), 2), (
+                f"altitude {z[low[0]]} m is below the ground (0 m): {low.size} point{'s' if low.size > 1 else ''} "
+                f"below 0 m, the lowest {z.min():.2f} m; raise the formation by at least {-z.min():.2f} m"
+            )
         if len(pts) > 1:
             i, j, d = closest_pair(pts)
             if d < s.min_distance_m - tol:

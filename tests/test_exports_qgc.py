@@ -120,8 +120,28 @@ def test_plan_json_structure(show, plan):
 
 @pytest.mark.parametrize("fmt", ["qgc-plan", "qgc-wpl"])
 def test_qgc_needs_an_origin(show, plan, fmt):
-    with pytest.raises(ExportError, match="--origin"):
+    with pytest.raises(ExportError, match="origin") as exc:
         export_show(show, fmt, plan=plan)
+    assert "--origin" not in str(exc.value) and "show settings" in str(exc.value)
+
+
+@pytest.mark.parametrize("fmt", ["qgc-plan", "qgc-wpl"])
+def test_qgc_uses_the_place_stored_in_the_show(show, plan, fmt):
+    """settings.geo gives the same file as passing its origin and heading; an explicit origin wins."""
+    from formations import GeoPlacement
+
+    geo = GeoPlacement(origin_lat_deg=ORIGIN[0], origin_lon_deg=ORIGIN[1], origin_alt_m=ORIGIN[2], heading_deg=HEADING)
+    placed = show.model_copy(update={"settings": show.settings.model_copy(update={"geo": geo})})
+
+    def members(result) -> dict[str, bytes]:
+        with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+            # The manifest names the show's hash, which differs by the stored place itself.
+            return {n: z.read(n) for n in z.namelist() if n != "manifest.json"}
+
+    stored = members(export_show(placed, fmt, plan=plan))
+    assert stored == members(export_show(show, fmt, plan=plan, origin=ORIGIN, heading_deg=HEADING))
+    other = (ORIGIN[0] + 1.0, ORIGIN[1], ORIGIN[2])
+    assert members(export_show(placed, fmt, plan=plan, origin=other)) != stored
 
 
 def test_heading_rotates_the_show():

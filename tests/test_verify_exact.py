@@ -322,3 +322,19 @@ def test_cli_prints_the_grouped_view_worst_first(tmp_path, tight_plan, capsys) -
     assert {"from", "to", "violations", "violations_total", "min_distance_m", "stagger_s", "resolution",
             "unresolved", "fixes"} <= set(doc["by_transition"][0])
     assert doc["violations_total"] == sum(g["violations_total"] for g in doc["by_transition"])
+
+
+@pytest.mark.timeout(120)
+def test_window_past_the_last_break_terminates_and_sees_the_rest() -> None:
+    """A window ending an ulp after the drones' last break (summed durations round below the
+    show's knot time) must end: past its last break a drone rests where it is."""
+    from sim.plan import TrajectoryBuilder
+    from sim.verify._check import window_close_pairs
+
+    b = TrajectoryBuilder(np.array([[0.0, 0.0, 10.0], [4.0, 0.0, 10.0]]))
+    for _ in range(3):  # 0.1 + 0.1 + 0.1 = 0.30000000000000004: the sum itself, not 0.3, is the end
+        b.append(np.full(2, 0.1), np.concatenate([b.positions_m[..., None], np.zeros((2, 3, 1))], axis=-1))
+    motion = b.build()
+    end = float(np.nextafter(motion.end_s, np.inf))
+    got = window_close_pairs(motion, 0.0, end + 1e-9, 5.0)
+    assert got.dist_m.tolist() == pytest.approx([4.0])

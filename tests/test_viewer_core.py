@@ -103,8 +103,9 @@ def test_viewer_closest_pair_each_frame(viewer, plan):
 def test_slider_guard(viewer, plan, monkeypatch):
     viewer.load(plan, name="small")
     seeks: list[float] = []
-    original = viewer.seek
-    monkeypatch.setattr(viewer, "seek", lambda t: (seeks.append(t), original(t)))
+    playback = viewer._main  # the slider belongs to a playback (the server-wide one here)
+    original = playback.seek
+    monkeypatch.setattr(playback, "seek", lambda t: (seeks.append(t), original(t)))
     viewer.play()
     for _ in range(10):
         viewer.step(0.1)
@@ -278,3 +279,31 @@ def test_bezier_control_points_bound_curved_pieces():
             np.testing.assert_allclose(cp[i, p, 0], curve[0], atol=1e-9)
             np.testing.assert_allclose(cp[i, p, -1], curve[-1], atol=1e-9)
             assert np.all(curve >= cp[i, p].min(axis=0) - 1e-9) and np.all(curve <= cp[i, p].max(axis=0) + 1e-9)
+
+
+def test_audience_camera_sees_the_show_from_the_front(plan):
+    from app.viewer._viewer import AUDIENCE_EYE_M, audience_camera
+
+    lo, hi = show_bounds(plan)
+    fov = np.deg2rad(75)
+    pos, look = audience_camera(lo, hi, fov_rad=fov)
+    assert pos[2] == AUDIENCE_EYE_M and pos[1] < lo[1] and pos[0] == pytest.approx((lo[0] + hi[0]) / 2)
+    corners = np.array(np.meshgrid(*zip(lo, hi, strict=True))).reshape(3, -1).T
+    view = (look - pos) / np.linalg.norm(look - pos)
+    rel = corners - pos
+    assert np.arccos(rel @ view / np.linalg.norm(rel, axis=1)).max() < fov / 2
+    assert view[1] > 0.5  # facing +y, away from the audience
+    # Standing at the geofence's audience edge instead.
+    pos2, _ = audience_camera(lo, hi, fov_rad=fov, audience_y_m=-40.0)
+    assert pos2[1] == -40.0
+
+
+def test_camera_mode_switch(viewer, plan):
+    viewer.load(plan, name="small")
+    viewer.set_camera("audience")
+    assert viewer._camera_dd.value == "audience" and viewer._main.camera == "audience"
+    assert viewer.server.initial_camera.position[2] == pytest.approx(1.7)
+    viewer.set_camera("free")
+    assert viewer.server.initial_camera.position[2] > 1.7
+    with pytest.raises(ValueError):
+        viewer.set_camera("sideways")

@@ -69,7 +69,11 @@ def _export(args: argparse.Namespace) -> int:
                 progress=update,
             )
     except ExportError as exc:
-        raise CliError(str(exc)) from exc
+        msg = str(exc)
+        if args.origin is None and "place on Earth" in msg:
+            # The command line's way to give it, beside the show's settings.geo.
+            msg += " (settings.geo), or pass --origin LAT,LON,ALT [--heading DEG]"
+        raise CliError(msg) from exc
     for warning in result.warnings:
         print(f"swarmshow: warning: {warning}", file=sys.stderr)
     if target is None:

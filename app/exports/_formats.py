@@ -10,6 +10,7 @@ so the lazy strings point down and form no cycle.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -94,6 +95,12 @@ def export_plan(
     """Like :func:`export_show` with the options as one :class:`ExportOptions`."""
     exporter = _load_exporter(fmt)
     options = options if options is not None else ExportOptions()
+    geo = show.settings.geo
+    if options.origin is None and geo is not None:
+        # The show's stored place on Earth, unless the caller gave an origin of its own.
+        options = dataclasses.replace(
+            options, origin=(geo.origin_lat_deg, geo.origin_lon_deg, geo.origin_alt_m), heading_deg=geo.heading_deg
+        )
     if drone_names is not None and len(drone_names) != show.drones:
         raise ExportError(f"drone_names has {len(drone_names)} names for {show.drones} drones")
     if plan is not None and plan.drone_count != show.drones:

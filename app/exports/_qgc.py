@@ -65,7 +65,10 @@ timing of the plan: fly real shows with a show-capable autopilot (.skyc).
 
 def _origin(ctx: ExportContext) -> tuple[float, float, float]:
     if ctx.options.origin is None:
-        raise ExportError(f"format {ctx.fmt!r} needs the show's geographic origin: --origin LAT,LON,ALT")
+        raise ExportError(
+            f"format {ctx.fmt!r} needs the show's place on Earth: set its origin (latitude, longitude, "
+            "altitude) and heading in the show settings"
+        )
     return ctx.options.origin
 
 

@@ -9,6 +9,7 @@ hook (a :class:`Viewer` on a free loopback port, stored as
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import threading
 from typing import Any, Literal
@@ -139,7 +140,8 @@ async def _start(app: FastAPI) -> None:
     settings = getattr(app.state, "settings", None)
     if settings is not None and not settings.viewer:
         return  # switched off (tests that restart the server often): /viser closes with 1013, playback is 503
-    viewer = await asyncio.to_thread(Viewer)
+    # One playback per browser: a tab opening or scrubbing a show leaves the other tabs alone.
+    viewer = await asyncio.to_thread(functools.partial(Viewer, per_client=True))
     loader = _Loader(app, viewer)
     app.state.viewer, app.state.viewer_loader = viewer, loader
 

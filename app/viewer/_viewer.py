@@ -60,34 +60,39 @@ class _Entry:
     flight: Any = None
 
 
-class Viewer:
-    """A viser server on loopback showing one show at a time to all browsers.
+#: Eye height of the audience camera, metres.
+AUDIENCE_EYE_M = 1.7
+CAMERAS = ("free", "audience")
 
-    Args:
-        host: interface to bind; loopback by default (browsers reach it through the app's relay).
-        port: TCP port; 0 picks a free one (see :attr:`port`).
-        frame_rate_hz: playback pacing, frames per second.
-        start_thread: start the playback thread (tests drive :meth:`step` by hand instead).
+
+def audience_camera(
+    lo: np.ndarray, hi: np.ndarray, *, fov_rad: float = 1.3, audience_y_m: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The audience's view (position, look-at), metres: from eye height on the audience side (−y),
+    facing +y towards the show's centre.
+
+    The audience stands at ``audience_y_m`` (the geofence's audience edge) when given, else
+    far enough back for the show's bounding sphere to fit the vertical field of view.
+    """
+    center = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 5.0)
+    back = radius / np.sin(fov_rad / 2.0) * 1.05
+    y = float(audience_y_m) if audience_y_m is not None else float(center[1]) - back
+    return np.array([center[0], y, AUDIENCE_EYE_M]), center
+
+
+class _Playback:
+    """One playback: which show, source, time, speed and display toggles, with its own scene and GUI.
+
+    A playback draws on a scene and GUI API: a browser client's own (``client.scene``,
+    ``client.gui``: what one browser sees), the server-wide ones (every browser: the
+    single-playback mode), or none (headless: the frames are computed for the API and tests).
     """
 
-    def __init__(
-        self,
-        *,
-        host: str = "127.0.0.1",
-        port: int = 0,
-        frame_rate_hz: float = FRAME_RATE_HZ,
-        start_thread: bool = True,
-    ) -> None:
-        # viser prints a banner to stdout even when not verbose; the app logs elsewhere.
-        with contextlib.redirect_stdout(io.StringIO()):
-            self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        # The share button is hidden, but a client could still ask for a share
-        # URL, which opens a public tunnel: refuse, the app's port is the only way in.
-        self.server.request_share_url = lambda *args, **kwargs: None  # type: ignore[method-assign]
-        self.frame_rate_hz = float(frame_rate_hz)
-        self._lock = threading.RLock()
-        self._stop = threading.Event()
-        self._shows: dict[str, _Entry] = {}
+    def __init__(self, viewer: Viewer, *, scene: Any = None, gui: Any = None, client: Any = None) -> None:
+        self.viewer, self.scene, self.gui, self.client = viewer, scene, gui, client
+        self.headless = scene is None
+        self.atomic = client.atomic if client is not None else viewer.server.atomic
         self._current: str | None = None
         self._source: Source = "planned"
         self._track: Track | None = None
@@ -101,69 +106,35 @@ class Viewer:
         self._next_target: int | None = None
         self._hold_starts_s = np.zeros(0)
         self._hold_knots = np.zeros(0, dtype=np.intp)
-        self._catalog: CatalogFn | None = None
-        self._catalog_load: LoadFn | None = None
-        self._catalog_keys: dict[str, str] = {}
+        #: A show picked in the selector that is being loaded (it switches when it arrives).
+        self.wanted: str | None = None
+        #: "free" or "audience" (see :meth:`set_camera`).
+        self.camera = "free"
+        self._bounds = (np.zeros(3), np.ones(3))
         # Set while Python writes a GUI value, so that the write's own
         # synchronous on_update callback is not mistaken for a user's input.
         self._programmatic = 0
-        self._busy: tuple[str, float | None] | None = None
-        self._notifications: dict[int, Any] = {}
         self.frames_rendered = 0
         self.last_frame: Frame | None = None
         self.last_pair: tuple[int, int, float] = (-1, -1, float("inf"))
+        if self.headless:
+            # No GUI: the display toggles are a namespace with every toggle on.
+            on = _Toggle(True)
+            self._targets_cb = self._trails_cb = self._pair_cb = self._homes_cb = self._loop_cb = on
+            # No widgets either: _set_gui ignores writes to them.
+            self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = self._camera_dd = None
+            self._readout = self._progress = self._busy_md = None
+        else:
+            self._setup_scene()
+            self._setup_gui()
 
-        self._setup_scene()
-        self._setup_gui()
-        self.server.on_client_connect(self._on_connect)
-        self.server.on_client_disconnect(lambda c: self._notifications.pop(c.client_id, None))
-        self._pair_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-closest-pair")
-        # One loader thread for every browser's picks; a pick while one loads is refused, not queued
-        # (a client sending selections in a loop once started one thread, and one plan, each).
-        self._load_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-catalog-load")
-        self._loading = threading.Lock()
-        self._thread: threading.Thread | None = None
-        if start_thread:
-            self._thread = threading.Thread(target=self._run, name="viewer-playback", daemon=True)
-            self._thread.start()
-
-    # ----------------------------------------------------------------- lifecycle
-
-    @property
-    def host(self) -> str:
-        """Interface the viser server listens on."""
-        return self.server.get_host()
-
-    @property
-    def port(self) -> int:
-        """TCP port the viser server listens on."""
-        return self.server.get_port()
-
-    def stop(self) -> None:
-        """Stop the playback thread and the viser server (idempotent)."""
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-        self._pair_pool.shutdown(wait=True)
-        self._load_pool.shutdown(wait=False, cancel_futures=True)
-        with contextlib.redirect_stdout(io.StringIO()):
-            self.server.stop()
-
-    def __enter__(self) -> Viewer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    # ----------------------------------------------------------------- scene / gui
+    def remove(self) -> None:
+        """Forget this playback's handles (its client has gone)."""
+        self._track = None
+        self._playing = False
 
     def _setup_scene(self) -> None:
-        scene = self.server.scene
-        scene.set_up_direction("+z")
-        self.server.gui.configure_theme(dark_mode=True, show_share_button=False, control_width="medium")
-        self.server.initial_camera.far = 5000.0
+        scene = self.scene
         # Metre grid: 5 m cells, 50 m sections, resized to the show on load.
         self._grid = scene.add_grid(
             "/ground", width=200.0, height=200.0, plane="xy", cell_size=5.0, section_size=50.0,
@@ -194,7 +165,7 @@ class Viewer:
         )
 
     def _setup_gui(self) -> None:
-        gui = self.server.gui
+        gui = self.gui
         gui.set_panel_label("swarmshow playback")
         self._show_dd = gui.add_dropdown("Show", (NO_SHOW,), initial_value=NO_SHOW)
         self._source_dd = gui.add_dropdown("Source", ("planned", "simulated"), initial_value="planned",
@@ -203,6 +174,8 @@ class Viewer:
         self._slider = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.05, initial_value=0.0, disabled=True)
         self._speed_dd = gui.add_dropdown("Speed", SPEEDS, initial_value="1x")
         self._loop_cb = gui.add_checkbox("Loop", initial_value=True)
+        self._camera_dd = gui.add_dropdown("Camera", CAMERAS, initial_value="free",
+                                           hint="audience: the front view from the audience side")
         with gui.add_folder("Display"):
             self._targets_cb = gui.add_checkbox("Next formation targets", initial_value=True)
             self._trails_cb = gui.add_checkbox("Trails", initial_value=True)
@@ -221,6 +194,7 @@ class Viewer:
         self._slider.on_update(self._user(lambda ev: self.seek(float(ev.target.value))))
         self._speed_dd.on_update(lambda ev: self._set_speed_label(ev.target.value))
         self._loop_cb.on_update(lambda ev: setattr(self, "_loop", bool(ev.target.value)))
+        self._camera_dd.on_update(self._user(lambda ev: self.set_camera(str(ev.target.value))))
         for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb):
             cb.on_update(lambda _ev: self._invalidate())
 
@@ -238,21 +212,58 @@ class Viewer:
         return callback
 
     def _set_gui(self, handle: Any, attr: str, value: Any) -> None:
-        """Assign a GUI property from Python without triggering the user callbacks."""
-        with self._lock:
+        """Assign a GUI property from Python without triggering the user callbacks (none when headless)."""
+        if self.headless:
+            return
+        with self.viewer._lock:
             self._programmatic += 1
             try:
                 setattr(handle, attr, value)
             finally:
                 self._programmatic -= 1
 
-    # ----------------------------------------------------------------- registry
+    def _refresh_show_options(self) -> None:
+        v = self.viewer
+        with v._lock:
+            labels = list(v._shows)
+            for label in v._catalog_keys:
+                if label not in v._shows:
+                    labels.append(label)
+            # Until a show is loaded the selector says so, with the stored shows below it.
+            options = labels if self._current is not None else [NO_SHOW, *labels]
+            self._set_gui(self._show_dd, "options", options)
+            self._set_gui(self._show_dd, "value", self._current or NO_SHOW)
 
-    @property
-    def shows(self) -> list[str]:
-        """Names of the loaded shows, in load order."""
-        with self._lock:
-            return list(self._shows)
+    def _on_show_selected(self, event: Any) -> None:
+        label = str(event.target.value)
+        v = self.viewer
+        with v._lock:
+            if label in v._shows:
+                self._activate(label, self._source if v._shows[label].flight is not None else "planned")
+                return
+            key = v._catalog_keys.get(label)
+            # The load names the show by its label: this playback switches to it when it arrives.
+            self.wanted = label
+        if key is not None and v._catalog_load is not None:
+            if not v._loading.acquire(blocking=False):
+                client = getattr(event, "client", None)
+                if client is not None:
+                    v._notify(client, "Another show is loading; pick again when it is on screen.")
+                return
+            load = v._catalog_load
+
+            def run() -> None:
+                try:
+                    load(key)
+                finally:
+                    v._loading.release()
+
+            try:
+                v._load_pool.submit(run)
+            except RuntimeError:  # the viewer is stopping
+                v._loading.release()
+
+    # ----------------------------------------------------------------- state
 
     @property
     def current(self) -> str | None:
@@ -279,85 +290,9 @@ class Viewer:
         """Playback speed factor."""
         return self._speed
 
-    def set_catalog(self, list_fn: CatalogFn, load_fn: LoadFn) -> None:
-        """Let the show selector offer shows that are not loaded yet.
-
-        Args:
-            list_fn: returns ``{key: label}`` of the shows that could be loaded.
-            load_fn: loads the show ``key`` (it plans and then calls :meth:`load`);
-                called from a worker thread when a browser picks that show.
-        """
-        self._catalog, self._catalog_load = list_fn, load_fn
-        self._refresh_show_options()
-
-    def _refresh_show_options(self) -> None:
-        with self._lock:
-            labels = list(self._shows)
-            self._catalog_keys = {}
-            if self._catalog is not None:
-                try:
-                    catalog = dict(self._catalog())
-                except Exception:  # a failing catalog must not take the viewer down
-                    catalog = {}
-                for key, label in catalog.items():
-                    if label not in self._shows:
-                        self._catalog_keys[label] = key
-                        labels.append(label)
-            # Until a show is loaded the selector says so, with the stored shows below it.
-            options = labels if self._current is not None else [NO_SHOW, *labels]
-            self._set_gui(self._show_dd, "options", options)
-            self._set_gui(self._show_dd, "value", self._current or NO_SHOW)
-
-    def _on_show_selected(self, event: Any) -> None:
-        label = str(event.target.value)
-        with self._lock:
-            if label in self._shows:
-                self._activate(label, self._source if self._shows[label].flight is not None else "planned")
-                return
-            key = self._catalog_keys.get(label)
-        if key is not None and self._catalog_load is not None:
-            if not self._loading.acquire(blocking=False):
-                client = getattr(event, "client", None)
-                if client is not None:
-                    self._notify(client, "Another show is loading; pick again when it is on screen.")
-                return
-            load = self._catalog_load
-
-            def run() -> None:
-                try:
-                    load(key)
-                finally:
-                    self._loading.release()
-
-            try:
-                self._load_pool.submit(run)
-            except RuntimeError:  # the viewer is stopping
-                self._loading.release()
-
-    # ----------------------------------------------------------------- loading
-
-    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None) -> None:
-        """Load (or replace) a show and put it on screen for every connected browser.
-
-        Args:
-            plan: the show's plan.
-            name: registry name shown in the selector (loading the same name replaces it).
-            flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
-            source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
-        """
-        if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
-            raise ValueError("the flight and the plan have different drone counts")
-        with self._lock:
-            self._shows.pop(name, None)
-            self._shows[name] = _Entry(name, plan, flight)
-            while len(self._shows) > MAX_SHOWS:
-                del self._shows[next(iter(self._shows))]
-            self._activate(name, source or ("simulated" if flight is not None else "planned"))
-            self._refresh_show_options()
-
     def _activate(self, name: str, source: Source) -> None:
-        with self._lock:
-            entry = self._shows[name]
+        with self.viewer._lock:
+            entry = self.viewer._shows[name]
             self._track = make_track(entry.plan, entry.flight, source)
             self._current, self._source = name, source
             self._time_s = 0.0
@@ -373,7 +308,10 @@ class Viewer:
             n = plan.drone_count
             spacing = float(plan.settings.min_distance_m)
             lo, hi = show_bounds(plan, entry.flight)
-            with self.server.atomic():
+            if self.headless:
+                self.render()
+                return
+            with self.atomic():
                 # Ground grid sized to the show's footprint, in whole 50 m sections.
                 span = float(np.max(hi[:2] - lo[:2])) + 40.0
                 size = 50.0 * np.ceil(span / 50.0)
@@ -394,20 +332,41 @@ class Viewer:
                 self._set_gui(self._source_dd, "disabled", entry.flight is None)
                 self._set_gui(self._source_dd, "value", source)
                 self._set_gui(self._show_dd, "value", name)
-                position, look_at = framing_camera(lo, hi, fov_rad=self.server.initial_camera.fov)
-                self.server.initial_camera.position = tuple(position)
-                self.server.initial_camera.look_at = tuple(look_at)
-                for client in self.server.get_clients().values():
-                    client.camera.position = tuple(position)
-                    client.camera.look_at = tuple(look_at)
+                self._bounds = (lo, hi)
+                self._place_camera()
             self.render()
+
+    def set_camera(self, mode: str) -> None:
+        """``"audience"``: the front view from the audience side; ``"free"``: the oblique overview (then orbit)."""
+        if mode not in CAMERAS:
+            raise ValueError(f"camera must be one of {CAMERAS}, got {mode!r}")
+        self.camera = mode
+        self._set_gui(self._camera_dd, "value", mode)
+        if self._current is not None and not self.headless:
+            self._place_camera()
+
+    def _place_camera(self) -> None:
+        server = self.viewer.server
+        lo, hi = self._bounds
+        fov = server.initial_camera.fov
+        if self.camera == "audience":
+            fence = self.viewer._shows[self._current].plan.settings.geofence if self._current else None
+            position, look_at = audience_camera(lo, hi, fov_rad=fov, audience_y_m=fence.y_min_m if fence else None)
+        else:
+            position, look_at = framing_camera(lo, hi, fov_rad=fov)
+        if self.client is None:
+            server.initial_camera.position = tuple(position)
+            server.initial_camera.look_at = tuple(look_at)
+        for client in [self.client] if self.client is not None else server.get_clients().values():
+            client.camera.position = tuple(position)
+            client.camera.look_at = tuple(look_at)
 
     def set_source(self, source: Source) -> None:
         """Switch between the plan and the simulated flight of the current show, keeping the time."""
-        with self._lock:
+        with self.viewer._lock:
             if self._current is None:
                 return
-            entry = self._shows[self._current]
+            entry = self.viewer._shows[self._current]
             if source == "simulated" and entry.flight is None:
                 self._set_gui(self._source_dd, "value", self._source)
                 return
@@ -424,7 +383,7 @@ class Viewer:
 
     def play(self) -> None:
         """Start playback (from the start if at the end)."""
-        with self._lock:
+        with self.viewer._lock:
             if self._track is None:
                 return
             if self._time_s >= self._track.duration_s:
@@ -435,7 +394,7 @@ class Viewer:
 
     def pause(self) -> None:
         """Pause playback."""
-        with self._lock:
+        with self.viewer._lock:
             self._playing = False
             self._set_gui(self._play, "label", "Play")
             self._set_gui(self._play, "icon", viser.Icon.PLAYER_PLAY)
@@ -450,7 +409,7 @@ class Viewer:
 
     def seek(self, time_s: float) -> None:
         """Jump to ``time_s`` (seconds, clamped); the next tick renders it."""
-        with self._lock:
+        with self.viewer._lock:
             if self._track is None:
                 return
             self._time_s = float(np.clip(time_s, 0.0, self._track.duration_s))
@@ -469,50 +428,6 @@ class Viewer:
         self._dirty = True
         self._last_trail_s = -np.inf
 
-    # ----------------------------------------------------------------- busy
-
-    def set_busy(self, message: str | None, fraction: float | None = None) -> None:
-        """Show (or with ``message=None`` clear) a progress bar and a notification in every browser.
-
-        Args:
-            message: what is being done, for example ``"Planning Demo"``; None when done.
-            fraction: progress in [0, 1], or None for an indeterminate (animated) bar.
-        """
-        with self._lock:
-            self._busy = None if message is None else (message, fraction)
-            if message is None:
-                self._set_gui(self._progress, "visible", False)
-                self._set_gui(self._busy_md, "visible", False)
-                for handle in self._notifications.values():
-                    if not handle._impl.removed:
-                        handle.remove()
-                self._notifications.clear()
-                return
-            value = 100.0 * float(np.clip(fraction, 0.0, 1.0)) if fraction is not None else 100.0
-            self._set_gui(self._progress, "value", value)
-            self._set_gui(self._progress, "animated", fraction is None)
-            self._set_gui(self._progress, "visible", True)
-            text = message if fraction is None else f"{message}: {value:.0f} %"
-            self._set_gui(self._busy_md, "content", text)
-            self._set_gui(self._busy_md, "visible", True)
-            for client in self.server.get_clients().values():
-                self._notify(client, text)
-
-    def _notify(self, client: Any, text: str) -> None:
-        handle = self._notifications.get(client.client_id)
-        if handle is None or handle._impl.removed:
-            self._notifications[client.client_id] = client.add_notification(
-                "swarmshow", text, loading=True, with_close_button=False
-            )
-        else:
-            handle.body = text
-
-    def _on_connect(self, client: Any) -> None:
-        with self._lock:
-            if self._busy is not None:
-                self._notify(client, self._busy[0])
-        self._refresh_show_options()
-
     # ----------------------------------------------------------------- frames
 
     def _next_targets_knot(self, t: float) -> int | None:
@@ -522,10 +437,10 @@ class Viewer:
         k = int(np.searchsorted(self._hold_starts_s, t, side="right"))
         if k < len(self._hold_knots):
             return int(self._hold_knots[k])
-        return len(self._shows[self._current].plan.knot_times_s) - 1
+        return len(self.viewer._shows[self._current].plan.knot_times_s) - 1
 
     def _formation_text(self, t: float) -> str:
-        plan = self._shows[self._current].plan if self._current else None
+        plan = self.viewer._shows[self._current].plan if self._current else None
         if plan is None:
             return ""
         seg = plan.segments[int(plan.segment_index(t))]
@@ -537,20 +452,21 @@ class Viewer:
         }[seg.kind]
 
     def render(self, *, frame_dt_s: float | None = None) -> Frame | None:
-        """Push the frame at the current time to every browser and return it.
+        """Push the frame at the current time to this playback's browser(s) and return it.
 
         Args:
             frame_dt_s: show time elapsed since the previous frame, seconds
                 (bounds how far the closest distance can have moved, to speed its search).
         """
-        with self._lock:
+        v = self.viewer
+        with v._lock:
             track = self._track
             if track is None:
                 return None
             t = self._time_s
             frame = track.frame(t)
             colors = np.clip(DARK_LED_FLOOR + (1.0 - DARK_LED_FLOOR) * frame.colors_rgb, 0.0, 1.0)
-            show_pair = bool(self._pair_cb.value) and track.drone_count >= 2
+            show_pair = bool(self._pair_cb.value if not self.headless else True) and track.drone_count >= 2
             pending = None
             if show_pair:
                 hint = None
@@ -558,9 +474,17 @@ class Viewer:
                     # Two drones at most max speed apart close by 2·v·dt; 1 % slack for rounding.
                     hint = self._pair_hint_m * 1.01 + 2.0 * frame.max_speed_mps * abs(frame_dt_s) + 1e-3
                 # The search releases the GIL: run it beside the drone update below.
-                pending = self._pair_pool.submit(closest_pair, frame.positions_m, hint_m=hint)
+                pending = v._pair_pool.submit(closest_pair, frame.positions_m, hint_m=hint)
+            if self.headless:
+                if pending is not None:
+                    self.last_pair = pending.result()
+                    self._pair_hint_m = self.last_pair[2]
+                self.last_frame = frame
+                self.frames_rendered += 1
+                self._dirty = False
+                return frame
 
-            with self.server.atomic():
+            with self.atomic():
                 self._drones.points = frame.positions_m.astype(np.float32)
                 self._drones.colors = (colors * 255.0).astype(np.uint8)
                 self._drones.visible = True
@@ -600,7 +524,7 @@ class Viewer:
         knot = self._next_targets_knot(t)
         if knot == self._next_target or knot is None:
             return
-        plan = self._shows[self._current].plan
+        plan = self.viewer._shows[self._current].plan
         pts = plan.knot_positions_m[knot]
         col = plan.knot_colors_rgb[knot]
         self._targets.points = pts.astype(np.float32)
@@ -632,7 +556,7 @@ class Viewer:
 
     def step(self, wall_dt_s: float) -> Frame | None:
         """Advance playback by ``wall_dt_s`` seconds of wall time and render if anything changed."""
-        with self._lock:
+        with self.viewer._lock:
             if self._track is None:
                 return None
             dt = 0.0
@@ -652,6 +576,339 @@ class Viewer:
                 return None
             return self.render(frame_dt_s=dt if self._playing else None)
 
+
+
+class _Toggle:
+    """A display toggle without a GUI (headless playbacks draw everything)."""
+
+    def __init__(self, value: bool) -> None:
+        self.value = value
+
+
+class Viewer:
+    """A viser server on loopback: a registry of shows and their playback.
+
+    With ``per_client`` each browser gets its own playback (show, time, speed, source,
+    display toggles, on its own scene and GUI), so one tab opening or scrubbing a show
+    leaves the others alone; the viewer's own transport methods (:meth:`seek`,
+    :meth:`play`, ...) then act on every browser and on the *default* playback that new
+    browsers start from. Without it one playback on the server-wide scene is seen by all.
+
+    Args:
+        host: interface to bind; loopback by default (browsers reach it through the app's relay).
+        port: TCP port; 0 picks a free one (see :attr:`port`).
+        frame_rate_hz: playback pacing, frames per second.
+        start_thread: start the playback thread (tests drive :meth:`step` by hand instead).
+        per_client: one playback per browser client.
+    """
+
+    def __init__(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        frame_rate_hz: float = FRAME_RATE_HZ,
+        start_thread: bool = True,
+        per_client: bool = False,
+    ) -> None:
+        # viser prints a banner to stdout even when not verbose; the app logs elsewhere.
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        # The share button is hidden, but a client could still ask for a share
+        # URL, which opens a public tunnel: refuse, the app's port is the only way in.
+        self.server.request_share_url = lambda *args, **kwargs: None  # type: ignore[method-assign]
+        self.frame_rate_hz = float(frame_rate_hz)
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._shows: dict[str, _Entry] = {}
+        self._catalog: CatalogFn | None = None
+        self._catalog_load: LoadFn | None = None
+        self._catalog_keys: dict[str, str] = {}
+        self._busy: tuple[str, float | None] | None = None
+        self._notifications: dict[int, Any] = {}
+        self.per_client = bool(per_client)
+        self._pair_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-closest-pair")
+        # One loader thread for every browser's picks; a pick while one loads is refused, not queued
+        # (a client sending selections in a loop once started one thread, and one plan, each).
+        self._load_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewer-catalog-load")
+        self._loading = threading.Lock()
+        scene = self.server.scene
+        scene.set_up_direction("+z")
+        self.server.gui.configure_theme(dark_mode=True, show_share_button=False, control_width="medium")
+        self.server.initial_camera.far = 5000.0
+        #: The default playback: server-wide (single mode) or headless (per client: new browsers copy it).
+        self._main = _Playback(self) if per_client else _Playback(self, scene=scene, gui=self.server.gui)
+        #: Each browser's own playback, by client id (per-client mode).
+        self._clients: dict[int, _Playback] = {}
+        self.server.on_client_connect(self._on_connect)
+        self.server.on_client_disconnect(self._on_disconnect)
+        self._thread: threading.Thread | None = None
+        if start_thread:
+            self._thread = threading.Thread(target=self._run, name="viewer-playback", daemon=True)
+            self._thread.start()
+
+    # ----------------------------------------------------------------- lifecycle
+
+    @property
+    def host(self) -> str:
+        """Interface the viser server listens on."""
+        return self.server.get_host()
+
+    @property
+    def port(self) -> int:
+        """TCP port the viser server listens on."""
+        return self.server.get_port()
+
+    def stop(self) -> None:
+        """Stop the playback thread and the viser server (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self._pair_pool.shutdown(wait=True)
+        self._load_pool.shutdown(wait=False, cancel_futures=True)
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server.stop()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # ----------------------------------------------------------------- registry
+
+    @property
+    def shows(self) -> list[str]:
+        """Names of the loaded shows, in load order."""
+        with self._lock:
+            return list(self._shows)
+
+    @property
+    def playbacks(self) -> list[_Playback]:
+        """The default playback and every browser's own (per-client mode)."""
+        with self._lock:
+            return [self._main, *self._clients.values()]
+
+    def __getattr__(self, name: str) -> Any:
+        # The default playback's state and handles (``_slider``, ``_drones``, ``last_frame``, ...).
+        if name.startswith("__") or name in ("_main", "_clients"):
+            raise AttributeError(name)
+        return getattr(self._main, name)
+
+    @property
+    def current(self) -> str | None:
+        """Name of the show of the default playback."""
+        return self._main.current
+
+    @property
+    def source(self) -> Source:
+        """``"planned"`` or ``"simulated"`` (the default playback's)."""
+        return self._main.source
+
+    @property
+    def time_s(self) -> float:
+        """Playback time of the default playback, seconds."""
+        return self._main.time_s
+
+    @property
+    def playing(self) -> bool:
+        """Whether any playback is running."""
+        return any(pb.playing for pb in self.playbacks)
+
+    @property
+    def speed(self) -> float:
+        """Playback speed factor of the default playback."""
+        return self._main.speed
+
+    def client_playback(self, client_id: int) -> _Playback | None:
+        """A browser's own playback (per-client mode), None if it has none."""
+        with self._lock:
+            return self._clients.get(client_id)
+
+    def set_catalog(self, list_fn: CatalogFn, load_fn: LoadFn) -> None:
+        """Let the show selector offer shows that are not loaded yet.
+
+        Args:
+            list_fn: returns ``{key: label}`` of the shows that could be loaded.
+            load_fn: loads the show ``key`` (it plans and then calls :meth:`load`);
+                called from a worker thread when a browser picks that show.
+        """
+        self._catalog, self._catalog_load = list_fn, load_fn
+        self._refresh_show_options()
+
+    def _refresh_show_options(self) -> None:
+        with self._lock:
+            self._catalog_keys = {}
+            if self._catalog is not None:
+                try:
+                    catalog = dict(self._catalog())
+                except Exception:  # a failing catalog must not take the viewer down
+                    catalog = {}
+                for key, label in catalog.items():
+                    if label not in self._shows:
+                        self._catalog_keys[label] = key
+            for pb in self.playbacks:
+                pb._refresh_show_options()
+
+    # ----------------------------------------------------------------- loading
+
+    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None) -> None:
+        """Load (or replace) a show: the default playback shows it (new browsers start on it), and
+        so do the browsers showing nothing, an older version of it, or that picked it in the selector.
+
+        Args:
+            plan: the show's plan.
+            name: registry name shown in the selector (loading the same name replaces it).
+            flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
+            source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
+        """
+        if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
+            raise ValueError("the flight and the plan have different drone counts")
+        with self._lock:
+            self._shows.pop(name, None)
+            self._shows[name] = _Entry(name, plan, flight)
+            while len(self._shows) > MAX_SHOWS:
+                del self._shows[next(iter(self._shows))]
+            src: Source = source or ("simulated" if flight is not None else "planned")
+            self._main._activate(name, src)
+            for pb in list(self._clients.values()):
+                # Another browser keeps its show: only an empty one, one showing this show (a
+                # new version: it keeps its time) or one that asked for it switches.
+                if pb.current is None or pb.wanted == name:
+                    pb.wanted = None
+                    pb._activate(name, src)
+                elif pb.current == name:
+                    t, playing = pb.time_s, pb.playing
+                    pb._activate(name, src if flight is not None or src == "planned" else "planned")
+                    pb.seek(t)
+                    if playing:
+                        pb.play()
+            self._refresh_show_options()
+
+    # ----------------------------------------------------------------- transport
+
+    def set_source(self, source: Source) -> None:
+        """Switch every playback of the default show between plan and flight, keeping their times."""
+        for pb in self.playbacks:
+            if pb is self._main or pb.current == self._main.current:
+                pb.set_source(source)
+
+    def set_camera(self, mode: str) -> None:
+        """Put every playback's camera in ``mode`` (``"free"`` or ``"audience"``)."""
+        for pb in self.playbacks:
+            pb.set_camera(mode)
+
+    def play(self) -> None:
+        """Start every playback (from the start if at the end)."""
+        for pb in self.playbacks:
+            pb.play()
+
+    def pause(self) -> None:
+        """Pause every playback."""
+        for pb in self.playbacks:
+            pb.pause()
+
+    def toggle_play(self) -> None:
+        """Play if paused, pause if playing."""
+        if self.playing:
+            self.pause()
+        else:
+            self.play()
+
+    def seek(self, time_s: float) -> None:
+        """Jump every playback to ``time_s`` (seconds, clamped); the next tick renders it."""
+        for pb in self.playbacks:
+            pb.seek(time_s)
+
+    def set_speed(self, speed: float) -> None:
+        """Playback speed factor (0.25 to 8) of every playback."""
+        for pb in self.playbacks:
+            pb.set_speed(speed)
+
+    def render(self, *, frame_dt_s: float | None = None) -> Frame | None:
+        """Render every playback at its time; returns the default playback's frame."""
+        for pb in self.playbacks[1:]:
+            pb.render(frame_dt_s=frame_dt_s)
+        return self._main.render(frame_dt_s=frame_dt_s)
+
+    # ----------------------------------------------------------------- busy
+
+    def set_busy(self, message: str | None, fraction: float | None = None) -> None:
+        """Show (or with ``message=None`` clear) a progress bar and a notification in every browser.
+
+        Args:
+            message: what is being done, for example ``"Planning Demo"``; None when done.
+            fraction: progress in [0, 1], or None for an indeterminate (animated) bar.
+        """
+        with self._lock:
+            self._busy = None if message is None else (message, fraction)
+            if message is None:
+                for pb in self.playbacks:
+                    pb._set_gui(pb._progress, "visible", False)
+                    pb._set_gui(pb._busy_md, "visible", False)
+                for handle in self._notifications.values():
+                    if not handle._impl.removed:
+                        handle.remove()
+                self._notifications.clear()
+                return
+            value = 100.0 * float(np.clip(fraction, 0.0, 1.0)) if fraction is not None else 100.0
+            text = message if fraction is None else f"{message}: {value:.0f} %"
+            for pb in self.playbacks:
+                pb._set_gui(pb._progress, "value", value)
+                pb._set_gui(pb._progress, "animated", fraction is None)
+                pb._set_gui(pb._progress, "visible", True)
+                pb._set_gui(pb._busy_md, "content", text)
+                pb._set_gui(pb._busy_md, "visible", True)
+            for client in self.server.get_clients().values():
+                self._notify(client, text)
+
+    def _notify(self, client: Any, text: str) -> None:
+        handle = self._notifications.get(client.client_id)
+        if handle is None or handle._impl.removed:
+            self._notifications[client.client_id] = client.add_notification(
+                "swarmshow", text, loading=True, with_close_button=False
+            )
+        else:
+            handle.body = text
+
+    def _on_connect(self, client: Any) -> None:
+        # viser calls this once the browser has reported its camera (a real browser does at once).
+        with self._lock:
+            if self.per_client:
+                # The browser's own playback starts where the default one is.
+                pb = _Playback(self, scene=client.scene, gui=client.gui, client=client)
+                self._clients[client.client_id] = pb
+                main = self._main
+                if main.current is not None:
+                    pb._activate(main.current, main.source)
+                    pb.seek(main.time_s)
+                    pb.set_speed(main.speed)
+            if self._busy is not None:
+                self._notify(client, self._busy[0])
+        self._refresh_show_options()
+
+    def _on_disconnect(self, client: Any) -> None:
+        with self._lock:
+            self._notifications.pop(client.client_id, None)
+            pb = self._clients.pop(client.client_id, None)
+            if pb is not None:
+                pb.remove()
+
+    # ----------------------------------------------------------------- thread
+
+    def step(self, wall_dt_s: float) -> Frame | None:
+        """Advance every playback by ``wall_dt_s`` seconds of wall time; returns the default one's frame."""
+        for pb in self.playbacks[1:]:
+            pb.step(wall_dt_s)
+        return self._main.step(wall_dt_s)
+
+    @property
+    def frames_rendered(self) -> int:
+        """Frames rendered by all playbacks."""
+        return sum(pb.frames_rendered for pb in self.playbacks)
+
     def _run(self) -> None:
         period = 1.0 / self.frame_rate_hz
         last = time.perf_counter()
@@ -662,7 +919,9 @@ class Viewer:
             try:
                 self.step(now - last)
             except Exception as exc:  # keep the thread alive; report in the GUI
-                self._readout.content = f"**Playback error** {exc!r}"
+                for pb in self.playbacks:
+                    if not pb.headless:
+                        pb._readout.content = f"**Playback error** {exc!r}"
             last = now
             delay = deadline - time.perf_counter()
             if delay < -period:
@@ -672,4 +931,4 @@ class Viewer:
                 self._stop.wait(delay)
 
 
-__all__ = ["FRAME_RATE_HZ", "Viewer"]
+__all__ = ["FRAME_RATE_HZ", "Viewer", "audience_camera"]

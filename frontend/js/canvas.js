@@ -279,6 +279,9 @@ export class CanvasView {
   }
 
   _drawLimits(show) {
+    /** @type {string[]} what the limits drawing shows (for tests and the status) */
+    this.drawnLimits = [];
+    this._drawFence(show);
     if (this.view !== "front") return;
     const { ctx, width: w } = this;
     const [, yg] = this.toScreen(0, 0);
@@ -299,6 +302,52 @@ export class CanvasView {
     ctx.setLineDash([]);
     ctx.fillStyle = "#b86b78";
     ctx.fillText(`max altitude ${show.settings.max_altitude_m} m`, 40, ya - 4);
+    // The altitude floor (outside takeoff and landing), checked exactly by "Check".
+    const floor = show.settings.min_altitude_m ?? 2.5;
+    const [, yf] = this.toScreen(0, floor);
+    ctx.setLineDash([3, 5]);
+    ctx.strokeStyle = "#b8893b";
+    ctx.beginPath();
+    ctx.moveTo(0, yf);
+    ctx.lineTo(w, yf);
+    ctx.stroke();
+    ctx.setLineDash([]);
+    ctx.fillStyle = "#c9a35d";
+    ctx.fillText(`min altitude ${floor} m`, 40, yf - 4);
+    this.drawnLimits.push(`min altitude ${floor} m`);
+  }
+
+  /** The geofence: its x edges in the front view, the whole box (audience side shaded) from the top. */
+  _drawFence(show) {
+    const g = show.settings.geofence;
+    if (!g) return;
+    const { ctx, width: w, height: h } = this;
+    ctx.save();
+    ctx.strokeStyle = "#d0543c";
+    ctx.fillStyle = "rgba(208, 84, 60, 0.10)";
+    ctx.setLineDash([8, 4]);
+    const [x0] = this.toScreen(g.x_min_m, 0);
+    const [x1] = this.toScreen(g.x_max_m, 0);
+    if (this.view === "front") {
+      ctx.fillRect(0, 0, Math.max(0, x0), h);
+      ctx.fillRect(x1, 0, Math.max(0, w - x1), h);
+      ctx.beginPath();
+      ctx.moveTo(x0, 0); ctx.lineTo(x0, h);
+      ctx.moveTo(x1, 0); ctx.lineTo(x1, h);
+      ctx.stroke();
+    } else {
+      const [, y0] = this.toScreen(0, g.y_min_m);
+      const [, y1] = this.toScreen(0, g.y_max_m);
+      ctx.fillRect(0, y0, w, Math.max(0, h - y0)); // the audience side, in front of the fence
+      ctx.strokeRect(x0, y1, x1 - x0, y0 - y1);
+      ctx.fillStyle = "#e07a66";
+      ctx.fillText("audience side", x0 + 4, y0 + 12);
+    }
+    ctx.setLineDash([]);
+    ctx.fillStyle = "#e07a66";
+    ctx.fillText("geofence", x0 + 4, 26);
+    ctx.restore();
+    this.drawnLimits.push(`geofence x ${g.x_min_m}..${g.x_max_m} m, y ${g.y_min_m}..${g.y_max_m} m`);
   }
 
   _drawHome(show) {

@@ -38,13 +38,47 @@ export class ExportMenu {
       source: /** @type {HTMLSelectElement} */ (document.getElementById("exp-source")),
     };
     for (const [key, el] of Object.entries(this.fields)) {
+      // The place on Earth belongs to the show (settings.geo); rate and source are the browser's.
+      if (key === "origin" || key === "heading_deg") {
+        el.addEventListener("change", () => this._setGeo());
+        continue;
+      }
       const saved = localStorage.getItem(`swarmshow.export.${key}`);
       if (saved !== null) el.value = saved;
-      el.addEventListener("change", () => {
-        localStorage.setItem(`swarmshow.export.${key}`, el.value);
-        if (key === "origin") document.querySelector('[data-error-for="origin"]').textContent = "";
-      });
+      el.addEventListener("change", () => localStorage.setItem(`swarmshow.export.${key}`, el.value));
     }
+    state.addEventListener("change", (e) => {
+      if (e.detail.kind === "load" || e.detail.kind === "edit") this._showGeo();
+    });
+  }
+
+  /** Fill the origin and heading fields from the show's `settings.geo`. */
+  _showGeo() {
+    const geo = this.state.show && this.state.show.settings.geo;
+    this.fields.origin.value = geo ? `${geo.origin_lat_deg}, ${geo.origin_lon_deg}, ${geo.origin_alt_m}` : "";
+    this.fields.heading_deg.value = geo ? String(geo.heading_deg) : "0";
+  }
+
+  /** Store the typed origin and heading in the show (one undo step); blank origin removes them. */
+  _setGeo() {
+    const st = this.state;
+    const err = document.querySelector('[data-error-for="origin"]');
+    err.textContent = "";
+    if (!st.show) return;
+    const text = this.fields.origin.value.trim();
+    const heading = Number(this.fields.heading_deg.value || 0);
+    if (!text) {
+      if (st.show.settings.geo) st.edit("Remove the show's origin", () => { delete st.show.settings.geo; });
+      return;
+    }
+    const v = text.split(/[,\s]+/).filter(Boolean).map(Number);
+    if (v.length < 2 || v.length > 3 || !v.every(Number.isFinite) || Math.abs(v[0]) > 90 || Math.abs(v[1]) > 180) {
+      err.textContent = "Origin: latitude, longitude (degrees) and optionally altitude (m), e.g. 47.3977, 8.5456, 410";
+      return;
+    }
+    if (!Number.isFinite(heading)) return;
+    const geo = { origin_lat_deg: v[0], origin_lon_deg: v[1], origin_alt_m: v[2] ?? 0, heading_deg: ((heading % 360) + 360) % 360 };
+    st.edit("Set the show's origin", () => { st.show.settings.geo = geo; });
   }
 
   /** @returns {Record<string, string>} the export options as query parameters (blank ones left out). */
@@ -52,6 +86,7 @@ export class ExportMenu {
     /** @type {Record<string, string>} */
     const out = {};
     for (const [key, el] of Object.entries(this.fields)) {
+      if (key === "origin" || key === "heading_deg") continue; // the server reads them from the show
       const v = el.value.trim().replace(/\s+/g, "");
       if (v !== "" && !(key === "heading_deg" && Number(v) === 0) && !(key === "source" && v === "planned")) out[key] = v;
     }

@@ -7,6 +7,7 @@ import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./col
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError } from "./errors.js";
 import { ExportMenu } from "./exportmenu.js";
+import { HistoryPanel } from "./history.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
@@ -20,11 +21,13 @@ import { closePairs } from "./spacing.js";
 import { EditorState } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { TOOLS, Tools } from "./tools.js";
+import { keepUndoAcrossReloads } from "./undostore.js";
 
 /** Element by id; `any` because the ids name inputs, buttons and panels alike. @type {(id: string) => any} */
 const $ = (id) => document.getElementById(id);
 
 const state = new EditorState();
+keepUndoAcrossReloads(state);
 const view = new CanvasView(/** @type {HTMLCanvasElement} */ ($("canvas")), state);
 const timeline = new Timeline(/** @type {HTMLOListElement} */ ($("timeline-list")), state);
 timeline.problems = formationProblems;
@@ -57,12 +60,15 @@ const tools = new Tools(view, state, {
   onError: (msg) => status(msg, true),
 });
 const settingsForm = new SettingsForm(/** @type {HTMLFormElement} */ ($("form-settings")), state);
-new Sources(state, view);
+const sources = new Sources(state, view);
+settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
-const simulate = new SimulatePanel(state, persist);
-const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()));
+const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
+const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
+  () => (simulate.hasFlight ? "simulated" : "planned"));
 const exportMenu = new ExportMenu(state, persist);
 const shows = new ShowsDialog(state, persist, opened);
+new HistoryPanel($("history-body"), state);
 
 // ---- page state ------------------------------------------------------------------------------
 
@@ -112,14 +118,27 @@ function updateSpacing() {
     const r = f ? closePairs(f.points, state.show.settings.min_distance_m) : { close: new Set(), pairs: [], minDistance: Infinity };
     view.close = r.close;
     const el = $("st-spacing");
+    // Points below the altitude floor (or underground) are a problem the spacing tick must not hide.
+    const floor = f ? state.show.settings.min_altitude_m ?? 2.5 : 0;
+    let low = 0;
+    let lowest = Infinity;
+    for (const p of f ? f.points : []) {
+      if (p[2] < floor) low++;
+      if (p[2] < lowest) lowest = p[2];
+    }
+    const lowText = low ? `${low} point${low > 1 ? "s" : ""} below ${lowest < 0 ? "the ground" : `the ${floor} m floor`} (lowest ${lowest.toFixed(1)} m): raise by ${(floor - lowest).toFixed(1)} m` : "";
     if (!f) el.textContent = "";
     else if (r.pairs.length) {
-      el.textContent = `${r.close.size} points closer than ${state.show.settings.min_distance_m} m (closest ${r.minDistance.toFixed(2)} m): Repair spacing`;
+      el.textContent = `${r.close.size} points closer than ${state.show.settings.min_distance_m} m (closest ${r.minDistance.toFixed(2)} m): Repair spacing${lowText ? ` · ${lowText}` : ""}`;
+      el.className = "bad";
+    } else if (low) {
+      el.textContent = lowText;
       el.className = "bad";
     } else {
       el.textContent = `spacing ≥ ${state.show.settings.min_distance_m} m ✓`;
       el.className = "";
     }
+    el.title = el.textContent;
     view.redraw();
   });
 }
@@ -141,9 +160,13 @@ function updateStatusbar() {
 
 state.addEventListener("change", (/** @type {any} */ e) => {
   const kind = e.detail.kind;
+  // A refused save's message is about the document before this edit: do not leave it on screen.
+  if (kind === "edit" && $("save-status").classList.contains("error")) status(state.dirty ? "Unsaved changes" : "");
   if (kind !== "live") refreshChrome();
   else updateStatusbar();
   if (kind === "load" || kind === "current") view.flagged = new Set();
+  // Another formation may sit elsewhere or be another size: show it whole.
+  if (kind === "current") requestAnimationFrame(() => view.fit());
   updateSpacing();
   view.redraw();
 });
@@ -154,6 +177,14 @@ view.onCursor = ([u, v]) => {
 };
 
 // ---- controls --------------------------------------------------------------------------------
+
+// The formation sources are an accordion: opening one closes the others (the sidebar stays short).
+const sourcePanels = /** @type {HTMLDetailsElement[]} */ ([...document.querySelectorAll("details.source-panel")]);
+for (const d of sourcePanels) {
+  d.addEventListener("toggle", () => {
+    if (d.open) for (const other of sourcePanels) if (other !== d) other.open = false;
+  });
+}
 
 function setTool(tool) {
   tools.setTool(tool);
@@ -177,8 +208,18 @@ viewSelect.addEventListener("change", () => {
 $("btn-fit-view").addEventListener("click", () => view.fit());
 $("depth-input").addEventListener("change", (e) => { view.depth = Number(/** @type {HTMLInputElement} */ (e.target).value) || 0; });
 
-$("btn-undo").addEventListener("click", () => state.undo());
-$("btn-redo").addEventListener("click", () => state.redo());
+/**
+ * Undo or redo, and forget the planned transition durations of the last check: they belong to
+ * the document before the step (the next check plans them again).
+ * @param {"undo"|"redo"} which
+ */
+function undoRedo(which) {
+  if (!(which === "undo" ? state.undo() : state.redo())) return;
+  timeline.setCheck(state.show.formations.length, [], []);
+  timeline.render();
+}
+$("btn-undo").addEventListener("click", () => undoRedo("undo"));
+$("btn-redo").addEventListener("click", () => undoRedo("redo"));
 $("btn-save").addEventListener("click", () => persist.save({ force: !state.dirty }));
 const autosave = /** @type {HTMLInputElement} */ ($("chk-autosave"));
 autosave.checked = persist.autosave;
@@ -232,8 +273,8 @@ function nudge(e) {
 
 const shortcuts = installShortcuts({
   save: () => persist.save({ force: !state.dirty }),
-  undo: () => state.undo(),
-  redo: () => state.redo(),
+  undo: () => undoRedo("undo"),
+  redo: () => undoRedo("redo"),
   shows: () => shows.open(),
   check: () => state.show && report.run(),
   exportNow: () => state.show && exportMenu.run(),

@@ -11,8 +11,10 @@ export class Preview {
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
    * @param {() => void} onLayout called when the canvas size changes
+   * @param {() => ("planned"|"simulated")} [source] what to play: the simulated flight once one exists
    */
-  constructor(state, persist, onLayout) {
+  constructor(state, persist, onLayout, source = () => "planned") {
+    this.source = source;
     this.state = state;
     this.persist = persist;
     this.onLayout = onLayout;
@@ -69,11 +71,13 @@ export class Preview {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");
       }
       try {
-        await api.loadPlayback(st.meta.id, "planned");
+        await api.loadPlayback(st.meta.id, this.source());
       } catch (err) {
         setError("preview", `Cannot load the show into the 3D view: ${err.message}`);
       }
     }
-    if (!this.frame.src.endsWith("/viser/")) this.frame.src = "/viser/";
+    // A fresh viewer page: each page is its own viewer client and starts on the show just loaded
+    // (other tabs' viewers keep theirs).
+    this.frame.src = "/viser/";
   }
 }

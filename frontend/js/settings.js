@@ -50,6 +50,8 @@ export class SettingsForm {
     this.state = state;
     /** @type {HTMLInputElement[]} */
     this.inputs = [...form.querySelectorAll("[data-path]")].map((el) => /** @type {HTMLInputElement} */ (el));
+    /** @type {(() => Promise<unknown>)|null} fits every short formation (set by the editor) */
+    this.fitAll = null;
     form.addEventListener("submit", (e) => e.preventDefault());
     for (const input of this.inputs) input.addEventListener("change", () => this._changed(input));
     state.addEventListener("change", (/** @type {any} */ e) => {
@@ -68,10 +70,33 @@ export class SettingsForm {
     }
   }
 
+  /** The geofence's four edges: all set -> the fence (one undo step), all blank -> none. */
+  _fenceChanged() {
+    const st = this.state;
+    const inputs = this.inputs.filter((i) => i.dataset.path.startsWith("settings.geofence."));
+    const err = this.form.querySelector('[data-error-for="settings.geofence"]');
+    err.textContent = "";
+    if (inputs.every((i) => i.value === "")) {
+      if (st.show.settings.geofence) st.edit("Remove the geofence", () => { delete st.show.settings.geofence; });
+      return;
+    }
+    if (inputs.some((i) => i.value === "" || !Number.isFinite(Number(i.value)))) {
+      err.textContent = "Give all four edges (or none for no geofence).";
+      return;
+    }
+    const fence = Object.fromEntries(inputs.map((i) => [i.dataset.path.split(".").pop(), Number(i.value)]));
+    if (!(fence.x_min_m < fence.x_max_m && fence.y_min_m < fence.y_max_m)) {
+      err.textContent = "Each edge must be below its opposite one (x min < x max, y min < y max).";
+      return;
+    }
+    st.edit("Set the geofence", () => { st.show.settings.geofence = fence; });
+  }
+
   async _changed(input) {
     const st = this.state;
     if (!st.show) return;
     const path = input.dataset.path;
+    if (path.startsWith("settings.geofence.")) return this._fenceChanged();
     const old = getPath(st.show, path);
     let value;
     if (input.type === "number") {
@@ -109,7 +134,8 @@ export class SettingsForm {
           message: `${short} formation${short > 1 ? "s have" : " has"} fewer than ${value} points. Fit them to ${value} drones now?`,
           buttons: [{ label: "Fit them", value: "fit", primary: true }, { label: "Later", value: "later" }],
         });
-        if (choice === "fit") fitAllFormations(st);
+        // Formations made from a source are made again at the new count (see Sources.fitAll).
+        if (choice === "fit") await (this.fitAll ? this.fitAll() : fitAllFormations(st));
       }
     }
   }

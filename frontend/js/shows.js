@@ -223,7 +223,16 @@ export class ShowsDialog {
     if (!file) return;
     if (!(await this._leaveCurrent())) return;
     try {
-      const text = await file.text();
+      let text = await file.text();
+      // A name already in the store gets " (2)", " (3)", ...: two shows of one name are easy to confuse.
+      const doc = (() => { try { return JSON.parse(text); } catch { return null; } })();
+      if (doc && typeof doc === "object" && typeof doc.name === "string") {
+        const taken = new Set((await api.listShows()).map((r) => r.name));
+        const base = doc.name.replace(/ \(\d+\)$/, "");
+        let name = doc.name;
+        for (let k = 2; taken.has(name); k++) name = `${base} (${k})`;
+        if (name !== doc.name) text = JSON.stringify({ ...doc, name });
+      }
       const res = await api.request("POST", "/api/shows", { body: text, headers: { "Content-Type": "application/json" } });
       const rec = api.normalizeRecord(res);
       this.state.load(rec.show, { id: rec.id, revision: rec.revision });

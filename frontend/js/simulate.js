@@ -13,7 +13,7 @@ export class SimulatePanel {
   /**
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
-   * @param {{onSelectDrones?: (drones: number[]) => void}} [hooks]
+   * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void}} [hooks] onFlown: a simulation finished
    */
   constructor(state, persist, hooks = {}) {
     this.state = state;
@@ -22,6 +22,9 @@ export class SimulatePanel {
     this.job = null;
     this.source = null;
     this.pollTimer = 0;
+    /** @type {number|null} document version of the last finished simulation */
+    this.flownVersion = null;
+    this.startedVersion = null;
     this.bar = /** @type {HTMLProgressElement} */ (document.getElementById("sim-progress"));
     this.percent = document.getElementById("sim-percent");
     this.body = document.getElementById("sim-body");
@@ -30,6 +33,11 @@ export class SimulatePanel {
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "load") this.reset();
     });
+  }
+
+  /** @returns {boolean} a simulation of the document as it is now has finished (the 3D view can play it). */
+  get hasFlight() {
+    return this.flownVersion != null && this.flownVersion === this.state.version;
   }
 
   /** Stop following the job and clear the panel. */
@@ -72,6 +80,7 @@ export class SimulatePanel {
         controller: /** @type {HTMLSelectElement} */ (document.getElementById("sim-controller")).value,
         disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
       };
+      this.startedVersion = st.version;
       const job = await api.simulateShow(st.meta.id, options);
       this.job = job;
       this._update(job);
@@ -147,6 +156,9 @@ export class SimulatePanel {
       this._progress(p);
       this._message("muted", `Flying… ${Math.round(p * 100)}%`);
     } else if (job.state === "done") {
+      const fresh = this.flownVersion !== this.startedVersion;
+      this.flownVersion = this.startedVersion;
+      if (fresh && this.hooks.onFlown) this.hooks.onFlown();
       this._progress(1, "100%");
       this.cancelBtn.hidden = true;
       this._summary(job.result || {}, job.cached);

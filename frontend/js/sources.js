@@ -6,7 +6,7 @@ import * as api from "./api.js";
 import { toast } from "./dialogs.js";
 import { setError } from "./errors.js";
 import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
-import { repairSpacing } from "./spacing.js";
+import { closePairs, repairSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 
@@ -16,8 +16,29 @@ const PLANE_OF_VIEW = { front: "xz", top: "xy" };
 const SHAPE_PARAM = {
   polygon: { key: "sides", label: "Sides", value: 6, integer: true, min: 3 },
   star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
+  filled_star: { key: "points", label: "Tips", value: 5, integer: true, min: 2 },
   helix: { key: "turns", label: "Turns", value: 3, integer: false, min: 0.1 },
 };
+
+/** Uploaded files of this page session by name, to make their formations again at another count. */
+const uploads = new Map();
+
+/** A request body without the count and spacing (what a formation's `source.params` keeps). */
+function withoutCount(body) {
+  const { n: _n, min_spacing_m: _d, ...rest } = body;
+  return rest;
+}
+
+/**
+ * A cheap fingerprint of a point set: count and rounded coordinate sums. A formation whose points
+ * still have the fingerprint stored in its `source` was not edited by hand since it was made.
+ * @param {number[][]} points
+ */
+export function fingerprint(points) {
+  const sum = [0, 0, 0];
+  for (const p of points) for (let c = 0; c < 3; c++) sum[c] += p[c];
+  return `${points.length}:${sum.map((v) => v.toFixed(2)).join(",")}`;
+}
 
 /** Wires the source forms and the transform buttons to the open show. */
 export class Sources {
@@ -97,8 +118,72 @@ export class Sources {
     return p;
   }
 
+  /**
+   * The smallest size (to 2 %) at which a source yields all the drones at the minimum distance,
+   * by bisection over the formation endpoint (the size that fails is the lower bound).
+   * @param {string} source endpoint name @param {any} body request body @param {string} sizeKey
+   * @param {File} [file] @param {number} [maxN] the largest N that fits at body[sizeKey], if known
+   * @returns {Promise<number|null>} metres, or null if none up to 64x the size fits
+   */
+  async _sizeToFit(source, body, sizeKey, file, maxN) {
+    const fits = async (size) => {
+      try {
+        await api.buildFormation(source, { ...body, [sizeKey]: size }, file);
+        return true;
+      } catch (err) {
+        if (err.problems && err.problems[0] && err.problems[0].max_n != null) return false;
+        throw err;
+      }
+    };
+    let hi = body[sizeKey] * (maxN ? Math.max(1.05, body.n / maxN) : 1.5);
+    let lo = 0;
+    while (!(await fits(hi))) {
+      lo = hi;
+      hi *= 2;
+      if (hi > body[sizeKey] * 64) return null;
+    }
+    if (lo === 0) lo = (await fits(body[sizeKey])) ? 0 : body[sizeKey];
+    if (lo === 0) lo = body[sizeKey] / 64;
+    while (hi / lo > 1.02) {
+      const mid = Math.sqrt(lo * hi);
+      if (await fits(mid)) hi = mid;
+      else lo = mid;
+    }
+    return Math.ceil(hi * 10) / 10;
+  }
+
   _form(id, key, params) {
     const form = /** @type {HTMLFormElement} */ (document.getElementById(id));
+    const sizeKey = { shape: "size_m", text: "height_m", upload: "width_m" }[key];
+    const request = (fd) => {
+      const st = this.state;
+      const body = { ...params(fd), n: st.show.drones, min_spacing_m: st.show.settings.min_distance_m };
+      let source = key;
+      let file;
+      if (key === "upload") {
+        file = /** @type {File} */ (fd.get("file"));
+        if (!file || !file.name) throw new Error("Choose a PNG, JPEG or SVG file.");
+        source = /svg/i.test(file.type) || /\.svg$/i.test(file.name) ? "svg" : "image";
+      }
+      return { body, source, file };
+    };
+    const fitButton = form.querySelector(".fit-size");
+    fitButton?.addEventListener("click", async () => {
+      setError(key, "");
+      if (!this.state.formation) return setError(key, "Open or create a show first.");
+      fitButton.disabled = true;
+      try {
+        const { body, source, file } = request(new FormData(form));
+        const size = await this._sizeToFit(source, body, sizeKey, file);
+        if (size == null) return setError(key, `${body.n} drones do not fit even at 64 times this size: use fewer drones or a smaller minimum distance.`);
+        /** @type {HTMLInputElement} */ (form.elements.namedItem(sizeKey)).value = String(size);
+        toast(`${size} m fits ${body.n} drones at ${body.min_spacing_m} m`);
+      } catch (err) {
+        setError(key, err.message);
+      } finally {
+        fitButton.disabled = false;
+      }
+    });
     form.addEventListener("submit", async (e) => {
       e.preventDefault();
       setError(key, "");
@@ -119,9 +204,15 @@ export class Sources {
       try {
         const res = await api.buildFormation(source, body, file);
         const label = key === "shape" ? `Shape: ${body.kind}` : key === "text" ? `Text "${body.text.slice(0, 20)}"` : `From ${file.name}`;
+        const made = { kind: source, params: withoutCount(body) };
+        if (file) {
+          made.file = file.name;
+          uploads.set(file.name, file);
+        }
         st.edit(label, () => {
           st.formation.points = roundPoints(res.points);
           st.formation.colors = res.colors;
+          st.formation.source = { ...made, fingerprint: fingerprint(st.formation.points) };
           st.selection = new Set();
         });
         this.view.fit();
@@ -129,7 +220,12 @@ export class Sources {
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
-        if (p && p.max_n != null) msg = `${p.msg} (at most ${p.max_n} points fit at this size: make it bigger or use fewer drones)`;
+        if (p && p.max_n != null) {
+          // Say once what fits now and what size would fit them all.
+          const size = await this._sizeToFit(source, body, sizeKey, file, p.max_n).catch(() => null);
+          msg = `${body.n} drones do not fit at ${body[sizeKey]} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
+            (size != null ? ` ${size} m fits all ${body.n} ("Size to fit").` : " Use fewer drones or a smaller minimum distance.");
+        }
         setError(key, msg);
       } finally {
         button.disabled = false;
@@ -194,22 +290,90 @@ export class Sources {
     });
   }
 
-  /** Resample the formation to exactly the drone count, then repair its spacing. */
-  fitToN() {
+  /**
+   * Fit the current formation to exactly the drone count: made again from its source (text, shape,
+   * image) when it was not edited since, else the drawing resampled along its strokes and spread
+   * apart; never into a formation that breaks the minimum distance (a message says what fits).
+   */
+  async fitToN() {
     setError("transform", "");
     const st = this.state;
-    const f = st.formation;
-    if (!f) return;
+    if (!st.formation) return;
+    if (!st.formation.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
+    const msg = await this.fitFormation(st.current);
+    if (msg) setError("transform", msg);
+    else toast(`${st.show.drones} points`);
+  }
+
+  /** Fit every formation with fewer points than drones (see {@link fitFormation}); returns the messages. */
+  async fitAll() {
+    const st = this.state;
+    const msgs = [];
+    for (let k = 0; k < st.show.formations.length; k++) {
+      if (st.show.formations[k].points.length >= st.show.drones) continue;
+      const m = await this.fitFormation(k);
+      if (m) msgs.push(`"${st.show.formations[k].name}": ${m}`);
+    }
+    setError("transform", msgs.join(" "));
+    return msgs;
+  }
+
+  /**
+   * Fit formation `k` to the drone count (one undo step).
+   * @param {number} k
+   * @returns {Promise<string>} "" when done, else what is wrong and what would fit
+   */
+  async fitFormation(k) {
+    const st = this.state;
+    const f = st.show.formations[k];
     const n = st.show.drones;
-    if (!f.points.length) return setError("transform", "The formation is empty: draw or place some points first.");
-    st.edit(`Fit to ${n} drones`, () => {
-      const fit = fitToCount(f.points, f.colors, n);
-      const fixed = repairSpacing(fit.points, st.show.settings.min_distance_m, { plane: /** @type {[number, number]} */ (VIEW_AXES[this.view.view].slice(0, 2)) });
-      f.points = roundPoints(fixed.points);
-      f.colors = fit.colors;
-      st.selection = new Set();
+    const d = st.show.settings.min_distance_m;
+    const src = f.source;
+    const file = src && src.file ? uploads.get(src.file) : undefined;
+    if (src && src.fingerprint === fingerprint(f.points) && (!src.file || file)) {
+      const body = { ...src.params, n, min_spacing_m: d };
+      try {
+        const res = await api.buildFormation(src.kind, body, file);
+        st.edit(`Fit "${f.name}" to ${n} drones`, () => {
+          const g = st.show.formations[k];
+          g.points = roundPoints(res.points);
+          g.colors = res.colors;
+          g.source = { ...src, fingerprint: fingerprint(g.points) };
+          if (k === st.current) st.selection = new Set();
+        });
+        return "";
+      } catch (err) {
+        const p = err.problems && err.problems[0];
+        if (!p || p.max_n == null) return err.message;
+        const sizeKey = ["size_m", "height_m", "width_m"].find((key) => key in src.params);
+        const size = sizeKey ? await this._sizeToFit(src.kind, body, sizeKey, file, p.max_n).catch(() => null) : null;
+        return `${n} drones do not fit at ${sizeKey ? `${src.params[sizeKey]} m` : "this size"} with ${d} m between them: at most ${p.max_n} fit.` +
+          (size != null ? ` Make it ${size} m to fit all ${n}.` : "");
+      }
+    }
+    // A drawing (or an edited formation): resample it, spread it, and keep it only if it is spaced.
+    const plane = VIEW_AXES[this.view.view].slice(0, 2);
+    const fit = fitToCount(f.points, f.colors, n);
+    const fixed = repairSpacing(fit.points, d, { plane });
+    if (Number.isFinite(fixed.achieved)) {
+      // The largest count that keeps the spacing by resampling alone (bisection), and the scale for all.
+      let lo = 1;
+      let hi = n;
+      while (hi - lo > 1) {
+        const mid = (lo + hi) >> 1;
+        if (closePairs(fitToCount(f.points, f.colors, mid).points, d).pairs.length) hi = mid;
+        else lo = mid;
+      }
+      return `${n} points do not fit this drawing ${d} m apart (at most ${lo} do): scale it by ${Math.ceil((100 * n) / lo)}% first, or use fewer drones.`;
+    }
+    st.edit(`Fit "${f.name}" to ${n} drones`, () => {
+      const g = st.show.formations[k];
+      g.points = roundPoints(fixed.points);
+      g.colors = fit.colors;
+      delete g.source;
+      if (k === st.current) st.selection = new Set();
     });
-    toast(`${n} points`);
+    return "";
   }
 
   /** Push apart points closer than the minimum distance. */

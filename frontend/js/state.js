@@ -279,6 +279,28 @@ export class EditorState extends EventTarget {
     this._emit("selection");
   }
 
+  /**
+   * The undo and redo history as plain data (structured-clonable), newest last, at most `limit`
+   * steps each; with {@link importHistory} it outlives a page reload.
+   * @param {number} [limit]
+   */
+  exportHistory(limit = MAX_UNDO) {
+    return { undo: this.undoStack.slice(-limit), redo: this.redoStack.slice(-limit) };
+  }
+
+  /**
+   * Put back a history from {@link exportHistory} over the same document (just loaded). Its steps
+   * get versions no save has, so undoing into them marks the document unsaved.
+   * @param {{undo: any[], redo: any[]}} history
+   */
+  importHistory(history) {
+    if (!this.show || !history || !Array.isArray(history.undo) || !Array.isArray(history.redo)) return;
+    const renumber = (snap) => ({ ...snap, version: this._nextVersion++ });
+    this.undoStack = history.undo.map(renumber);
+    this.redoStack = history.redo.map(renumber);
+    this._emit("history");
+  }
+
   /** Tell listeners the document changed during a live (uncommitted) edit, e.g. a drag. */
   touch() {
     this._emit("live");

@@ -65,7 +65,10 @@ export class Timeline {
     this.ends = [];
     state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "load") this.setCheck(0, [], []);
-      if (e.detail.kind !== "selection" && e.detail.kind !== "live") this.render();
+      // Switching formations only moves the highlight: rebuilding the cards would replace the
+      // input that keyboard focus just reached (losing its select-all, so typing appended).
+      if (e.detail.kind === "current") this._markCurrent();
+      else if (e.detail.kind !== "selection" && e.detail.kind !== "live") this.render();
     });
   }
 
@@ -154,6 +157,14 @@ export class Timeline {
     });
   }
 
+  /** Move the current-formation highlight to `state.current` without rebuilding the list. */
+  _markCurrent() {
+    for (const li of this.list.querySelectorAll(".tl-card")) {
+      if (Number(/** @type {HTMLElement} */ (li).dataset.index) === this.state.current) li.setAttribute("aria-current", "true");
+      else li.removeAttribute("aria-current");
+    }
+  }
+
   /** Rebuild the list. */
   render() {
     const st = this.state;
@@ -238,11 +249,13 @@ export class Timeline {
     name.value = f.name;
     name.maxLength = 200;
     name.setAttribute("aria-label", `Name of formation ${k + 1}`);
-    name.addEventListener("change", () => {
+    // Edits wait for the focus move that committed them (Tab fires change before the focus
+    // moves): the rebuild then puts focus back on the rebuilt control the user tabbed to.
+    name.addEventListener("change", () => setTimeout(() => {
       const v = name.value.trim();
       if (!v) { name.value = f.name; return; }
       st.edit("Rename formation", () => { st.show.formations[k].name = v; });
-    });
+    }));
 
     const meta = document.createElement("div");
     meta.className = "tl-meta";
@@ -254,11 +267,11 @@ export class Timeline {
     hold.step = "0.5";
     hold.value = String(f.hold_s);
     hold.setAttribute("aria-label", `Hold time of formation ${k + 1}, seconds`);
-    hold.addEventListener("change", () => {
+    hold.addEventListener("change", () => setTimeout(() => {
       const v = Number(hold.value);
       if (!(v > 0)) { hold.value = String(f.hold_s); return; }
       st.edit("Change hold time", () => { st.show.formations[k].hold_s = v; });
-    });
+    }));
     holdLabel.append(" ", hold, " s");
     const count = document.createElement("span");
     const n = f.points.length;
@@ -285,7 +298,9 @@ export class Timeline {
       li.append(err);
     }
     li.addEventListener("click", (e) => {
-      if (e.target === li || e.target === sw || e.target === meta || e.target === count) st.setCurrent(k);
+      // Anywhere on the card but its own controls (the problem text too) selects the formation.
+      const t = /** @type {HTMLElement} */ (e.target);
+      if (!t.closest("input, button, select, textarea")) st.setCurrent(k);
     });
     li.addEventListener("focusin", () => { if (st.current !== k) st.setCurrent(k); });
     li.addEventListener("dragstart", (e) => {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from sim.verify._bounds import check_bounds as check_bounds
 from sim.verify._check import CheckReport as CheckReport
 from sim.verify._check import ClosePairs as ClosePairs
 from sim.verify._check import FixHint as FixHint

@@ -193,6 +193,10 @@ def pair_minima(
             ta, tb = t0[q], t1[q]
             cut = cutoff2[q]
             p_count = breaks.shape[1] - 1
+            # Past its last break a drone rests, so the distance is constant there: clamp the
+            # window to both drones' spans (a window end one ulp past them, from summed
+            # durations, would otherwise never be reached by the piece walk below).
+            tb = max(ta, min(tb, breaks[i, p_count], breaks[j, p_count]))
             a_ = piece_at(breaks, i, ta)
             b_ = piece_at(breaks, j, ta)
             t = ta
@@ -219,10 +223,13 @@ def pair_minima(
                 if e >= tb:
                     break
                 t = e
+                a_prev, b_prev = a_, b_
                 while a_ < p_count - 1 and breaks[i, a_ + 1] <= t:
                     a_ += 1
                 while b_ < p_count - 1 and breaks[j, b_ + 1] <= t:
                     b_ += 1
+                if a_ == a_prev and b_ == b_prev and e <= t and breaks[i, a_ + 1] <= t and breaks[j, b_ + 1] <= t:
+                    break  # both drones past their last piece: nothing left to walk
             out_d2[q] = best
             out_t[q] = tbest
 
