@@ -166,7 +166,7 @@ def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     crosses = (a[:, 1] > y) != (b[:, 1] > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         x_at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    return (crosses & (x < x_at)).sum(axis=1) % 2 == 1
+    return np.asarray((crosses & (x < x_at)).sum(axis=1) % 2 == 1, dtype=np.bool_)
 
 
 def _hex_lattice(step: float, half: float) -> np.ndarray:
@@ -188,7 +188,7 @@ def _fill(inside: Callable[[np.ndarray], np.ndarray], n: int, size: float) -> np
 
     def lattice(step: float) -> np.ndarray:
         pts = _hex_lattice(step, half)
-        return pts[inside(pts)]
+        return np.asarray(pts[inside(pts)], dtype=np.float64)
 
     # First guess from the region's area (counted on a fine lattice), then walk to the sparsest fit.
     fine = size / 60.0

@@ -119,11 +119,13 @@ class _Playback:
         self.last_pair: tuple[int, int, float] = (-1, -1, float("inf"))
         if self.headless:
             # No GUI: the display toggles are a namespace with every toggle on.
-            on = _Toggle(True)
+            # (Typed Any like the viser handles they stand in for: viser has no type information.)
+            on: Any = _Toggle(True)
             self._targets_cb = self._trails_cb = self._pair_cb = self._homes_cb = self._loop_cb = on
             # No widgets either: _set_gui ignores writes to them.
-            self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = self._camera_dd = None
-            self._readout = self._progress = self._busy_md = None
+            none: Any = None
+            self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = self._camera_dd = none
+            self._readout = self._progress = self._busy_md = none
         else:
             self._setup_scene()
             self._setup_gui()

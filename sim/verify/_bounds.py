@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from formations import Settings
-from sim.plan import ShowPlan
+from sim.plan import ShowPlan, Trajectories
 from sim.verify._check import Violation
 
 #: A bound is broken only by more than this (metres), like the other checks' float tolerance.
@@ -61,7 +61,7 @@ def _critical_points(coeffs: np.ndarray) -> np.ndarray:
     return out
 
 
-def piece_extremes(plan_motion, start_s: np.ndarray, end_s: np.ndarray) -> tuple[np.ndarray, ...]:
+def piece_extremes(plan_motion: Trajectories, start_s: np.ndarray, end_s: np.ndarray) -> tuple[np.ndarray, ...]:
     """Exact minimum and maximum of x, y, z of every drone's piece over [start_s, end_s].
 
     Args:
