@@ -47,7 +47,7 @@ export class ExportMenu {
       if (saved !== null) el.value = saved;
       el.addEventListener("change", () => localStorage.setItem(`swarmshow.export.${key}`, el.value));
     }
-    state.addEventListener("change", (e) => {
+    state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "load" || e.detail.kind === "edit") this._showGeo();
     });
   }

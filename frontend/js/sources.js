@@ -121,7 +121,7 @@ export class Sources {
   /**
    * The smallest size (to 2 %) at which a source yields all the drones at the minimum distance,
    * by bisection over the formation endpoint (the size that fails is the lower bound).
-   * @param {string} source endpoint name @param {any} body request body @param {string} sizeKey
+   * @param {"shape"|"text"|"image"|"svg"} source endpoint name @param {any} body request body @param {string} sizeKey
    * @param {File} [file] @param {number} [maxN] the largest N that fits at body[sizeKey], if known
    * @returns {Promise<number|null>} metres, or null if none up to 64x the size fits
    */
@@ -167,7 +167,7 @@ export class Sources {
       }
       return { body, source, file };
     };
-    const fitButton = form.querySelector(".fit-size");
+    const fitButton = /** @type {HTMLButtonElement|null} */ (form.querySelector(".fit-size"));
     fitButton?.addEventListener("click", async () => {
       setError(key, "");
       if (!this.state.formation) return setError(key, "Open or create a show first.");
@@ -352,7 +352,7 @@ export class Sources {
       }
     }
     // A drawing (or an edited formation): resample it, spread it, and keep it only if it is spaced.
-    const plane = VIEW_AXES[this.view.view].slice(0, 2);
+    const plane = /** @type {[number, number]} */ (VIEW_AXES[this.view.view].slice(0, 2));
     const fit = fitToCount(f.points, f.colors, n);
     const fixed = repairSpacing(fit.points, d, { plane });
     if (Number.isFinite(fixed.achieved)) {
