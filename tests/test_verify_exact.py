@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from app.cli import main as cli
 from sim import check_plan, plan_show
-from sim.plan._plan import TransitionInfo, trajectories_from_knots
+from sim.plan._plan import trajectories_from_knots
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 from sim.verify import _poly, piece_extrema, segment_close_pairs, window_close_pairs
 from tests.conftest import fibonacci_sphere, make_show, ring
