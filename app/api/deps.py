@@ -54,7 +54,7 @@ def client_id(request: Request) -> str:
     ``X-Swarmshow-Client`` header (a random id a client may send to keep its tabs or
     scripts apart), else the peer address.
     """
-    from app.server._auth import COOKIE
+    from app.web import COOKIE
 
     cookie = request.cookies.get(COOKIE)
     if cookie:

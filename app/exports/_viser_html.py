@@ -29,7 +29,7 @@ import numpy as np
 import viser
 
 from app.exports._archive import safe_stem
-from app.exports._core import ExportContext, ExportResult
+from app.exports._core import ExportContext, ExportError, ExportResult
 from app.exports._tracks import framing_camera, make_track, show_bounds
 from sim import ShowPlan
 from sim.geometry import closest_pair
@@ -183,8 +183,6 @@ def export_viser_html_file(ctx: ExportContext) -> ExportResult:
     try:
         html = export_viser_html(ctx.plan, flight=flight, source=options.source, fps=options.fps)
     except ExportBudgetError as exc:
-        from app.exports import ExportError
-
         raise ExportError(str(exc)) from None
     ctx.progress(1.0)
     return ExportResult(

@@ -19,6 +19,8 @@ const KIND_NAMES = {
   speed_z: "Vertical speed",
   acceleration: "Acceleration",
   altitude: "Altitude",
+  min_altitude: "Below the altitude floor",
+  geofence: "Outside the geofence",
   transition_duration: "Transition too short",
 };
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from formations import Settings
 from sim.plan import ShowPlan, Trajectories
-from sim.verify._check import Violation
+from sim.verify._violation import Violation
 
 #: A bound is broken only by more than this (metres), like the other checks' float tolerance.
 _TOL_M = 1e-9

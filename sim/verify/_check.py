@@ -52,6 +52,8 @@ from formations import ShowFile
 from sim.plan._plan import ShowPlan
 from sim.plan._trajectory import Trajectories
 from sim.verify import _poly
+from sim.verify._bounds import check_bounds
+from sim.verify._violation import Violation
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
 _TOL = 1e-9
@@ -68,18 +70,6 @@ _CELLS_PER_SLICE = 4
 _MAX_CELLS = 8192
 #: Bound on (slice, drone) positions evaluated at once, to bound memory.
 _EVAL_BUDGET = 1 << 19
-
-
-class Violation(BaseModel):
-    """One broken limit: which drones, when, the value and the limit."""
-
-    kind: str = Field(description="min_distance, speed_xy, speed_z, acceleration, altitude or transition_duration.")
-    drones: list[int] = Field(description="Drone indices involved (for speeds: the worst first, at most 10).")
-    time_s: float = Field(description="When the value is reached, seconds from the start of the show.")
-    value: float = Field(description="The offending value (metres, m/s, m/s² or seconds).")
-    limit: float = Field(description="The limit it breaks, same unit.")
-    segment: int = Field(description="Index of the show segment.")
-    message: str = Field(description="One human-readable line.")
 
 
 class CaptPremise(BaseModel):
@@ -428,6 +418,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
                 f"the limits need at least {tr.min_duration_s:.1f} s",
             ))
 
+    # The altitude floor (outside takeoff and landing) and the geofence, exact per piece.
+    violations.extend(check_bounds(plan, plan.settings))
     violations.sort(key=lambda v: (v.time_s, v.kind))
     groups = _by_transition(plan, violations, seg_min)
     min_d, pair, t_min = best
@@ -539,8 +531,9 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
             fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")
         elif kind in ("takeoff", "landing"):
             fixes.append(f"space the home positions at least {limit_m} m apart")
-        elif not _get(tr, "resolution", ""):
-            # CAPT's guarantee (Turpin et al. 2014): min(start, goal spacing)/√2.
+        else:
+            # CAPT's guarantee (Turpin et al. 2014): min(start, goal spacing)/√2. It holds whatever
+            # timing the planner chose, since with that spacing synchronised lines are already safe.
             a = "the home grid" if src == "takeoff" else f"formation {src!r}"
             b = "the home grid" if dst == "landing" else f"formation {dst!r}"
             fixes.append(f"space the points of {a} and {b} at least {limit_m * math.sqrt(2):.2f} m apart "
