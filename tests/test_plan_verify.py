@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 
 from app.cli import main as cli
 from sim import assign, check_plan, check_show, plan_show, segment_close_pairs
+from sim.plan._plan import trajectories_from_knots
 from tests.conftest import fibonacci_sphere, make_show, ring
 
 
@@ -117,7 +119,13 @@ def test_too_close_goals_are_reported_with_drones_and_time(tmp_path) -> None:
     """Formations exactly 3 m apart: CAPT only promises 3/√2, and the check names who gets closer."""
     show = make_show([{"name": "ring", "hold_s": 1.0, "points": ring(30, 3.0001 / (2 * np.sin(np.pi / 30)))}],
                      drones=30, rows=5, cols=6, spacing_m=3.0)
-    plan = plan_show(show)
+    # The planner now times drones apart (tests/test_plan_schedule.py); flown on CAPT's synchronised
+    # lines between the same knots, as the first wave planned it, pairs come closer and are named.
+    planned = plan_show(show)
+    assert check_plan(planned).ok
+    plan = dataclasses.replace(
+        planned, trajectories=trajectories_from_knots(planned.knot_times_s, planned.knot_positions_m)
+    )
     report = check_plan(plan)
     assert not report.ok
     v = min((v for v in report.violations if v.kind == "min_distance"), key=lambda v: v.value)
@@ -128,7 +136,9 @@ def test_too_close_goals_are_reported_with_drones_and_time(tmp_path) -> None:
     f = tmp_path / "show.json"
     from formations import dump_show
 
-    f.write_text(dump_show(show))
+    # A forced transition far shorter than the limits allow stays unsafe whatever the timing: exit 1.
+    forced = show.model_copy(update={"formations": [show.formations[0].model_copy(update={"transition_s": 1.0})]})
+    f.write_text(dump_show(forced))
     assert cli(["check", str(f), "--json"]) == 1
 
 
