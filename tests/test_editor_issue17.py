@@ -160,15 +160,15 @@ def test_bug3_points_below_the_floor_are_flagged_and_the_save_error_goes_away(ui
 
 def test_bug8_a_shape_that_does_not_fit_says_once_what_size_fits(ui: Page):
     page = ui.page
-    _create_show(ui, "Too small", 200)
+    _create_show(ui, "Too small", 100)
     page.select_option("#shape-kind", "circle")
     page.fill("#shape-size", "20")
     page.get_by_role("button", name="Replace the formation with this shape").click()
     err = page.locator('[data-error-for="shape"]')
-    expect(err).to_contain_text("fits all 200", timeout=30_000)
+    expect(err).to_contain_text("fits all 100", timeout=30_000)
     text = err.inner_text()
     assert text.count("at most") == 1 and "largest N" not in text and "make it bigger" not in text
-    size = float(text.split(" m fits all 200")[0].rsplit(" ", 1)[1])
+    size = float(text.split(" m fits all 100")[0].rsplit(" ", 1)[1])
     assert size > 20
     # "Size to fit" finds (about) that size and the shape then builds with every drone.
     page.get_by_role("button", name="Size the shape to fit all drones at the minimum distance").click()
@@ -177,9 +177,11 @@ def test_bug8_a_shape_that_does_not_fit_says_once_what_size_fits(ui: Page):
     assert fitted == pytest.approx(size, rel=0.05)
     page.get_by_role("button", name="Replace the formation with this shape").click()
     page.wait_for_function("() => window.swarmshow.state.undoStack.at(-1)?.label.startsWith('Shape')")
-    assert ui.state("s.formation.points.length") == 200
-    # A circle's circumference holds 200 points 3 m apart from a diameter of 200·3/π ≈ 191 m.
-    assert 190 <= fitted <= 200
+    assert ui.state("s.formation.points.length") == 100
+    # A circle's circumference holds 100 points 3 m apart from a diameter of 100·3/π ≈ 95.5 m, and
+    # "Size to fit" raised its centre so that it stays above the altitude floor.
+    assert 95 <= fitted <= 100
+    assert float(page.input_value("#shape-z")) >= fitted / 2 + 2.5
 
 
 def test_bug8_bug10_export_origin_lives_in_the_show(ui: Page, tmp_path):

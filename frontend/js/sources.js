@@ -132,6 +132,9 @@ export class Sources {
         return true;
       } catch (err) {
         if (err.problems && err.problems[0] && err.problems[0].max_n != null) return false;
+        // Refused for another reason at this size (e.g. it reaches below the ground around the
+        // current centre): the drones fit at the spacing; placing it is the next message's job.
+        if (err.status === 422) return true;
         throw err;
       }
     };
@@ -177,6 +180,13 @@ export class Sources {
         const size = await this._sizeToFit(source, body, sizeKey, file);
         if (size == null) return setError(key, `${body.n} drones do not fit even at 64 times this size: use fewer drones or a smaller minimum distance.`);
         /** @type {HTMLInputElement} */ (form.elements.namedItem(sizeKey)).value = String(size);
+        // Keep the resized drawing above the altitude floor: its centre at least half the size up.
+        const zInput = /** @type {HTMLInputElement|null} */ (form.elements.namedItem("z"));
+        const settings = this.state.show.settings;
+        const floor = settings.min_altitude_m ?? 0;
+        if (zInput && sizeKey !== "width_m" && Number(zInput.value) < size / 2 + floor) {
+          zInput.value = String(Math.min(Math.ceil(size / 2 + floor), settings.max_altitude_m - size / 2));
+        }
         toast(`${size} m fits ${body.n} drones at ${body.min_spacing_m} m`);
       } catch (err) {
         setError(key, err.message);

@@ -295,9 +295,25 @@ export class EditorState extends EventTarget {
    */
   importHistory(history) {
     if (!this.show || !history || !Array.isArray(history.undo) || !Array.isArray(history.redo)) return;
-    const renumber = (snap) => ({ ...snap, version: this._nextVersion++ });
-    this.undoStack = history.undo.map(renumber);
-    this.redoStack = history.redo.map(renumber);
+    // Steps are diffs between versions: the chain is renumbered so that the step next to the
+    // document (the top of each stack) meets the loaded version and every other version is new
+    // (no save has it, so undoing into one marks the document unsaved).
+    const undo = history.undo.map((step) => ({ ...step }));
+    const redo = history.redo.map((step) => ({ ...step }));
+    let v = this.version;
+    for (let i = undo.length - 1; i >= 0; i--) {
+      undo[i].versionAfter = v;
+      v = this._nextVersion++;
+      undo[i].versionBefore = v;
+    }
+    v = this.version;
+    for (let i = redo.length - 1; i >= 0; i--) {
+      redo[i].versionBefore = v;
+      v = this._nextVersion++;
+      redo[i].versionAfter = v;
+    }
+    this.undoStack = undo;
+    this.redoStack = redo;
     this._emit("history");
   }
 
