@@ -298,7 +298,10 @@ def test_canvas_tools_and_violation_selection(ui: Page, small_show):
     from formations import dump_show
 
     doc = json.loads(dump_show(small_show))
-    doc["home"]["grid"]["spacing_m"] = 3.0  # below CAPT's guarantee: takeoff brings drones too close
+    doc["home"]["grid"]["spacing_m"] = 3.0
+    # Forced far too short for the limits: the planner flies it as asked and the check names the
+    # drones that go too fast (formations drawn too close no longer fail: the planner separates them).
+    doc["formations"][1]["transition_s"] = 2.0
     doc["formations"][1]["points"] = [[p[0] * 0.7, p[1] * 0.7, 50 + (p[2] - 50) * 0.7]
                                       for p in doc["formations"][1]["points"]]
     rec = httpx.post(f"{ui.base}/api/shows", json=doc)
