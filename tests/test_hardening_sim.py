@@ -55,7 +55,7 @@ def test_saturated_rotors_through_the_api(client):
     """A show whose limits ask for 40 m/s² and 40 m/s: far beyond what the quadrotor's rotors give."""
     doc = {**SHOW, "name": "too fast",
            "settings": {"max_speed_xy_mps": 40.0, "max_speed_z_mps": 40.0, "max_accel_mps2": 40.0,
-                        "takeoff_altitude_m": 3.0},
+                        "max_jerk_mps3": 1000.0, "takeoff_altitude_m": 3.0},
            "formations": [SHOW["formations"][0],
                           {"name": "far", "hold_s": 1.0, "color": "#00ff00",
                            "points": [[80, 0, 60], [85, 0, 60], [80, 0, 65], [85, 0, 65]]}]}
