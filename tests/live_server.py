@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -9,7 +10,9 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -102,3 +105,27 @@ class ServerProcess:
         except subprocess.TimeoutExpired:
             pass
         self.crash()
+
+
+@contextlib.contextmanager
+def running_server(data_dir: Path, **kwargs: Any) -> Iterator[str]:
+    """A started :class:`ServerProcess` (keyword arguments as its constructor's); yields its base URL."""
+    srv = ServerProcess(data_dir, **kwargs)
+    srv.start()
+    try:
+        yield srv.base
+    finally:
+        srv.stop()
+
+
+@contextlib.contextmanager
+def chromium_browser(*args: str) -> Iterator[object]:
+    """Debian's chromium under Playwright, headless, with extra command-line ``args``."""
+    from playwright import sync_api
+
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=list(args))
+        try:
+            yield b
+        finally:
+            b.close()

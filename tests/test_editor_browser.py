@@ -10,7 +10,7 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, CHROMIUM, SHOTS, ServerProcess
+from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, running_server
 
 pytestmark = BROWSER_MARKS
 
@@ -20,22 +20,14 @@ sync_api = pytest.importorskip("playwright.sync_api")
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """`swarmshow serve` (viewer on, for the 3D preview) on a free loopback port with an empty store."""
-    srv = ServerProcess(tmp_path_factory.mktemp("editor-data"), viewer=True)
-    srv.start()
-    try:
-        yield srv.base
-    finally:
-        srv.stop()
+    with running_server(tmp_path_factory.mktemp("editor-data"), viewer=True) as base:
+        yield base
 
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True)
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium_browser() as b:
+        yield b
 
 
 class Page:

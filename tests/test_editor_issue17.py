@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, CHROMIUM, ServerProcess
+from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -17,22 +17,14 @@ expect = sync_api.expect
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """`swarmshow serve` (viewer on) on a free loopback port with an empty store."""
-    srv = ServerProcess(tmp_path_factory.mktemp("issue17-data"), viewer=True)
-    srv.start()
-    try:
-        yield srv.base
-    finally:
-        srv.stop()
+    with running_server(tmp_path_factory.mktemp("issue17-data"), viewer=True) as base:
+        yield base
 
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True)
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium_browser() as b:
+        yield b
 
 
 @pytest.fixture

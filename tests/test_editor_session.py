@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, CHROMIUM, ServerProcess
+from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = [*BROWSER_MARKS, pytest.mark.slow]
@@ -22,22 +22,14 @@ DRONES = 300
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    srv = ServerProcess(tmp_path_factory.mktemp("session-data"), viewer=True, workers=2)
-    srv.start()
-    try:
-        yield srv.base
-    finally:
-        srv.stop()
+    with running_server(tmp_path_factory.mktemp("session-data"), viewer=True, workers=2) as base:
+        yield base
 
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True)
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium_browser() as b:
+        yield b
 
 
 def _open(ui: Page, summary: str) -> None:

@@ -1,4 +1,4 @@
-"""Quintic time law (spec section 3; Mueller, Hehn & D'Andrea 2015, eqs. 15-19).
+"""Quintic time law (docs/method.md; Mueller, Hehn & D'Andrea 2015, eqs. 15-19).
 
 Two forms of the same polynomial:
 
