@@ -305,7 +305,7 @@ def test_bug9_altitude_floor_and_geofence_in_settings_and_on_the_canvas(ui: Page
     page.dispatch_event("#set-floor", "change")
     assert ui.state("s.show.settings.min_altitude_m") == 0.4
     expect(page.locator("#st-spacing")).to_contain_text("✓")
-    assert "min altitude 0.4 m" in page.evaluate("() => window.swarmshow.view.drawnLimits")
+    page.wait_for_function("() => window.swarmshow.view.drawnLimits.includes('min altitude 0.4 m')")
     # A geofence: all four edges make one undoable setting; it is drawn in both views.
     page.fill("#set-fx0", "-50")
     page.dispatch_event("#set-fx0", "change")
@@ -315,6 +315,9 @@ def test_bug9_altitude_floor_and_geofence_in_settings_and_on_the_canvas(ui: Page
         page.dispatch_event(sel, "change")
     assert ui.state("s.show.settings.geofence") == {"x_min_m": -50, "x_max_m": 50, "y_min_m": -10, "y_max_m": 30}
     page.select_option("#view-select", "top")
+    # The view redraws on the next animation frame: wait for it, then read what it drew.
+    page.wait_for_function("() => window.swarmshow.view.view === 'top' && "
+                           "!window.swarmshow.view.drawnLimits.some((t) => t.startsWith('min altitude'))")
     limits = page.evaluate("() => window.swarmshow.view.drawnLimits")
     assert limits == ["geofence x -50..50 m, y -10..30 m"]
     ui.shot("issue17-geofence-top")
