@@ -33,6 +33,7 @@ from sim.plan._schedule import (
     Limits,
     Schedule,
     TransitionPlan,
+    UnresolvedConflict,
     plan_transition,
     required_distance,
     round_up,
@@ -73,16 +74,6 @@ class Segment:
     def end_s(self) -> float:
         """End time, seconds."""
         return self.start_s + self.duration_s
-
-
-@dataclass(frozen=True)
-class UnresolvedConflict:
-    """A conflict the planner could not resolve: the drones, when (show time, s), why, and what would fix it."""
-
-    drones: tuple[int, ...]
-    time_s: float
-    reason: str
-    fix: str
 
 
 @dataclass(frozen=True)
@@ -357,7 +348,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             stagger_s=tp.stagger_s,
             resolution=tp.resolution,
             unresolved=tuple(
-                UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in tp.unresolved
+                replace(u, time_s=t0 + u.time_s) for u in tp.unresolved
             ),
         )
         return end, info

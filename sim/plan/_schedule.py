@@ -104,8 +104,9 @@ class Limits:
 
 
 @dataclass(frozen=True)
-class Unresolved:
-    """What could not be made safe: drones, when (s, window-local until shifted), why, and a fix."""
+class UnresolvedConflict:
+    """What could not be made safe: the drones, when (s; local to the window inside the scheduler,
+    show time once the plan places it), why, and what would fix it."""
 
     drones: tuple[int, ...]
     time_s: float
@@ -131,7 +132,7 @@ class Schedule:
     profiles: Profiles
     sync_s: float
     window_s: float
-    unresolved: tuple[Unresolved, ...]
+    unresolved: tuple[UnresolvedConflict, ...]
 
     @property
     def stagger_s(self) -> float:
@@ -396,7 +397,7 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
     dep, row, scale, arr, failed, fail_other, fail_time = best[1]
     window = round_up(max(sync_s, float(arr.max()) if n else 0.0))
     unresolved = tuple(
-        Unresolved(
+        UnresolvedConflict(
             drones=(int(i), int(fail_other[i])) if fail_other[i] >= 0 else (int(i),),
             time_s=float(fail_time[i]),
             reason=f"drone {int(i)} cannot keep {min_distance_m:g} m from drone {int(fail_other[i])} by waiting "
@@ -477,11 +478,11 @@ class TransitionPlan:
         return max(0.0, self.window_s - self.sync_s)
 
     @property
-    def unresolved(self) -> tuple[Unresolved, ...]:
-        out: list[Unresolved] = []
+    def unresolved(self) -> tuple[UnresolvedConflict, ...]:
+        out: list[UnresolvedConflict] = []
         t0 = 0.0
         for leg in self.legs:
-            out += [Unresolved(u.drones, t0 + u.time_s, u.reason, u.fix) for u in leg.unresolved]
+            out += [UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in leg.unresolved]
             t0 += leg.window_s
         return tuple(out)
 
@@ -667,7 +668,7 @@ __all__ = [
     "Limits",
     "Schedule",
     "TransitionPlan",
-    "Unresolved",
+    "UnresolvedConflict",
     "plan_transition",
     "schedule_transition",
     "sync_conflicts",
