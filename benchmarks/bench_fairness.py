@@ -20,7 +20,6 @@ import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -31,17 +30,13 @@ import httpx
 import numpy as np
 import pytest
 
+from tests.live_server import free_port
+
 pytestmark = pytest.mark.slow
 
 DURATION_S = float(os.environ.get("SWARMSHOW_BENCH_S", "30"))
 QUEUED = 64
 P99_TARGET_MS = float(os.environ.get("SWARMSHOW_BENCH_FAIR_P99_MS", "1000"))
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _demo() -> dict:
@@ -75,7 +70,7 @@ def _keep_queue_full(base: str, sid: str, stop: threading.Event, out: dict) -> N
 
 
 def test_bench_fairness_interactive_while_64_simulations_queued(tmp_path, record_result) -> None:
-    port = _free_port()
+    port = free_port()
     exe = shutil.which("swarmshow", path=str(Path(sys.executable).parent))
     cmd = [exe] if exe else [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main())"]
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "SWARMSHOW_VIEWER": "false", "SWARMSHOW_MAX_JOBS_PER_CLIENT": "64",
