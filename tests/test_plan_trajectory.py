@@ -112,3 +112,20 @@ def test_piece_lookup_is_exact_for_large_fleets_and_long_shows() -> None:
     assert idx.shape == (3, n)
     np.testing.assert_array_equal(idx[:, -1], [0, 1, 1])
     assert (idx == idx[:, :1]).all()
+
+
+def test_planned_motion_ends_exactly_at_the_last_knot() -> None:
+    """Summed piece durations round; the plan's motion must still end at its last window boundary."""
+    from sim import plan_show
+    from tests.conftest import fibonacci_sphere, make_show, ring
+
+    show = make_show(
+        [
+            {"name": "ring", "hold_s": 2.0, "points": ring(12, 6.0, center=(0, 0, 20))},
+            {"name": "ball", "hold_s": 2.0, "points": fibonacci_sphere(12, 3.5, center=(5, 3, 25))},
+        ],
+        drones=12, rows=3, cols=4, spacing_m=3.0,
+    )
+    plan = plan_show(show)
+    assert plan.motion.end_s == plan.knot_times_s[-1]
+    assert (plan.motion.breaks_s[:, -1] == plan.knot_times_s[-1]).all()

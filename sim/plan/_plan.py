@@ -221,7 +221,7 @@ def trajectories_from_knots(knot_times_s: np.ndarray, knot_positions_m: np.ndarr
     for k in range(len(knot_times_s) - 1):
         dur = np.full(n, float(knot_times_s[k + 1] - knot_times_s[k]))
         builder.append(dur, rest_to_rest_quintic_coeffs(knot_positions_m[k], knot_positions_m[k + 1], dur))
-    return builder.build()
+    return builder.build(end_s=float(knot_times_s[-1]))
 
 
 def _closest_distance(points: np.ndarray) -> float:
@@ -421,7 +421,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         transitions=tuple(transitions),
         settings=s,
         show_name=show.name,
-        trajectories=builder.build(),
+        trajectories=builder.build(end_s=times[-1]),
     )
 
 

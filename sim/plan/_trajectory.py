@@ -223,15 +223,22 @@ class TrajectoryBuilder:
             raise ValueError("hold_until goes back in time")
         self.append(np.maximum(t - self._time_s, 0.0), self._pos_m[..., None])
 
-    def build(self) -> Trajectories:
-        """The trajectories so far; every drone must end at the same time (use :meth:`hold_until`)."""
+    def build(self, end_s: float | None = None) -> Trajectories:
+        """The trajectories so far; every drone must end at the same time (use :meth:`hold_until`).
+
+        ``end_s``: the show's end as its caller keeps it (e.g. the last knot time). Piece
+        durations summed per drone can round an ulp away from it; the last break is snapped
+        to it, so the motion and the plan's windows end at the very same instant.
+        """
         if not self._coeffs:
             self.hold_until(self._time_s)
         end = self._time_s
         if np.ptp(end) > 1e-9:
             raise ValueError("drones end at different times; hold them until a common end first")
+        if end_s is not None and abs(end_s - end.max()) > 1e-9 * max(1.0, abs(end_s)):
+            raise ValueError(f"the pieces end at {end.max()} s, not at end_s = {end_s} s")
         breaks = np.stack(self._breaks, axis=1)
-        breaks[:, -1] = end.max()
+        breaks[:, -1] = end.max() if end_s is None else end_s
         return Trajectories(breaks, np.stack(self._coeffs, axis=1))
 
 
