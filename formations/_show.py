@@ -592,3 +592,42 @@ def dump_show(show: ShowFile, *, indent: int | None = 2) -> str:
 def show_json_schema() -> dict[str, Any]:
     """JSON Schema of the show file format."""
     return ShowFile.model_json_schema()
+
+
+_AXES = {0: "x", 1: "y", 2: "z"}
+_NAMED_LISTS = {"formations": "formation", "points": "point", "colors": "colour", "lights": "light",
+                "home": "home position"}
+
+
+def plain_path(path: str, show: Any = None) -> str:
+    """A show file path in plain words: 'formations[1].points[5][2]' -> 'formation 2 "Heart", point 6, z'.
+
+    Indices count from 1 as people do; a formation is named when ``show`` (the document) has its name.
+    """
+    words: list[str] = []
+    last = ""
+    pending = ""  # a list's name, said only if no index follows ("points" alone stays "points")
+    node = show
+    for key, index in re.findall(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]", path):
+        if key:
+            if pending:
+                words.append(pending)
+            last = key
+            node = node.get(key) if isinstance(node, dict) else None
+            pending = key.replace("_", " ") if key in _NAMED_LISTS else ""
+            if key not in _NAMED_LISTS:
+                words.append(key.replace("_", " "))
+            continue
+        pending = ""
+        i = int(index)
+        node = node[i] if isinstance(node, list) and i < len(node) else None
+        if last == "points" and words and words[-1].startswith("point "):
+            words.append(_AXES.get(i, f"coordinate {i + 1}"))
+            continue
+        label = f"{_NAMED_LISTS.get(last, last.replace('_', ' '))} {i + 1}"
+        if last == "formations" and isinstance(node, dict) and isinstance(node.get("name"), str):
+            label += f' "{node["name"]}"'
+        words.append(label)
+    if pending:
+        words.append(pending)
+    return ", ".join(words) or "the show"

@@ -1,7 +1,9 @@
 """Issue 17's scripted session: a 300-drone show of four formations (text, image, filled preset,
-freehand) built through the editor in Chromium, checked, simulated, previewed as flown from the
-audience camera in two tabs that keep their own time, and exported. Screenshots go to
-tests/screenshots/session-*.png; every request stays on loopback; page errors fail it."""
+freehand) built through the editor in Chromium, saved as a draft while half-finished, fixed,
+checked, simulated, previewed as flown from the audience camera in two tabs that keep their own
+time, and exported (slow). A short variant (drafts, check, export) runs in ``make test``.
+Screenshots go to tests/screenshots/session-*.png; every request stays on loopback; page errors
+fail it."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import pytest
 from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
 from tests.test_editor_browser import Page, _create_show
 
-pytestmark = [*BROWSER_MARKS, pytest.mark.slow]
+pytestmark = BROWSER_MARKS
 
 sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
@@ -53,11 +55,98 @@ def _apply(ui: Page, form: str, summary: str, label: str, fit_label: str) -> Non
     expect(page.locator(f'[data-error-for="{form}"]')).to_be_empty()
 
 
+def _expect_draft(ui: Page, *problem_words: str) -> None:
+    """The editor shows the stored show as a draft and lists what is wrong in plain words."""
+    page = ui.page
+    expect(page.locator("#draft-badge")).to_be_visible()
+    problems = page.get_by_role("list", name="What is wrong with the draft")
+    expect(problems).to_be_visible()
+    for words in problem_words:
+        expect(problems).to_contain_text(words)
+
+
+def _expect_refused(ui: Page, action: str, where: str, body_locator: str) -> None:
+    """Check / export of a draft answer with what is wrong (and nothing is downloaded)."""
+    expect(ui.page.locator(body_locator)).to_contain_text(f"is a draft and cannot be {action}", timeout=60_000)
+    expect(ui.page.locator(body_locator)).to_contain_text(where)
+
+
+def test_session_draft_fix_check_export(browser, server, tmp_path):
+    """The short session: a half-finished formation is saved as a draft (the store keeps it with its
+    problems), check and export refuse it saying what is wrong, it survives a reload as a draft, and
+    once fixed it checks and exports."""
+    import httpx
+
+    ui = Page(browser, server, tmp_path)
+    page = ui.page
+    try:
+        _create_show(ui, "Draft session", 9)
+        expect(page.locator("#draft-badge")).to_be_hidden()
+        # Half-finished: scaled so far that part of it is underground.
+        page.fill("#scale-input", "1500")
+        page.get_by_role("button", name="Scale the selection").click()
+        below = sum(p[2] < 0 for p in ui.state("s.formation.points"))
+        assert below > 0
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save-status")).to_contain_text("Saved as a draft")
+        expect(page.locator("#dirty-indicator")).to_be_hidden()
+        where = 'formation 1 "Formation 1", point'
+        _expect_draft(ui, where, f"{below} points below 0 m")
+        show_id = ui.state("s.meta.id")
+        stored = httpx.get(f"{server}/api/shows/{show_id}").json()
+        assert stored["draft"] is True and stored["revision"] == 2
+        assert stored["show"]["formations"][0]["points"] == ui.state("s.formation.points")
+        ui.shot("session-draft-saved")
+
+        # Check and export refuse the draft, saying what is wrong.
+        page.get_by_role("button", name="Check the show").click()
+        _expect_refused(ui, "checked", where, "#report-body")
+        page.select_option("#export-format", "skybrush-csv")
+        page.get_by_role("button", name="Export in the chosen format").click()
+        _expect_refused(ui, "exported", where, "#export-error")
+        ui.shot("session-draft-refused")
+
+        # The draft survives a reload (it is the stored show, not this tab's memory).
+        page.reload()
+        expect(page.locator("#show-title")).to_have_text("Draft session")
+        _expect_draft(ui, where)
+        expect(page.locator('.tl-card[data-index="0"] .field-error')).to_contain_text("below the ground")
+        # Clicking a problem takes the user to its formation.
+        page.get_by_role("button", name="Add a formation").click()
+        assert ui.state("s.current") == 1
+        page.get_by_role("list", name="What is wrong with the draft").get_by_role("button").first.click()
+        assert ui.state("s.current") == 0
+
+        # Fixed: raise the formation above the floor, save: a show again.
+        page.get_by_role("button", name="Undo Add formation").click()
+        assert ui.state("s.show.formations.length") == 1
+        lowest = min(p[2] for p in ui.state("s.formation.points"))
+        page.evaluate(f"""() => {{ const s = window.swarmshow.state;
+            s.edit("Raise", () => {{ s.formation.points = s.formation.points.map((p) => [p[0], p[1], p[2] +
+              {3.0 - lowest}]); }}); }}""")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save-status")).to_contain_text("Saved · revision")
+        expect(page.locator("#draft-badge")).to_be_hidden()
+        expect(page.locator("#draft-panel")).to_be_hidden()
+        assert httpx.get(f"{server}/api/shows/{show_id}").json()["draft"] is False
+        page.get_by_role("button", name="Check the show").click()
+        expect(page.locator("#report-body")).to_contain_text("Minimum distance", timeout=120_000)
+        page.select_option("#export-format", "skybrush-csv")  # the page was reloaded
+        with page.expect_download(timeout=120_000) as dl:
+            page.get_by_role("button", name="Export in the chosen format").click()
+        assert dl.value.suggested_filename.endswith(".zip")
+        expect(page.locator("#export-error")).to_be_empty()
+        ui.shot("session-draft-fixed")
+    finally:
+        ui.close()
+
+
 def _viewer_time(frame) -> float:
     text = frame.get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
     return float(re.search(r"Time\s+([\d.]+)", text).group(1))
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(2400)
 def test_scripted_session_300_drones(browser, server, tmp_path):
     from PIL import Image, ImageDraw
