@@ -107,7 +107,8 @@ class ShowSummary(BaseModel):
 class ShowOut(ShowSummary):
     """A stored show with its show file (for a draft: the document as saved, not validated)."""
 
-    show: ShowFile
+    show: ShowFile | dict[str, Any] = Field(description="The show file; for a draft (``draft: true``) the "
+                                            "JSON object as it was saved, which may break the show file's rules.")
 
 
 class ShowList(BaseModel):
