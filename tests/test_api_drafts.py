@@ -198,3 +198,17 @@ def test_a_draft_never_shares_a_hash_with_a_valid_show():
     reordered = dict(reversed(list(doc.items())))
     assert ShowData.draft(reordered, [{"msg": "x"}]).content_hash == as_draft.content_hash
     assert ShowData.draft({**doc, "name": "other"}, [{"msg": "x"}]).content_hash != as_draft.content_hash
+
+
+def test_the_3d_viewer_refuses_a_draft_and_does_not_list_it(tmp_path):
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1))
+    with TestClient(app, base_url="http://127.0.0.1") as c:
+        good = c.post("/api/shows", json=show_doc("listed")).json()
+        draft = c.post("/api/shows", params={"draft": "true"}, json=_too_close(show_doc("unfinished"))).json()
+        assert draft["draft"] is True
+        r = c.post(f"/api/shows/{draft['id']}/playback", json={"source": "planned"})
+        assert r.status_code == 422 and r.json()["draft"] is True
+        assert "cannot be shown in the 3D viewer" in r.json()["message"]
+        assert 'formation 1 "square", points' in r.json()["message"]
+        assert set(app.state.viewer_loader.catalog()) == {good["id"]}
+        assert c.post(f"/api/shows/{good['id']}/playback", json={"source": "planned"}).status_code == 200

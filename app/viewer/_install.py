@@ -98,9 +98,10 @@ class _Loader:
         return record, plan, cached
 
     def catalog(self) -> dict[str, str]:
-        """``{show id: label}`` of the stored shows (the selector's list)."""
+        """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
+        they are left out."""
         records, _ = self.app.state.store.list(limit=200)
-        return {r.id: _label(r) for r in records}
+        return {r.id: _label(r) for r in records if not r.draft}
 
 
 def playback_router() -> APIRouter:
