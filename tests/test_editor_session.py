@@ -114,6 +114,12 @@ def test_session_draft_fix_check_export(browser, server, tmp_path):
         expect(page.locator("#show-title")).to_have_text("Draft session")
         _expect_draft(ui, where)
         expect(page.locator('.tl-card[data-index="0"] .field-error')).to_contain_text("below the ground")
+        # The show list marks it as a draft.
+        page.get_by_role("button", name="Shows: open, create, rename, delete, import").click()
+        row = page.locator("#shows-tbody tr", has=page.get_by_role("button", name="Open show Draft session"))
+        expect(row.locator(".draft-tag")).to_have_text("draft")
+        page.locator("#btn-shows-close").click()
+        expect(page.locator("#dlg-shows")).to_be_hidden()
         # Clicking a problem takes the user to its formation.
         page.get_by_role("button", name="Add a formation").click()
         assert ui.state("s.current") == 1
