@@ -157,6 +157,33 @@ def _audience_camera(frame) -> None:
     frame.get_by_role("option", name="audience").click()
 
 
+def test_a_half_finished_show_saved_as_a_copy_after_a_conflict_is_a_draft(browser, server, tmp_path):
+    """A stale save of a half-finished show, "Save mine as a copy": the copy keeps the work as a draft
+    (it was refused outright before drafts)."""
+    import httpx
+
+    ui = Page(browser, server, tmp_path)
+    page = ui.page
+    try:
+        _create_show(ui, "Copy draft", 4)
+        show_id = ui.state("s.meta.id")
+        page.evaluate("""() => { const s = window.swarmshow.state;
+            s.edit("Stack", () => { s.formation.points[1] = s.formation.points[0].slice(); }); }""")
+        rec = httpx.get(f"{server}/api/shows/{show_id}").json()
+        rec["show"]["formations"][0]["hold_s"] = 9
+        assert httpx.put(f"{server}/api/shows/{show_id}", json={"revision": 1, "show": rec["show"]}).status_code == 200
+        page.keyboard.press("Control+s")
+        page.locator("#dlg-conflict").get_by_role("button", name="Save my version as a new show").click()
+        expect(page.locator("#show-title")).to_have_text("Copy draft (copy)")
+        expect(page.locator("#draft-badge")).to_be_visible()
+        _expect_draft(ui, 'formation 1 "Formation 1", points', "closer than")
+        copy = httpx.get(f"{server}/api/shows/{ui.state('s.meta.id')}").json()
+        assert copy["draft"] is True and copy["show"]["formations"][0]["points"][1] == \
+            copy["show"]["formations"][0]["points"][0]
+    finally:
+        ui.close()
+
+
 def _viewer_time(frame) -> float:
     text = frame.get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
     return float(re.search(r"Time\s+([\d.]+)", text).group(1))

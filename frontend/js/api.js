@@ -184,9 +184,14 @@ export async function getShow(id) {
   return normalizeRecord(await request("GET", `/api/shows/${encodeURIComponent(id)}`));
 }
 
-/** @param {any} show a swarmshow/1 document @returns {Promise<ReturnType<typeof normalizeRecord>>} */
-export async function createShow(show) {
-  const rec = normalizeRecord(await request("POST", "/api/shows", { json: show }));
+/**
+ * Store a new show (with `draft`, one that breaks the rules is kept as a draft instead of refused).
+ * @param {any} show a swarmshow/1 document
+ * @param {{draft?: boolean}} [opts]
+ * @returns {Promise<ReturnType<typeof normalizeRecord>>}
+ */
+export async function createShow(show, opts = {}) {
+  const rec = normalizeRecord(await request("POST", `/api/shows${opts.draft ? "?draft=true" : ""}`, { json: show }));
   return rec.show ? rec : { ...rec, show };
 }
 

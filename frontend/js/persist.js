@@ -213,7 +213,8 @@ export class Persistence extends EventTarget {
     const doc = structuredClone(st.show);
     if (!/\(copy\)$/.test(doc.name)) doc.name = `${doc.name} (copy)`.slice(0, 200);
     try {
-      const rec = await api.createShow(doc);
+      // The copy keeps the work as it is: a draft if it is half-finished.
+      const rec = await api.createShow(doc, { draft: true });
       const oldId = st.meta.id;
       st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
       this.dropDraft(oldId);
