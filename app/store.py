@@ -199,8 +199,6 @@ class ShowData:
         import hashlib
         import json
 
-        from formations import plain_path
-
         name = doc.get("name")
         drones = doc.get("drones")
         formations = doc.get("formations")
@@ -211,10 +209,7 @@ class ShowData:
             name=name.strip()[:200] if isinstance(name, str) and name.strip() else "Untitled draft",
             drones=drones if isinstance(drones, int) and not isinstance(drones, bool) and drones >= 0 else 0,
             formations=len(formations) if isinstance(formations, list) else 0,
-            # Each problem also says where in plain words (named formations), for lists and refusals.
-            problems=[{"loc": list(p.get("loc", ())), "path": p.get("path", ""), "msg": p["msg"],
-                       "where": plain_path(p.get("path", ""), doc)}
-                      for p in problems] or [{"loc": [], "path": "", "msg": "invalid show", "where": "the show"}],
+            problems=_draft_problems(doc, problems),
         )
 
     @property
@@ -233,6 +228,24 @@ class ShowData:
 
         return cls(text=dump_show(show, indent=None), content_hash=show.content_hash(), name=show.name,
                    drones=show.drones, formations=len(show.formations))
+
+
+#: Problems a draft keeps (a 20 MB file of bad numbers has a million): the rest are counted.
+MAX_DRAFT_PROBLEMS = 50
+
+
+def _draft_problems(doc: dict[str, Any], problems: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The first :data:`MAX_DRAFT_PROBLEMS` problems, each also saying where in plain words (named
+    formations), and a last line counting the others."""
+    from formations import plain_path
+
+    out = [{"loc": list(p.get("loc", ())), "path": p.get("path", ""), "msg": p["msg"],
+            "where": plain_path(p.get("path", ""), doc)} for p in problems[:MAX_DRAFT_PROBLEMS]]
+    if len(problems) > MAX_DRAFT_PROBLEMS:
+        more = len(problems) - MAX_DRAFT_PROBLEMS
+        out.append({"loc": [], "path": "", "msg": f"and {more} more problem{'s' if more > 1 else ''}",
+                    "where": "the show"})
+    return out or [{"loc": [], "path": "", "msg": "invalid show", "where": "the show"}]
 
 
 def _now() -> str:

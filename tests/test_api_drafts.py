@@ -212,3 +212,17 @@ def test_the_3d_viewer_refuses_a_draft_and_does_not_list_it(tmp_path):
         assert 'formation 1 "square", points' in r.json()["message"]
         assert set(app.state.viewer_loader.catalog()) == {good["id"]}
         assert c.post(f"/api/shows/{good['id']}/playback", json={"source": "planned"}).status_code == 200
+
+
+def test_a_draft_keeps_a_bounded_list_of_problems():
+    """Thousands of bad values make thousands of problems: the draft keeps the first ones and counts the rest."""
+    from app.store import MAX_DRAFT_PROBLEMS
+
+    doc = show_doc("many")
+    doc["formations"][0]["points"] = [["x", "y", "z"]] * 400
+    errors = _strict_problems(doc)
+    assert len(errors) > MAX_DRAFT_PROBLEMS + 1
+    kept = ShowData.draft(doc, errors).problems
+    assert kept is not None and len(kept) == MAX_DRAFT_PROBLEMS + 1
+    assert [p["path"] for p in kept[:-1]] == [e["path"] for e in errors[:MAX_DRAFT_PROBLEMS]]
+    assert kept[-1]["msg"] == f"and {len(errors) - MAX_DRAFT_PROBLEMS} more problems"
