@@ -294,6 +294,7 @@ async def check_show(request: Request, show_id: str) -> JSONResponse:
 
     Runs in a worker process; an unchanged show is answered from the cache (``cached``).
     A transition forced shorter than the limits allow is reported as a violation, not an error.
+    A draft is refused with 422 (``draft: true``, a plain-words ``message`` and every problem).
     """
     record = require_valid(deps.store(request).get(show_id), "checked")
     result, cached = await deps.jobs(request).run_cached(
@@ -320,7 +321,8 @@ async def simulate_show(
     Follow it with ``GET /api/jobs/{id}`` or the server-sent events of
     ``GET /api/jobs/{id}/events``; cancel it with ``DELETE /api/jobs/{id}``. An
     unchanged show simulated before with the same options gives a job that is
-    already done (``cached``); the same simulation already running is shared.
+    already done (``cached``); the same simulation already running is shared. A draft
+    is refused with 422 saying what is wrong.
     """
     record = require_valid(deps.store(request).get(show_id), "simulated")
     assert record.json is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
@@ -380,7 +382,8 @@ async def export_show(
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
-    ``qgc-wpl``, ``waypoints-csv``, ``viser-html``). Warnings go in ``X-Swarmshow-Warnings`` (JSON list)."""
+    ``qgc-wpl``, ``waypoints-csv``, ``viser-html``). Warnings go in ``X-Swarmshow-Warnings`` (JSON list).
+    A draft downloads only as ``show``; every other format refuses it with 422 saying what is wrong."""
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
