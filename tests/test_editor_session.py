@@ -120,6 +120,14 @@ def test_session_draft_fix_check_export(browser, server, tmp_path):
         expect(row.locator(".draft-tag")).to_have_text("draft")
         page.locator("#btn-shows-close").click()
         expect(page.locator("#dlg-shows")).to_be_hidden()
+        # So does the revision history: revision 2 (the draft), not revision 1.
+        page.locator("#history-panel summary").click()
+        revisions = page.get_by_role("list", name="Revisions").locator("li")
+        expect(revisions).to_have_count(2)
+        expect(revisions.nth(0)).to_contain_text("r2")
+        expect(revisions.nth(0)).to_contain_text("· draft")
+        expect(revisions.nth(1)).not_to_contain_text("draft")
+        page.locator("#history-panel summary").click()
         # Clicking a problem takes the user to its formation.
         page.get_by_role("button", name="Add a formation").click()
         assert ui.state("s.current") == 1
