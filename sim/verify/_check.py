@@ -51,7 +51,7 @@ from scipy.spatial import cKDTree
 from formations import ShowFile
 from sim.plan._plan import ShowPlan
 from sim.plan._trajectory import Trajectories
-from sim.verify import _poly
+from sim.verify import _poly, _sweep
 from sim.verify._bounds import check_bounds
 from sim.verify._violation import Violation
 
@@ -191,12 +191,23 @@ class PieceExtrema(NamedTuple):
     z_min_t: np.ndarray
 
 
-def piece_extrema(motion: Trajectories) -> PieceExtrema:
-    """Exact per-piece peaks of horizontal / vertical speed, acceleration and altitude (max, min)."""
+def piece_extrema(motion: Trajectories, limits: tuple[float, float, float, float, float] | None = None
+                  ) -> PieceExtrema:
+    """Per-piece peaks of horizontal / vertical speed, acceleration and altitude (max, min).
+
+    Without ``limits`` every value is exact. With ``limits`` (max speed xy, max speed z,
+    max acceleration, max altitude, min altitude) a piece is refined only as far as needed
+    (:func:`sim.verify._poly.piece_extrema`): values past a limit and each drone's peaks are
+    exact, the others may be lower attained values (much less work on long shows).
+    """
     n, p = motion.drone_count, motion.piece_count
     v = np.empty((n, p, 5))
     t = np.empty((n, p, 5))
-    _poly.piece_extrema(motion.breaks_s, motion.coeffs_m, _poly.W, v, t)
+    if limits is None:
+        lim = np.full(5, np.nan)
+    else:
+        lim = np.array([limits[0] ** 2, limits[1] ** 2, limits[2] ** 2, limits[3], limits[4]], dtype=np.float64)
+    _poly.piece_extrema(motion.breaks_s, motion.coeffs_m, _poly.W, v, t, lim)
     root = np.sqrt(np.maximum(v[..., :3], 0.0))
     return PieceExtrema(root[..., 0], t[..., 0], root[..., 1], t[..., 1], root[..., 2], t[..., 2],
                         v[..., 3], t[..., 3], v[..., 4], t[..., 4])
@@ -238,7 +249,8 @@ def _slices(motion: Trajectories, bounds: np.ndarray, t0: float, t1: float, radi
 
 
 def window_close_pairs(
-    motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, *, bounds: np.ndarray | None = None
+    motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, *, bounds: np.ndarray | None = None,
+    method: str = "sweep",
 ) -> ClosePairs:
     """Every pair whose exact minimum distance during [t0_s, t1_s] is <= ``radius_m``, with where it occurs.
 
@@ -247,6 +259,8 @@ def window_close_pairs(
         t0_s, t1_s: the time window, seconds.
         radius_m: search radius, metres (> 0).
         bounds: :func:`speed_bounds` of ``motion`` (computed if not given).
+        method: ``"sweep"`` (swept balls on a numba grid, :mod:`sim.verify._sweep`) or
+            ``"kdtree"`` (a k-d tree per time slice, step 2 of the module docstring; the reference).
 
     Returns:
         The pairs (i < j), their exact minimum distance (m) and its time (s).
@@ -257,8 +271,30 @@ def window_close_pairs(
         return empty
     if bounds is None:
         bounds = speed_bounds(motion)
+    if method == "sweep":
+        sa, sb = _sweep.window_slices(motion.breaks_s, bounds, float(t0_s), float(t1_s), radius_m)
+        i, j, first, last = _sweep.slice_candidates(motion.breaks_s, motion.coeffs_m, bounds, sa, sb, radius_m)
+        lo, hi = sa[first], sb[last]
+    elif method == "kdtree":
+        i, j = _kdtree_candidates(motion, t0_s, t1_s, radius_m, bounds)
+        lo, hi = np.full(len(i), float(t0_s)), np.full(len(i), float(t1_s))
+    else:
+        raise ValueError(f"unknown candidate search {method!r}")
+    m = len(i)
+    if m == 0:
+        return empty
+    d2 = np.empty(m)
+    tm = np.empty(m)
+    _poly.pair_minima(i, j, lo, hi, np.full(m, radius_m**2), motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
+    keep = d2 <= radius_m**2
+    return ClosePairs(i[keep], j[keep], np.sqrt(np.maximum(d2[keep], 0.0)), tm[keep])
+
+
+def _kdtree_candidates(motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, bounds: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs from a k-d tree at each slice centre (step 2 of the module docstring)."""
+    n = motion.drone_count
     centres, _, radii = _slices(motion, bounds, t0_s, t1_s, radius_m)
-    # Each candidate pair is then minimised exactly over the whole window.
     keys: list[np.ndarray] = []
     step = max(1, _EVAL_BUDGET // n)
     for a in range(0, len(centres), step):
@@ -271,16 +307,9 @@ def window_close_pairs(
         if len(keys) > 64:
             keys = [np.unique(np.concatenate(keys))]
     if not keys:
-        return empty
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     k = np.unique(np.concatenate(keys))
-    i, j = k // n, k % n
-    m = len(k)
-    d2 = np.empty(m)
-    tm = np.empty(m)
-    _poly.pair_minima(i, j, np.full(m, float(t0_s)), np.full(m, float(t1_s)), np.full(m, radius_m**2),
-                      motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
-    keep = d2 <= radius_m**2
-    return ClosePairs(i[keep], j[keep], np.sqrt(np.maximum(d2[keep], 0.0)), tm[keep])
+    return k // n, k % n
 
 
 def _closest_pair_distance(points: np.ndarray) -> float:
@@ -347,12 +376,15 @@ def _limit_violations(
     return out, peaks
 
 
-def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None) -> CheckReport:
+def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None,
+               candidates: str = "sweep") -> CheckReport:
     """Verify a plan exactly against its show's limits.
 
     Args:
         plan: the planned show.
         progress: optional callback receiving the fraction done in [0, 1].
+        candidates: the pair candidate search of :func:`window_close_pairs` (``"sweep"`` or the
+            reference ``"kdtree"``; both exact, benchmarks compare them).
     """
     s = plan.settings
     limit_d = s.min_distance_m
@@ -360,9 +392,9 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
     P = plan.knot_positions_m
     violations: list[Violation] = []
 
-    ext = piece_extrema(motion)
-    bounds = speed_bounds(motion)
     ground = min(0.0, float(P[0][:, 2].min()))
+    ext = piece_extrema(motion, (s.max_speed_xy_mps, s.max_speed_z_mps, s.max_accel_mps2, s.max_altitude_m, ground))
+    bounds = speed_bounds(motion)
     limit_v, peaks = _limit_violations(plan, ext, ground)
     violations += limit_v
     if progress:
@@ -377,7 +409,7 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         upper = min(closest[-2], closest[-1])
         # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
         radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
-        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds)
+        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds, method=candidates)
         if len(pairs.dist_m):
             m = int(np.argmin(pairs.dist_m))
             seg_min[k] = (float(pairs.dist_m[m]), (int(pairs.i[m]), int(pairs.j[m])), float(pairs.time_s[m]))
