@@ -2,8 +2,8 @@
 
 ``make bench`` or ``pytest -m slow benchmarks/bench_dense.py``; ``swarmshow bench plan --dense`` prints
 the same table. Figures per show: violations of the exact check, unresolved conflicts, show length
-against the bottleneck lower bound (:mod:`sim.bench._dense`), planning + check time (wall and CPU), the reference k-d-tree check's CPU time on the same plan,
-and the peak resident memory.
+against the bottleneck lower bound (:mod:`sim.bench._dense`), planning + check time (wall and CPU),
+the reference k-d-tree check's CPU time on the same plan, and the peak resident memory.
 """
 
 from __future__ import annotations
