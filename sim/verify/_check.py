@@ -53,6 +53,7 @@ from sim.plan._plan import ShowPlan
 from sim.plan._trajectory import Trajectories
 from sim.verify import _poly, _sweep
 from sim.verify._bounds import check_bounds
+from sim.verify._downwash import DOWNWASH_SEGMENTS, scaled_motion
 from sim.verify._violation import Violation
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
@@ -452,6 +453,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
 
     # The altitude floor (outside takeoff and landing) and the geofence, exact per piece.
     violations.extend(check_bounds(plan, plan.settings))
+    # Downwash during takeoff and landing: the same exact pair search in ellipsoid units.
+    violations.extend(downwash_violations(plan, max_listed=1 << 62)[0])
     violations.sort(key=lambda v: (v.time_s, v.kind))
     groups = _by_transition(plan, violations, seg_min)
     min_d, pair, t_min = best
@@ -480,6 +483,44 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         violations=violations[:MAX_LISTED_VIOLATIONS],
         violations_total=len(violations),
     )
+
+
+def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[Violation], int]:
+    """Every pair inside each other's downwash ellipsoid during takeoff or landing, exact
+    (:mod:`sim.verify._downwash`).
+
+    Returns:
+        (violations: one per pair and segment, deepest first within a segment, at most
+        ``max_listed``; the total count). ``value`` is the scaled distance (< 1 inside),
+        ``limit`` 1.
+    """
+    r, c = plan.settings.downwash_axes_m
+    motion = scaled_motion(plan.motion, r, c)
+    segs = [s for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
+    if plan.drone_count < 2 or not segs:
+        return [], 0
+    bounds = speed_bounds(motion)
+    out: list[Violation] = []
+    total = 0
+    for seg in segs:
+        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, 1.0, bounds=bounds)
+        bad = np.flatnonzero(pairs.dist_m < 1.0 - _TOL)
+        total += len(bad)
+        bad = bad[np.argsort(pairs.dist_m[bad], kind="stable")]
+        for q in bad[: max(0, max_listed - len(out))]:
+            i, j, t = int(pairs.i[q]), int(pairs.j[q]), float(pairs.time_s[q])
+            p = plan.motion.evaluate([t], derivatives=0).positions_m[0]
+            upper, lower = (i, j) if p[i, 2] >= p[j, 2] else (j, i)
+            dz = float(p[upper, 2] - p[lower, 2])
+            dxy = float(np.hypot(*(p[upper, :2] - p[lower, :2])))
+            out.append(Violation(
+                kind="downwash", drones=[upper, lower], time_s=t, value=float(pairs.dist_m[q]), limit=1.0,
+                segment=seg.index,
+                message=f"drone {lower} is in drone {upper}'s downwash during {seg.kind} at t = {t:.2f} s: "
+                f"{dz:.2f} m below it and {dxy:.2f} m to the side (ellipsoid {r:g} m wide, {c:g} m high)",
+            ))
+    return out, total
+
 
 
 def _worst_first(v: Violation) -> tuple[int, float, float]:
@@ -558,6 +599,10 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
     if too_fast and formation >= 0:
         fixes.append(f"let the planner choose the duration of the transition into {dst!r} "
                      f"(remove formations[{formation}].transition_s)")
+    if "downwash" in kinds:
+        w = max((v for v in vs if v.kind == "downwash"), key=lambda v: -v.value)
+        fixes.append(f"space the home positions wider (drone {w.drones[1]} is in drone {w.drones[0]}'s downwash): "
+                     f"at least the downwash radius (settings.downwash_radius_m) apart")
     if "min_distance" in kinds and not unresolved:
         if kind == "hold":
             fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")
