@@ -110,3 +110,17 @@ def test_downwash_settings_defaults_and_hash_stability() -> None:
     assert show.settings.downwash_axes_m == (3.0, 7.5)  # r = min_distance_m, c = 2.5 r (Preiss et al. 2017)
     assert "downwash" not in show.canonical_json()  # left out: older shows keep their content hash
     assert _two_drone_show(downwash_radius_m=2.0).settings.downwash_axes_m == (2.0, 5.0)
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 1000), n=st.sampled_from([16, 30, 48]))
+def test_planned_takeoff_and_landing_never_put_a_drone_above_another(seed: int, n: int) -> None:
+    """A very tall ellipsoid (c = 500 m, r = the home spacing) flags any drone anywhere above another within
+    r horizontally: the planner's takeoff and landing (one shared profile, everyone level, spread grids
+    included) never do that, on dense shows drawn at exactly the minimum distance."""
+    from sim.bench._dense import dense_show
+
+    show = dense_show(n, formations=2, seed=seed, downwash_height_m=500.0)
+    plan = plan_show(show)
+    found, total = downwash_violations(plan)
+    assert total == 0, found[:3]
