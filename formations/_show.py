@@ -139,6 +139,10 @@ class GeoPlacement(BaseModel):
     heading_deg: float = Field(0.0, ge=0, lt=360, description="Compass heading of +y, degrees clockwise from north.")
 
 
+#: Vertical over horizontal semi-axis of the default downwash ellipsoid (Preiss et al. 2017: 0.3 / 0.12 m).
+DOWNWASH_HEIGHT_RATIO = 2.5
+
+
 class Settings(BaseModel):
     """Show-wide limits (defaults: Skybrush's, a de facto standard)."""
 
@@ -175,6 +179,28 @@ class Settings(BaseModel):
         description=f"Half-width of the show area, metres: every x and y (home and formations) lies within "
         f"+-this of the origin (default {DEFAULT_HORIZONTAL_EXTENT_M:g}).",
     )
+
+    # Downwash (issue 15): below a drone its rotor wash reaches further than sideways. Modelled as the
+    # axis-aligned ellipsoid of Preiss, Hönig, Ayanian & Sukhatme, "Downwash-aware trajectory planning
+    # for large quadrotor teams", IROS 2017: drone j is in i's downwash when
+    # (dx² + dy²)/r² + dz²/c² < 1. Their Crazyflie values are r = 0.12 m, c = 0.3 m (c = 2.5 r);
+    # the defaults keep that ratio at r = min_distance_m. Checked exactly during takeoff and landing.
+    downwash_radius_m: float | None = Field(
+        None, ge=MIN_LIMIT, le=100,
+        description="Horizontal radius of the downwash ellipsoid, metres (default: min_distance_m).",
+    )
+    downwash_height_m: float | None = Field(
+        None, ge=MIN_LIMIT, le=1000,
+        description="Vertical half-height of the downwash ellipsoid, metres (default: 2.5 x its radius, "
+        "Preiss et al. 2017).",
+    )
+
+    @property
+    def downwash_axes_m(self) -> tuple[float, float]:
+        """(horizontal radius, vertical half-height) of the downwash ellipsoid, metres, defaults applied."""
+        r = self.downwash_radius_m if self.downwash_radius_m is not None else self.min_distance_m
+        c = self.downwash_height_m if self.downwash_height_m is not None else DOWNWASH_HEIGHT_RATIO * r
+        return float(r), float(c)
 
     # Issue 17: an altitude floor, a geofence and the show's place on Earth (all checked or used by name).
     min_altitude_m: float = Field(
