@@ -498,7 +498,7 @@ class TransitionPlan:
 
 
 #: Expansion factors tried by the "layers" fallback (√2 makes CAPT's guarantee reach Δ).
-EXPANSIONS = (1.28, float(np.sqrt(2.0)))
+EXPANSIONS = (1.1, 1.15, 1.2, 1.28, 1.35, float(np.sqrt(2.0)))
 
 
 def _greedy_colours(points: np.ndarray, radius_m: float) -> np.ndarray:
@@ -656,15 +656,17 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
     best: TransitionPlan | None = None
     if direct is not None and not direct.unresolved:
         best = TransitionPlan((direct,), goal_index, "delays", sync_s)
-    # Spread both formations (module docstring of :func:`spread`); the smaller factor first. The
-    # exact check decides: first with CAPT's assignment as it is, then re-assigned between the spread sets.
     # Spread both formations (see :func:`spread`); the exact check decides which variant is safe.
-    # Cheapest first: layers with CAPT's assignment as it is, then re-assigned between the spread
-    # sets (one more assignment), then similarities by √2 (CAPT's guarantee when all goals are used).
+    # Smallest factor first (shorter spread and contract legs): layers with CAPT's assignment as it is,
+    # then re-assigned between the spread sets (one more assignment); a middle leg with few conflicting
+    # drones gets per-drone delays (its waiting drones have k·Δ of room). The first variant whose middle
+    # leg is safe synchronised ends the search; then similarities by √2 (CAPT's guarantee when all
+    # goals are used). The shortest window found wins.
     root2 = float(np.sqrt(2.0))
-    tries = [(k, False, False) for k in EXPANSIONS] + [(root2, False, True), (root2, True, False)]
+    tries = [(k, False, r) for k in EXPANSIONS for r in (False, True)] + [(root2, True, False)]
     if fixed_assignment:
         tries = [t for t in tries if not t[2]]
+    few_middle = max(DELAYS_MAX_DRONES, DELAYS_MAX_FRACTION * n)
     for k, similar, reassign in tries:
         sa = spread(a_m, k, min_distance_m, ceiling_m, similar=similar, floor_m=floor_m)
         sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar, floor_m=floor_m)
@@ -672,11 +674,12 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
             continue
         mid = assign(sa, sg).goal_index if reassign else goal_index
         middle: Schedule | None = None
-        if len(sync_conflicts(sa, sg[mid], required)):
-            if not fixed_assignment:
+        clashes = sync_conflicts(sa, sg[mid], required)
+        if len(clashes):
+            if not fixed_assignment and len(np.unique(clashes)) > few_middle:
                 continue
-            # A prescribed assignment (own homes) has no CAPT guarantee: per-drone delays between the
-            # spread sets, where waiting drones have √2·Δ of room.
+            # Per-drone delays between the spread sets (a prescribed assignment, e.g. own homes, has
+            # no CAPT guarantee at all).
             middle = schedule_transition(sa, sg[mid], lim, min_distance_m=min_distance_m, label=label)
             if middle.unresolved:
                 continue
@@ -689,7 +692,8 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         cand = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
         if best is None or cand.window_s < best.window_s:
             best = cand
-        break
+        if middle is None:
+            break
     if best is not None:
         return best
     if direct is None:
