@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
+from sim.plan._blend import blended_pieces
 from sim.plan._schedule import (
     Limits,
     Schedule,
@@ -276,9 +277,14 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def fly(legs: tuple[Schedule, ...]) -> None:
+    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = ()) -> None:
         """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
         t0 = times[-1]
+        if any(overlaps_s):  # blended synchronised legs (sim.plan._blend): pieces shared by all drones
+            for dur, c3 in blended_pieces(legs, overlaps_s):
+                builder.append(np.full(len(home), dur), c3)
+            wait(t0 + sum(leg.window_s for leg in legs) - sum(overlaps_s))
+            return
         for sched in legs:
             prof = sched.drone_profiles()
             wait(t0 + sched.depart_s)
@@ -332,7 +338,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         goal_index = tp.goal_index
         end = tp.legs[-1].b_m
         t0 = times[-1]
-        fly(tp.legs)
+        fly(tp.legs, tp.overlaps_s)
         info = dict(
             from_name=from_name,
             to_name=to_name,
@@ -360,7 +366,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         target = tp.legs[0].b_m
         if len(sync_conflicts(before, target, required_distance(s.min_distance_m))):
             return tp, tp.legs[0].a_m
-        return replace(tp, legs=tp.legs[1:]), target
+        return replace(tp, legs=tp.legs[1:], overlaps_s=tp.overlaps_s[1:]), target
 
     def fold_last(tp: TransitionPlan, after: np.ndarray) -> tuple[TransitionPlan, np.ndarray]:
         """Fly the last leg's start -> ``after`` directly if that is safe (saves one stop)."""
@@ -369,7 +375,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         source = tp.legs[-1].a_m
         if len(sync_conflicts(source, after, required_distance(s.min_distance_m))):
             return tp, tp.legs[-1].b_m
-        return replace(tp, legs=tp.legs[:-1]), source
+        return replace(tp, legs=tp.legs[:-1], overlaps_s=tp.overlaps_s[:-1]), source
 
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).

@@ -52,7 +52,7 @@ drone's minimum time under per-axis limits, the bottleneck gain on dense shows i
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -467,10 +467,20 @@ class TransitionPlan:
     resolution: str
     sync_s: float
     expansion: float = 1.0
+    #: Per junction between consecutive legs, how long the next leg starts before the previous ends
+    #: (:mod:`sim.plan._blend`), seconds; empty: none.
+    overlaps_s: tuple[float, ...] = ()
 
     @property
     def window_s(self) -> float:
-        return float(sum(leg.window_s for leg in self.legs))
+        return float(sum(leg.window_s for leg in self.legs) - sum(self.overlaps_s))
+
+    def leg_offsets_s(self) -> list[float]:
+        """Start of each leg within the window, seconds."""
+        out = [0.0]
+        for k, leg in enumerate(self.legs[:-1]):
+            out.append(out[-1] + leg.window_s - (self.overlaps_s[k] if self.overlaps_s else 0.0))
+        return out
 
     @property
     def stagger_s(self) -> float:
@@ -480,10 +490,8 @@ class TransitionPlan:
     @property
     def unresolved(self) -> tuple[UnresolvedConflict, ...]:
         out: list[UnresolvedConflict] = []
-        t0 = 0.0
-        for leg in self.legs:
+        for t0, leg in zip(self.leg_offsets_s(), self.legs, strict=True):
             out += [UnresolvedConflict(u.drones, t0 + u.time_s, u.reason, u.fix) for u in leg.unresolved]
-            t0 += leg.window_s
         return tuple(out)
 
     @property
@@ -497,6 +505,8 @@ class TransitionPlan:
         return self.window_s - self.legs[-1].window_s + self.legs[-1].arrive_s
 
 
+#: Shares of the acceleration and jerk limits with which blended legs are tried (:mod:`sim.plan._blend`).
+BLEND_SHARES = ((0.7, 0.7), (0.5, 0.5), (0.5, 0.7), (0.6, 0.8), (0.4, 0.9))
 #: Expansion factors tried by the "layers" fallback (√2 makes CAPT's guarantee reach Δ).
 EXPANSIONS = (1.1, 1.15, 1.2, 1.28, 1.35, float(np.sqrt(2.0)))
 
@@ -638,6 +648,7 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         fixed_assignment: the assignment must stay (e.g. landing on one's own home): no re-assignment.
     """
     from sim.plan._assignment import assign
+    from sim.plan._blend import blend_overlaps
 
     b_m = goals_m[goal_index]
     n = len(a_m)
@@ -684,12 +695,29 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
             if middle.unresolved:
                 continue
         legs = []
+        inner = []  # which legs are the middle one
         for start, end in ((a_m, sa), (sa, sg[mid]), (sg[mid], goals_m[mid])):
             if middle is not None and start is sa:
                 legs.append(middle)
             elif np.any(start != end):
                 legs.append(synchronised(start, end, lim, round_up(sync_min_duration(end - start, lim))))
+            else:
+                continue
+            inner.append(start is sa)
         cand = TransitionPlan(tuple(legs), mid, "layers", sync_s, expansion=k)
+        if middle is None:
+            # Blended legs (sim.plan._blend): flown with a share of the acceleration and jerk limits, each
+            # leg starts before the previous one ends, as far as certified; kept when it is shorter.
+            for shares in BLEND_SHARES:
+                slow = tuple(
+                    synchronised(leg.a_m, leg.b_m, part, round_up(sync_min_duration(leg.b_m - leg.a_m, part)))
+                    for leg, is_inner in zip(legs, inner, strict=True)
+                    for share in [shares[1] if is_inner else shares[0]]
+                    for part in [replace(lim, a=lim.a * share, j=lim.j * share)]
+                )
+                blended = replace(cand, legs=slow, overlaps_s=blend_overlaps(slow, lim, required))
+                if blended.window_s < cand.window_s - 1e-9:
+                    cand = blended
         if best is None or cand.window_s < best.window_s:
             best = cand
         if middle is None:
