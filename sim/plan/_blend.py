@@ -104,19 +104,44 @@ SUB_WINDOW_S = WINDOW_STEP_S / 2
 
 def _ranges(leg: Schedule, order: int, count: int, from_end: bool) -> np.ndarray:
     """(count, 2) exact (min, max) of the profile's ``order``-th derivative (order 0: the value) over
-    consecutive sub-windows of ``SUB_WINDOW_S``, from the leg's start, or backwards from its end."""
+    consecutive sub-windows of ``SUB_WINDOW_S``, from the leg's start, or backwards from its end.
+
+    Each sub-window's range is taken over the derivative's values at the sub-window's ends, at the
+    piece breaks inside it (both one-sided values) and at the real roots of the next derivative
+    inside each piece: the extremes of a polynomial on an interval are among those points.
+    """
     b, c = leg.profiles.breaks_s[0], leg.profiles.coeffs[0]
     t_end = float(b[-1])
-    out = np.zeros((count, 2))
-    for i in range(count):
-        t0, t1 = i * SUB_WINDOW_S, (i + 1) * SUB_WINDOW_S
-        if from_end:
-            t0, t1 = t_end - t1, t_end - t0
-        t0, t1 = max(t0, 0.0), min(t1, t_end)
-        if order == 0:
-            out[i] = _value(b, c, t0), _value(b, c, t1)
-        else:
-            out[i] = profile_range(b, c, t0, t1, order)
+    edges = np.arange(count + 1) * SUB_WINDOW_S
+    if from_end:
+        edges = t_end - edges[::-1]
+    edges = np.clip(edges, 0.0, t_end)
+    ts: list[np.ndarray] = []
+    vs: list[np.ndarray] = []
+    for p in range(len(b) - 1):
+        b0, b1 = float(b[p]), float(b[p + 1])
+        if b1 <= b0:
+            continue
+        pts = [np.array([0.0, b1 - b0]), edges[(edges >= b0) & (edges <= b1)] - b0]
+        dd = np.trim_zeros(_deriv(c[p], order + 1), "b")
+        if len(dd) > 1:
+            r = np.polynomial.polynomial.polyroots(dd)
+            r = r.real[(np.abs(r.imag) < 1e-12) & (r.real > 0.0) & (r.real < b1 - b0)]
+            pts.append(r)
+        u = np.concatenate(pts)
+        ts.append(u + b0)
+        vs.append(np.polynomial.polynomial.polyval(u, _deriv(c[p], order)))
+    t, v = np.concatenate(ts), np.concatenate(vs)
+    o = np.argsort(t, kind="stable")
+    t, v = t[o], v[o]
+    lo = np.searchsorted(t, edges[:-1], side="left")
+    hi = np.searchsorted(t, edges[1:], side="right")
+    out = np.empty((count, 2))
+    for k in range(count):
+        seg = v[lo[k]:hi[k]]
+        out[k] = seg.min(), seg.max()
+    if from_end:
+        out = out[::-1]
     return out
 
 
@@ -178,7 +203,11 @@ class Junction:
         return float(vz.max()) <= lim.v_z * keep and float(-vz.min()) <= v_down * keep
 
     def safe(self, q: int) -> bool:
-        """True when every pair provably keeps the distance during an overlap of q sub-windows."""
+        """True when every pair provably keeps the distance during an overlap of q sub-windows.
+
+        Boxes are refined only where needed: a box spanning several sub-windows contains each of
+        theirs, so a pair whose minimum over it is >= the distance is safe in all of them.
+        """
         a, d1, d2 = self.leg1.a_m, self.d1, self.d2
         b1, b2 = self._boxes(q, 0)
         s1_lo, s2_hi = float(b1[0, 0]), float(b2[-1, 1])
@@ -188,10 +217,23 @@ class Junction:
         if len(pairs) == 0:
             return True
         i, j = pairs[:, 0], pairs[:, 1]
+        near = np.linalg.norm(start[j] - start[i], axis=1) < self.required_m + reach[i] + reach[j]
+        i, j = i[near], j[near]
         r0, c1, c2 = a[j] - a[i], d1[j] - d1[i], d2[j] - d2[i]
         need = self.required_m**2
-        return all(not np.any(_box_min_sq(r0, c1, c2, (b1[k, 0], b1[k, 1]), (b2[k, 0], b2[k, 1])) < need)
-                   for k in range(q))
+        stack = [(0, q, np.arange(len(i)))]
+        while stack:
+            lo, hi, idx = stack.pop()
+            box1 = (float(b1[lo:hi, 0].min()), float(b1[lo:hi, 1].max()))
+            box2 = (float(b2[lo:hi, 0].min()), float(b2[lo:hi, 1].max()))
+            idx = idx[_box_min_sq(r0[idx], c1[idx], c2[idx], box1, box2) < need]
+            if len(idx) == 0:
+                continue
+            if hi - lo == 1:
+                return False
+            mid = (lo + hi) // 2
+            stack += [(lo, mid, idx), (mid, hi, idx)]
+        return True
 
 
 def within_limits(leg1: Schedule, leg2: Schedule, delta_s: float, lim: Limits) -> bool:
