@@ -60,7 +60,8 @@ def test_box_minimum_matches_a_brute_force_grid(seed) -> None:
     got = _box_min_sq(r0, c1, c2, (lo1[0], lo1[1]), (lo2[0], lo2[1]))
     u = np.linspace(lo1[0], lo1[1], 301)
     w = np.linspace(lo2[0], lo2[1], 301)
-    v = r0[:, None, None, :] + u[None, :, None, None] * c1[:, None, None, :] + w[None, None, :, None] * c2[:, None, None, :]
+    v = (r0[:, None, None, :] + u[None, :, None, None] * c1[:, None, None, :]
+         + w[None, None, :, None] * c2[:, None, None, :])
     grid = (v**2).sum(-1).reshape(k, -1).min(axis=1)
     assert np.all(got <= grid + 1e-9)
     step = max(lo1[1] - lo1[0], lo2[1] - lo2[0]) / 300

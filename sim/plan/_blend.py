@@ -28,18 +28,53 @@ roots of the next derivative) gives a box, and a convex function (a norm, or a l
 component) takes its maximum over a box at a corner: so each drone's horizontal and vertical
 speed, acceleration magnitude and jerk magnitude are bounded by their largest corner value.
 
-The overlap of each junction is the longest multiple of ``WINDOW_STEP_S`` passing both. Used with
+The overlap of each junction is the longest multiple of the window step (0.1 s) passing both. Used with
 the minimum-time law only: the quintic mode keeps reproducing the shared-segment plans.
 """
 
 from __future__ import annotations
 
 from math import comb
+from typing import Protocol
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.plan._schedule import WINDOW_STEP_S, Limits, Schedule
+from sim.plan._timelaw import Profiles
+
+
+class Schedule(Protocol):
+    """What this module reads of a leg (:class:`sim.plan._schedule.Schedule`, which calls this module)."""
+
+    @property
+    def a_m(self) -> np.ndarray: ...
+    @property
+    def b_m(self) -> np.ndarray: ...
+    @property
+    def depart_s(self) -> np.ndarray: ...
+    @property
+    def profiles(self) -> Profiles: ...
+    @property
+    def window_s(self) -> float: ...
+    @property
+    def unresolved(self) -> tuple[object, ...]: ...
+
+
+class Limits(Protocol):
+    """What this module reads of the limits (:class:`sim.plan._schedule.Limits`)."""
+
+    @property
+    def v_xy(self) -> float: ...
+    @property
+    def v_z(self) -> float: ...
+    @property
+    def v_down(self) -> float | None: ...
+    @property
+    def a(self) -> float: ...
+    @property
+    def j(self) -> float: ...
+    @property
+    def law(self) -> str: ...
 
 #: Limits are certified with this relative margin (the verifier's peaks are exact).
 LIMIT_MARGIN = 1e-6
@@ -98,8 +133,8 @@ def _value(breaks_s: np.ndarray, coeffs: np.ndarray, t: float) -> float:
     return float(np.polynomial.polynomial.polyval(t - breaks_s[p], coeffs[p]))
 
 
-#: Width of the sub-windows of an overlap, seconds (a divisor of ``WINDOW_STEP_S``).
-SUB_WINDOW_S = WINDOW_STEP_S / 2
+#: Width of the sub-windows of an overlap, seconds (half the planner's window step, 0.1 s).
+SUB_WINDOW_S = 0.05
 
 
 def _ranges(leg: Schedule, order: int, count: int, from_end: bool) -> np.ndarray:
@@ -168,7 +203,7 @@ class Junction:
     vertex of the features' convex hull, so only those drones are evaluated (exactly the same maximum).
     """
 
-    def __init__(self, leg1: Schedule, leg2: Schedule, lim: Limits, required_m: float) -> None:
+    def __init__(self, leg1: Schedule, leg2: Schedule, lim: Limits | None, required_m: float) -> None:
         self.leg1, self.leg2, self.lim, self.required_m = leg1, leg2, lim, required_m
         d1, d2 = leg1.b_m - leg1.a_m, leg2.b_m - leg2.a_m
         self.d1, self.d2 = d1, d2
@@ -187,6 +222,7 @@ class Junction:
     def within_limits(self, q: int) -> bool:
         """True when an overlap of q sub-windows keeps every drone within the limits (module docstring)."""
         lim = self.lim
+        assert lim is not None
         keep = 1.0 - LIMIT_MARGIN
         v_down = lim.v_z if lim.v_down is None else lim.v_down
         for order, limit, feats in ((1, lim.v_xy, self.flat), (2, lim.a, self.full), (3, lim.j, self.full)):
@@ -244,8 +280,7 @@ def within_limits(leg1: Schedule, leg2: Schedule, delta_s: float, lim: Limits) -
 
 def overlap_safe(leg1: Schedule, leg2: Schedule, delta_s: float, required_m: float) -> bool:
     """True when every pair provably keeps ``required_m`` while the two legs overlap by ``delta_s``."""
-    lim = Limits(v_xy=np.inf, v_z=np.inf, a=np.inf, j=np.inf)
-    return Junction(leg1, leg2, lim, required_m).safe(int(round(delta_s / SUB_WINDOW_S)))
+    return Junction(leg1, leg2, None, required_m).safe(int(round(delta_s / SUB_WINDOW_S)))
 
 
 def _box_min_sq(r0: np.ndarray, c1: np.ndarray, c2: np.ndarray, r1: tuple[float, float],
@@ -265,14 +300,12 @@ def _box_min_sq(r0: np.ndarray, c1: np.ndarray, c2: np.ndarray, r1: tuple[float,
     best = np.full(len(r0), np.inf)
     ones = np.ones(len(r0))
     # Edges: fix one variable at a bound, minimise the other (clamped 1-D quadratic).
-    for w in r2:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(a11 > 0, -(b1 + w * a12) / np.where(a11 > 0, a11, 1.0), r1[0])
-        best = np.minimum(best, sq(np.clip(u, *r1), w * ones))
-    for u in r1:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            w = np.where(a22 > 0, -(b2 + u * a12) / np.where(a22 > 0, a22, 1.0), r2[0])
-        best = np.minimum(best, sq(u * ones, np.clip(w, *r2)))
+    for w_fix in r2:
+        u_opt = np.where(a11 > 0, -(b1 + w_fix * a12) / np.where(a11 > 0, a11, 1.0), r1[0])
+        best = np.minimum(best, sq(np.clip(u_opt, *r1), w_fix * ones))
+    for u_fix in r1:
+        w_opt = np.where(a22 > 0, -(b2 + u_fix * a12) / np.where(a22 > 0, a22, 1.0), r2[0])
+        best = np.minimum(best, sq(u_fix * ones, np.clip(w_opt, *r2)))
     # Interior stationary point (when the Hessian is regular and it lies in the box).
     det = a11 * a22 - a12 * a12
     regular = det > 1e-12 * np.maximum(a11 * a22, 1e-300)
@@ -291,8 +324,10 @@ def blendable(leg: Schedule) -> bool:
             and abs(leg.window_s - float(leg.profiles.breaks_s[0, -1])) < 1e-9)
 
 
-def blend_overlaps(legs: tuple[Schedule, ...], lim: Limits, required_m: float) -> tuple[float, ...]:
-    """(len(legs) - 1,) overlaps, seconds: for each junction the longest step multiple certified safe and
+def blend_overlaps(legs: tuple[Schedule, ...], lim: Limits, required_m: float,
+                   step_s: float = 2 * SUB_WINDOW_S) -> tuple[float, ...]:
+    """(len(legs) - 1,) overlaps, seconds: for each junction the longest multiple of ``step_s`` (a multiple of
+    ``SUB_WINDOW_S``) certified safe and
     within the limits (0 where the legs cannot blend), with δ_k + δ_{k+1} <= T_{k+1}."""
     out: list[float] = []
     for k in range(len(legs) - 1):
@@ -301,10 +336,10 @@ def blend_overlaps(legs: tuple[Schedule, ...], lim: Limits, required_m: float) -
         if lim.law != "quintic" and blendable(leg1) and blendable(leg2):
             room = min(leg1.window_s - (out[-1] if out else 0.0), leg2.window_s)
             junction = Junction(leg1, leg2, lim, required_m)
-            per_step = int(round(WINDOW_STEP_S / SUB_WINDOW_S))
-            for m in range(int(np.floor(room / WINDOW_STEP_S + 1e-9)), 0, -1):
+            per_step = int(round(step_s / SUB_WINDOW_S))
+            for m in range(int(np.floor(room / step_s + 1e-9)), 0, -1):
                 if junction.within_limits(m * per_step) and junction.safe(m * per_step):
-                    delta = round(m * WINDOW_STEP_S, 10)
+                    delta = round(m * step_s, 10)
                     break
         out.append(delta)
     return tuple(out)
@@ -346,4 +381,6 @@ def blended_pieces(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...]) ->
     return pieces
 
 
-__all__ = ["Junction", "blend_overlaps", "blendable", "blended_pieces", "overlap_safe", "profile_range", "within_limits"]
+__all__ = [
+    "Junction", "blend_overlaps", "blendable", "blended_pieces", "overlap_safe", "profile_range", "within_limits",
+]

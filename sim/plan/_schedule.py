@@ -715,7 +715,7 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
                     for share in [shares[1] if is_inner else shares[0]]
                     for part in [replace(lim, a=lim.a * share, j=lim.j * share)]
                 )
-                blended = replace(cand, legs=slow, overlaps_s=blend_overlaps(slow, lim, required))
+                blended = replace(cand, legs=slow, overlaps_s=blend_overlaps(slow, lim, required, WINDOW_STEP_S))
                 if blended.window_s < cand.window_s - 1e-9:
                     cand = blended
         if best is None or cand.window_s < best.window_s:
