@@ -76,6 +76,8 @@ class Limits(Protocol):
     @property
     def law(self) -> str: ...
 
+#: Sub-windows per candidate-pair search in :meth:`Junction.safe`.
+SAFE_CHUNK = 4
 #: Limits are certified with this relative margin (the verifier's peaks are exact).
 LIMIT_MARGIN = 1e-6
 
@@ -241,34 +243,39 @@ class Junction:
     def safe(self, q: int) -> bool:
         """True when every pair provably keeps the distance during an overlap of q sub-windows.
 
-        Boxes are refined only where needed: a box spanning several sub-windows contains each of
-        theirs, so a pair whose minimum over it is >= the distance is safe in all of them.
+        Chunks of :data:`SAFE_CHUNK` sub-windows each get their own candidate pairs (within
+        ``required + R_i + R_j`` at the chunk's start, R_i how far drone i moves in the chunk). Boxes
+        are refined only where needed: a box spanning several sub-windows contains each of theirs,
+        so a pair whose minimum over it is >= the distance is safe in all of them.
         """
         a, d1, d2 = self.leg1.a_m, self.d1, self.d2
         b1, b2 = self._boxes(q, 0)
-        s1_lo, s2_hi = float(b1[0, 0]), float(b2[-1, 1])
-        start = a + s1_lo * d1
-        reach = (1.0 - s1_lo) * np.linalg.norm(d1, axis=1) + s2_hi * np.linalg.norm(d2, axis=1)
-        pairs = cKDTree(start).query_pairs(self.required_m + 2.0 * float(reach.max()), output_type="ndarray")
-        if len(pairs) == 0:
-            return True
-        i, j = pairs[:, 0], pairs[:, 1]
-        near = np.linalg.norm(start[j] - start[i], axis=1) < self.required_m + reach[i] + reach[j]
-        i, j = i[near], j[near]
-        r0, c1, c2 = a[j] - a[i], d1[j] - d1[i], d2[j] - d2[i]
+        len1, len2 = np.linalg.norm(d1, axis=1), np.linalg.norm(d2, axis=1)
         need = self.required_m**2
-        stack = [(0, q, np.arange(len(i)))]
-        while stack:
-            lo, hi, idx = stack.pop()
-            box1 = (float(b1[lo:hi, 0].min()), float(b1[lo:hi, 1].max()))
-            box2 = (float(b2[lo:hi, 0].min()), float(b2[lo:hi, 1].max()))
-            idx = idx[_box_min_sq(r0[idx], c1[idx], c2[idx], box1, box2) < need]
-            if len(idx) == 0:
+        for c0 in range(0, q, SAFE_CHUNK):
+            c1 = min(q, c0 + SAFE_CHUNK)
+            s1_lo, s1_hi, s2_lo, s2_hi = float(b1[c0, 0]), float(b1[c1 - 1, 1]), float(b2[c0, 0]), float(b2[c1 - 1, 1])
+            start = a + s1_lo * d1 + s2_lo * d2
+            reach = (s1_hi - s1_lo) * len1 + (s2_hi - s2_lo) * len2
+            pairs = cKDTree(start).query_pairs(self.required_m + 2.0 * float(reach.max()), output_type="ndarray")
+            if len(pairs) == 0:
                 continue
-            if hi - lo == 1:
-                return False
-            mid = (lo + hi) // 2
-            stack += [(lo, mid, idx), (mid, hi, idx)]
+            i, j = pairs[:, 0], pairs[:, 1]
+            near = np.linalg.norm(start[j] - start[i], axis=1) < self.required_m + reach[i] + reach[j]
+            i, j = i[near], j[near]
+            r0, e1, e2 = a[j] - a[i], d1[j] - d1[i], d2[j] - d2[i]
+            stack = [(c0, c1, np.arange(len(i)))]
+            while stack:
+                lo, hi, idx = stack.pop()
+                box1 = (float(b1[lo:hi, 0].min()), float(b1[lo:hi, 1].max()))
+                box2 = (float(b2[lo:hi, 0].min()), float(b2[lo:hi, 1].max()))
+                idx = idx[_box_min_sq(r0[idx], e1[idx], e2[idx], box1, box2) < need]
+                if len(idx) == 0:
+                    continue
+                if hi - lo == 1:
+                    return False
+                mid = (lo + hi) // 2
+                stack += [(lo, mid, idx), (mid, hi, idx)]
         return True
 
 

@@ -506,9 +506,9 @@ class TransitionPlan:
 
 
 #: Shares of the acceleration and jerk limits with which blended legs are tried (:mod:`sim.plan._blend`).
-BLEND_SHARES = ((0.7, 0.7), (0.5, 0.5), (0.5, 0.7), (0.6, 0.8), (0.4, 0.9))
+BLEND_SHARES = ((0.7, 0.7), (0.5, 0.5), (0.5, 0.7))
 #: Expansion factors tried by the "layers" fallback (√2 makes CAPT's guarantee reach Δ).
-EXPANSIONS = (1.1, 1.15, 1.2, 1.28, 1.35, float(np.sqrt(2.0)))
+EXPANSIONS = (1.28, float(np.sqrt(2.0)))
 
 
 def _greedy_colours(points: np.ndarray, radius_m: float) -> np.ndarray:
