@@ -60,3 +60,37 @@ def test_more_drones_than_goals_is_an_error() -> None:
 def test_non_finite_input_is_an_error() -> None:
     with pytest.raises(AssignmentError, match="finite"):
         assign(np.array([[np.nan, 0, 0]]), np.zeros((1, 3)))
+
+
+def _lsa_cost(x: np.ndarray, g: np.ndarray) -> float:
+    cost = cdist(x, g, "sqeuclidean")
+    rows, cols = linear_sum_assignment(cost)
+    return float(cost[rows, cols].sum())
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(600, 1200), extra=st.integers(0, 40),
+       garbage=st.booleans())
+def test_warm_started_sparse_assignment_is_exactly_optimal(seed: int, n: int, extra: int, garbage: bool) -> None:
+    """A warm start (another problem's prices and targets, or garbage) changes the work, never the optimum:
+    the cost equals scipy's linear_sum_assignment on the full matrix."""
+    from sim.plan._schedule import spread
+
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    x = np.column_stack([np.arange(n) % side * 3.0, np.arange(n) // side * 3.0, np.full(n, 10.0)])
+    g = rng.uniform(-40, 40, (n + extra, 3))
+    g[:, 1] *= 0.1  # a flat-ish vertical formation
+    base = assign(x, g, method="sparse")
+    assert base.prices_m2 is not None
+    sx, sg = spread(x, 1.28, 3.0, 1e4), spread(g, 1.28, 3.0, 1e4, similar=True)
+    assert sx is not None and sg is not None
+    if garbage:
+        base = type(base)(rng.permutation(len(g))[:n], 0.0, None, rng.uniform(0, 1e4, len(g)))
+    warm = assign(sx, sg, method="sparse", warm=base)
+    cold = assign(sx, sg, method="sparse")
+    assert len(np.unique(warm.goal_index)) == n
+    ref = _lsa_cost(sx, sg)
+    assert warm.cost_m2 == pytest.approx(ref, rel=1e-9)
+    assert assignment_cost(sx, sg, warm.goal_index) == pytest.approx(ref, rel=1e-9)
+    assert cold.cost_m2 == pytest.approx(ref, rel=1e-9)

@@ -42,6 +42,7 @@ class Assignment:
     goal_index: np.ndarray  # (N,) int64
     cost_m2: float
     certificate: Certificate | None = None
+    prices_m2: np.ndarray | None = None  # (M,) the sparse solver's goal prices (a warm start for a nearby problem)
 
 
 def assignment_cost(starts: ArrayLike, goals: ArrayLike, goal_index: ArrayLike) -> float:
@@ -64,7 +65,7 @@ def _validated(starts: ArrayLike, goals: ArrayLike) -> tuple[np.ndarray, np.ndar
     return x, g
 
 
-def assign(starts: ArrayLike, goals: ArrayLike, *, method: str = "auto") -> Assignment:
+def assign(starts: ArrayLike, goals: ArrayLike, *, method: str = "auto", warm: Assignment | None = None) -> Assignment:
     """Optimal unlabelled assignment of N starts to M >= N goals (extra goals stay unused).
 
     Args:
@@ -73,6 +74,8 @@ def assign(starts: ArrayLike, goals: ArrayLike, *, method: str = "auto") -> Assi
         method: ``"auto"`` (dense below :data:`SPARSE_MIN_DRONES` drones, else sparse),
             ``"dense"`` or ``"sparse"``. The sparse path certifies optimality to a relative
             gap of 1e-10 and falls back to dense if its certificate does not close.
+        warm: the assignment of a nearby problem with the same numbering (the same formations spread
+            apart): its prices warm-start the sparse solver (same optimum, less work; ignored by dense).
 
     Raises:
         AssignmentError: if N > M or the inputs are not finite (N, 3) / (M, 3) arrays.
@@ -84,9 +87,13 @@ def assign(starts: ArrayLike, goals: ArrayLike, *, method: str = "auto") -> Assi
     if n == 0:
         return Assignment(np.zeros(0, dtype=np.int64), 0.0)
     if x.shape[1] == 3 and (method == "sparse" or (method == "auto" and n >= SPARSE_MIN_DRONES)):
-        sol = solve_sparse(x, g)
+        hint = None
+        if warm is not None and warm.prices_m2 is not None and warm.prices_m2.shape == (len(g),) \
+                and warm.goal_index.shape == (n,):
+            hint = (warm.prices_m2, warm.goal_index)
+        sol = solve_sparse(x, g, warm=hint)
         if sol is not None:
-            return Assignment(sol.goal_index, sol.cost_m2, sol.certificate)
+            return Assignment(sol.goal_index, sol.cost_m2, sol.certificate, sol.prices_m2)
     cost = cdist(x, g, "sqeuclidean")
     rows, cols = linear_sum_assignment(_reduced(cost))
     goal_index = np.empty(n, dtype=np.int64)

@@ -673,6 +673,7 @@ def solve_sparse(
     multiscale: bool = True,
     coarse_ratio: int = 4,
     coarse_base: int = 500,
+    warm: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SparseSolution | None:
     """Certified-optimal assignment of N drones to M >= N goals without an N x M matrix.
 
@@ -684,6 +685,11 @@ def solve_sparse(
         max_rounds: column-generation rounds per scale before giving up.
         multiscale: warm-start the prices from coarser problems (every ``coarse_ratio``-th
             point, recursively down to about ``coarse_base`` drones).
+        warm: (goal prices (M,) m², goal index (N,)) of a *nearby* problem with the same drone and goal
+            numbering (e.g. the same formations before they were spread apart): its prices start the
+            auction and its targets propose candidate edges, instead of the coarse levels. Any prices are
+            a valid start (the certificate and the column generation do not depend on them), so the
+            result is exactly as optimal; only the work changes.
 
     Returns:
         The solution with its certificate, or None if the certificate did not
@@ -693,8 +699,13 @@ def solve_sparse(
     base = coarse_base if multiscale else len(x) + 1
     # Work in k-d order: compact blocks for the all-pairs scan, cache-friendly auction.
     ox, og = _kd_order(x), _kd_order(g)
-    sol = _solve(x[ox], g[og], candidates=candidates, rel_tol=rel_tol, max_rounds=max_rounds, ratio=coarse_ratio,
-                 base=base)
+    if warm is not None and len(x) > 0:
+        prices_w, index_w = (np.asarray(w) for w in warm)
+        guess = (np.asarray(prices_w, dtype=np.float64)[og], g[np.asarray(index_w, dtype=np.int64)][ox])
+        sol = _solve_level(x[ox], g[og], guess, candidates=candidates, rel_tol=rel_tol, max_rounds=max_rounds)
+    else:
+        sol = _solve(x[ox], g[og], candidates=candidates, rel_tol=rel_tol, max_rounds=max_rounds,
+                     ratio=coarse_ratio, base=base)
     if sol is None:
         return None
     goal_index = np.empty(len(x), dtype=np.int64)

@@ -324,13 +324,15 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     def prepare(start: np.ndarray, from_name: str, to_name: str, goals: np.ndarray, forced_s: float | None,
                 where: str, goal_index: np.ndarray | None = None) -> TransitionPlan:
         fixed = goal_index is not None
+        first = None
         if goal_index is None:
-            goal_index = assign(start, goals).goal_index
+            first = assign(start, goals)
+            goal_index = first.goal_index
         label = f"{from_name!r} -> {to_name!r}"
         duration = forced(start, goals[goal_index], forced_s, where, label)
         return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
                                ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
-                               fixed_assignment=fixed)
+                               fixed_assignment=fixed, warm=first)
 
     def commit(tp: TransitionPlan, from_name: str, to_name: str,
                goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:

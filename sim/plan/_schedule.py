@@ -53,12 +53,15 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+if TYPE_CHECKING:
+    from sim.plan._assignment import Assignment
 from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
 from sim.plan._timelaw import (
     Profiles,
@@ -624,7 +627,8 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
 
 def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,
                     min_distance_m: float, ceiling_m: float, floor_m: float = 0.0, duration_s: float | None = None,
-                    label: str = "", allow_layers: bool = True, fixed_assignment: bool = False) -> TransitionPlan:
+                    label: str = "", allow_layers: bool = True, fixed_assignment: bool = False,
+                    warm: Assignment | None = None) -> TransitionPlan:
     """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely, or report what is unsafe.
 
     In order: CAPT's synchronised straight lines if the exact pair check passes ("none");
@@ -646,6 +650,8 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         label: transition name for messages.
         allow_layers: try spreading when the synchronised lines conflict.
         fixed_assignment: the assignment must stay (e.g. landing on one's own home): no re-assignment.
+        warm: the assignment that gave ``goal_index``, if at hand: its prices warm-start the re-assignments
+            between the spread sets (same optimum, less work), each of which then warms the next.
     """
     from sim.plan._assignment import assign
     from sim.plan._blend import blend_overlaps
@@ -683,7 +689,11 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar, floor_m=floor_m)
         if sa is None or sg is None:
             continue
-        mid = assign(sa, sg).goal_index if reassign else goal_index
+        if reassign:
+            warm = assign(sa, sg, warm=warm)
+            mid = warm.goal_index
+        else:
+            mid = goal_index
         middle: Schedule | None = None
         clashes = sync_conflicts(sa, sg[mid], required)
         if len(clashes):
