@@ -68,3 +68,36 @@ def test_bench_check_10k_show(formations: int, record_result) -> None:
     assert report.ok
     assert plan.duration_s >= 600
     assert t_check <= 5.0
+
+
+@pytest.mark.parametrize("n", [1000, 5000])
+def test_bench_warm_started_reassignment(n: int, record_result) -> None:
+    """The re-assignments between spread formations of the dense show (sim.bench._dense), warm-started from
+    the transition's assignment vs solved cold, same inputs, same process: CPU ratio and equal cost."""
+    import numpy as np
+
+    from sim.bench._dense import dense_show
+    from sim.plan import assign
+    from sim.plan._schedule import EXPANSIONS, spread
+
+    show = dense_show(n, formations=6)
+    sets = [np.asarray(show.home_positions_m) + [0.0, 0.0, show.settings.takeoff_altitude_m]]
+    sets += [np.asarray(f.points_m) for f in show.formations]
+    cold = warm = 0.0
+    equal = True
+    for a, g in zip(sets[:-1], sets[1:], strict=True):
+        base = assign(a, g, method="sparse")
+        for k in EXPANSIONS:
+            sa, sg = spread(a, k, 3.0, 1e4), spread(g, k, 3.0, 1e4)
+            if sa is None or sg is None:
+                continue
+            c0 = time.process_time()
+            r_cold = assign(sa, sg, method="sparse")
+            c1 = time.process_time()
+            r_warm = assign(sa, sg, method="sparse", warm=base)
+            c2 = time.process_time()
+            cold, warm = cold + c1 - c0, warm + c2 - c1
+            equal &= abs(r_cold.cost_m2 - r_warm.cost_m2) <= 1e-9 * r_cold.cost_m2
+    record_result({"drones": n, "reassign_cold_cpu_s": cold, "reassign_warm_cpu_s": warm,
+                   "warm_over_cold_cpu": warm / cold, "cost_equal": bool(equal)})
+    assert equal
