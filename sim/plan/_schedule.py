@@ -731,6 +731,11 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
                     for share in [shares[1] if is_inner else shares[0]]
                     for part in [replace(lim, a=lim.a * share, j=lim.j * share)]
                 )
+                # No overlap exceeds either of its legs: a share that cannot beat the best so far even with
+                # the longest overlaps is skipped unexamined (the certificates are the costly part).
+                reach = sum(min(u.window_s, v.window_s) for u, v in zip(slow[:-1], slow[1:], strict=True))
+                if sum(leg.window_s for leg in slow) - reach >= cand.window_s - 1e-9:
+                    continue
                 blended = replace(cand, legs=slow, overlaps_s=blend_overlaps(slow, lim, required, WINDOW_STEP_S))
                 if blended.window_s < cand.window_s - 1e-9:
                     cand = blended
