@@ -34,8 +34,9 @@ silent on it):
   exchange makes u_d Lipschitz, so the command filter and the torques stay smooth
   (docs/method.md §4.1 has the measured trade-off).
 * **PID** (the baseline, :class:`~sim.flight.control._baseline.BaselineGains`):
-  ``u -= k_i ∫e1 dt``, the integral clamped to ``±integral_limit`` per axis and frozen
-  while a rotor saturates (anti-windup). ``k_i = 0`` for the ISMC.
+  ``u -= k_i ∫e1 dt``, the integral clamped to ``±integral_limit`` per axis, frozen
+  while a rotor saturates and advanced on an axis only while ``|e1| < integral_zone``
+  (anti-windup). ``k_i = 0`` for the ISMC.
 * ``sig`` and unit vectors are guarded at zero (ISMC makes ``s(0) = 0`` exactly, an
   unguarded ``||s||^(r-1)`` is NaN at step 0). ``r = 1/2`` is evaluated as
   ``1/sqrt(||x||)`` (exact and cheap) in every engine.
@@ -61,6 +62,7 @@ __all__ = [
     "PositionGains",
     "ismc_nominal",
     "ismc_switching",
+    "limit_thrust_accel",
     "sig",
     "unit",
 ]
@@ -86,6 +88,15 @@ class PositionGains:
         ki: Integral gain on the position error (1/s³); 0 for the ISMC, > 0 makes the
             baseline a PID.
         integral_limit: Clamp of ∫e1 per axis (m·s), anti-windup.
+        integral_zone: The integral advances on an axis only while |e1| is below this (m)
+            (integral separation: a large transient does not wind it up).
+        min_thrust_accel_mps2: Floor of the commanded vertical thrust acceleration u_z
+            (m/s²): a large downward error must not command zero thrust, which with
+            per-rotor clipping leaves no torque and the drone tumbles.
+        max_tilt_rad: Largest angle of u from the vertical (rad); the horizontal part is
+            scaled down beyond it. Both limits are inactive in normal tracking (the
+            paper scenario never reaches them); while one acts, the drone counts as
+            saturated (u_d and the integral are frozen).
     """
 
     k1: float = 5.0
@@ -95,7 +106,10 @@ class PositionGains:
     alpha: float = 5.0
     boundary_layer: float = 1e-2
     ki: float = 0.0
-    integral_limit: float = 1.0
+    integral_limit: float = 2.5
+    integral_zone: float = 0.5
+    min_thrust_accel_mps2: float = 4.9
+    max_tilt_rad: float = 0.6
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,9 +163,9 @@ class IsmcGains:
                 raise ValueError(f"{name} must be > 0, got {value}")
 
     @classmethod
-    def paper(cls) -> IsmcGains:
-        """The paper's controller exactly: its gains and the discontinuous switching law."""
-        return cls(switching="sign")
+    def paper(cls, *, switching: str = "sign") -> IsmcGains:
+        """The paper's controller exactly: its gains, the discontinuous switching law, no thrust or tilt limits."""
+        return cls(position=PositionGains(min_thrust_accel_mps2=-np.inf, max_tilt_rad=np.pi / 2), switching=switching)
 
     def switch_eps(self, dt_s: float) -> tuple[float, float, float, float]:
         """Boundary layers of the switching directions: ``(s, s - s_prev)`` of position, then attitude.
@@ -170,11 +184,12 @@ class IsmcGains:
         return out[0], out[1], out[2], out[3]
 
     def as_vector(self, dt_s: float = 1e-3) -> np.ndarray:
-        """Pack for the fused kernel: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ,φp_s,φp_q,φa_s,φa_q,k_i,i_lim]``."""
+        """Pack for the fused kernel: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ,φp_s,φp_q,φa_s,φa_q,k_i,i_lim,i_zone,u_z_min,tan_tilt_max]``."""
         p, a, f = self.position, self.attitude, self.filter
         return np.array(
             [p.k1, p.k2, p.r1, p.r2, p.alpha, a.k3, a.k4, a.r3, a.r4, a.beta,
-             f.omega_n_rad_s, f.zeta, *self.switch_eps(dt_s), p.ki, p.integral_limit],
+             f.omega_n_rad_s, f.zeta, *self.switch_eps(dt_s), p.ki, p.integral_limit, p.integral_zone,
+             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad))],
             dtype=np.float64,
         )
 
@@ -221,6 +236,21 @@ def ismc_nominal(
     """Nominal finite-time control ``u_n = -k_a sig(e, r_a) - k_b sig(ė, r_b) - f`` (eq. 28)."""
     out: np.ndarray = -k_a * sig(e, r_a) - k_b * sig(e_dot, r_b) - f
     return out
+
+
+def limit_thrust_accel(u: np.ndarray, *, min_z: float, tan_tilt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Clamp ``u`` ``(N, 3)``: ``u_z >= min_z`` and ``||u_xy|| <= u_z tan(max tilt)``.
+
+    Returns:
+        ``(limited u (N, 3), limited (N,) bool)``; rows within the limits are returned unchanged.
+    """
+    uz = np.maximum(u[:, 2], min_z)
+    h = np.sqrt(u[:, 0] * u[:, 0] + u[:, 1] * u[:, 1])
+    hmax = uz * tan_tilt
+    tilt = h > hmax
+    scale = np.where(tilt, hmax / np.where(tilt, h, 1.0), 1.0)
+    out = np.stack([np.where(tilt, u[:, 0] * scale, u[:, 0]), np.where(tilt, u[:, 1] * scale, u[:, 1]), uz], axis=1)
+    return out, (u[:, 2] < min_z) | tilt
 
 
 def ismc_switching(

@@ -129,6 +129,9 @@ def simulate(
         raise ValueError(f"drone_ids must be ({n},), got {ids.shape}")
     err_tables = ErrorTables(errors or ErrorModel(), seed=seed, drone_ids=ids, plant=plant, dt_s=dt_s,
                              duration_s=(steps - 1) * dt_s)
+    if err_tables.use_gnss:
+        # The estimator starts at the first GNSS fix (a biased one puts the drone off its place).
+        ctrl[:, C_PHAT:C_PHAT + 3] += err_tables.initial_gnss_error()
     if integrator != "euler" and not err_tables.switches.ideal:
         raise ValueError("the rk4 integrator flies ideal drones only (errors=ErrorModel())")
 

@@ -178,7 +178,8 @@ def _kernel(
     k1, k2, r1, r2, alpha = gn[0], gn[1], gn[2], gn[3], gn[4]
     k3, k4, r3, r4, beta_g = gn[5], gn[6], gn[7], gn[8], gn[9]
     wn, zeta = gn[10], gn[11]
-    eps_p, eps_pq, eps_a, eps_aq, ki, ilim = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17]
+    eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17], gn[18]
+    uz_min, tan_tilt = gn[19], gn[20]
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
     n_wind = wtab.shape[0]
@@ -316,6 +317,16 @@ def _kernel(
             ux = ux - ki * ie0  # the PID baseline's integral (0 for the ISMC)
             uy = uy - ki * ie1
             uz = uz - ki * ie2
+            # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
+            limited = uz < uz_min
+            if limited:
+                uz = uz_min
+            hxy = math.sqrt(ux * ux + uy * uy)
+            if hxy > uz * tan_tilt:
+                limited = True
+                sc = uz * tan_tilt / hxy
+                ux = ux * sc
+                uy = uy * sc
 
             sph, cph = math.sin(ph), math.cos(ph)
             sth, cth = math.sin(th), math.cos(th)
@@ -387,7 +398,7 @@ def _kernel(
             o2 = base + roll - yw
             o3 = base + pitch + yw
             o4 = base - roll - yw
-            sat = (o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
+            sat = (limited or o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
                    or o3 < 0.0 or o3 > wmax2 or o4 < 0.0 or o4 > wmax2)
             o1 = min(max(o1, 0.0), wmax2)
             o2 = min(max(o2, 0.0), wmax2)
@@ -456,9 +467,9 @@ def _kernel(
                 uadx, uady, uadz = uda0, uda1, uda2
                 nie0, nie1, nie2 = ie0, ie1, ie2
             else:
-                nie0 = min(max(ie0 + dt * e1x, -ilim), ilim)
-                nie1 = min(max(ie1 + dt * e1y, -ilim), ilim)
-                nie2 = min(max(ie2 + dt * e1z, -ilim), ilim)
+                nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
+                nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
+                nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
                 udx = ud0 + dt * wpx
                 udy = ud1 + dt * wpy
                 udz = ud2 + dt * wpz

@@ -48,7 +48,7 @@ from sim.flight._quadrotor import (
     w_dot_omega,
 )
 from sim.flight.control._attitude import resolve_attitude
-from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching
+from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching, limit_thrust_accel
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
@@ -190,6 +190,7 @@ def numpy_step(
     w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha, eps=eps_p, eps_diff=eps_pq)
     u = u_n + c[:, C_UD:C_UD + 3]
     u = u - pg.ki * c[:, C_IERR:C_IERR + 3]  # PID baseline's integral (0 for the ISMC)
+    u, limited = limit_thrust_accel(u, min_z=pg.min_thrust_accel_mps2, tan_tilt=float(np.tan(pg.max_tilt_rad)))
     z_b = thrust_axis(euler)
     thrust_cmd = m * np.sum(u * z_b, axis=1)  # eq. 22: projection on the current body axis
 
@@ -214,6 +215,7 @@ def numpy_step(
     # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
     # are the nominal ones)
     omega_sq, saturated = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
+    saturated = saturated | limited
     if sw.motor:
         rotor = c[:, C_ROTOR:C_ROTOR + 4]
         omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
@@ -234,9 +236,9 @@ def numpy_step(
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]
     nc[:, C_LAST_THRUST] = thrust
     lim = pg.integral_limit
+    grow = ~saturated[:, None] & (np.abs(e1) < pg.integral_zone)
     nc[:, C_IERR:C_IERR + 3] = np.where(
-        saturated[:, None], c[:, C_IERR:C_IERR + 3],
-        np.minimum(np.maximum(c[:, C_IERR:C_IERR + 3] + dt_s * e1, -lim), lim),
+        grow, np.minimum(np.maximum(c[:, C_IERR:C_IERR + 3] + dt_s * e1, -lim), lim), c[:, C_IERR:C_IERR + 3],
     )
 
     # --- plant

@@ -144,6 +144,7 @@ class ErrorTables:
             self._bias = e.gnss_bias_m * self._axis_sigma * hashed_normal(
                 self.seed, self.ids[:, None], STREAMS["gnss_bias"], np.arange(3)[None, :]
             )
+        self._initial_bias = self._bias.copy()
         self.wind_field = (
             WindField.dryden(
                 mean_mps=e.wind_mean_mps, direction_rad=e.wind_direction_rad, ref_height_m=e.wind_ref_height_m,
@@ -158,6 +159,17 @@ class ErrorTables:
             gnss=self.use_gnss, motor=self.use_motor, drag=self.use_drag, clock=self.use_clock,
             est_kp=self.est_kp, est_kv=self.est_kv,
         )
+
+    def initial_gnss_error(self) -> np.ndarray:
+        """``(N, 3)`` the measurement error of epoch 0 (m): the estimator starts at that fix."""
+        if not self.use_gnss:
+            return np.zeros((self.ids.size, 3))
+        drone = self.ids[:, None]
+        white = self.errors.gnss_noise_m * self._axis_sigma * hashed_normal(
+            self.seed, drone, STREAMS["gnss_white"], np.arange(3)[None, :]
+        )
+        out: np.ndarray = self._initial_bias + white
+        return out
 
     def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
         """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order)."""

@@ -138,7 +138,7 @@ def run_paper_scenario(
     x0[0, 0:3] = PAPER_P0_M
     x0[0, 6:9] = PAPER_THETA0_RAD
     # The paper's controllers exactly: the discontinuous switching law and a PD comparison.
-    gains = BaselineGains.paper() if controller == "baseline" else IsmcGains(switching=switching)
+    gains = BaselineGains.paper() if controller == "baseline" else IsmcGains.paper(switching=switching)
     res = simulate(
         TrackingReference.paper(), duration_s=duration_s, initial_state=x0, gains=gains,
         disturbance="paper", output_every=1, telemetry=True, engine=engine, integrator=integrator,
