@@ -94,7 +94,9 @@ class PositionGains:
             (m/s²): a large downward error must not command zero thrust, which with
             per-rotor clipping leaves no torque and the drone tumbles.
         max_tilt_rad: Largest angle of u from the vertical (rad); the horizontal part is
-            scaled down beyond it. Both limits are inactive in normal tracking (the
+            scaled down beyond it. 0.6 rad (34°), about ArduPilot's default ANGLE_MAX of 30°;
+            with 0.8 rad a 3 m GNSS-bias step (the "gps-only" preset) made the attitude loop
+            lose the drone. Both limits are inactive in normal tracking (the
             paper scenario never reaches them); while one acts, the drone counts as
             saturated (u_d and the integral are frozen).
     """

@@ -318,6 +318,7 @@ def _kernel(
             uy = uy - ki * ie1
             uz = uz - ki * ie2
             # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
+            wux, wuy, wuz = ux, uy, uz
             limited = uz < uz_min
             if limited:
                 uz = uz_min
@@ -327,6 +328,12 @@ def _kernel(
                 sc = uz * tan_tilt / hxy
                 ux = ux * sc
                 uy = uy * sc
+            # While limited, s integrates the nominal law minus what the limiter took away.
+            inx, iny, inz = unx, uny, unz
+            if limited:
+                inx = unx + (ux - wux)
+                iny = uny + (uy - wuy)
+                inz = unz + (uz - wuz)
 
             sph, cph = math.sin(ph), math.cos(ph)
             sth, cth = math.sin(th), math.cos(th)
@@ -454,9 +461,9 @@ def _kernel(
                 nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
 
             # ---- controller state candidates
-            ipx = ip0 + dt * (unx + fx)
-            ipy = ip1 + dt * (uny + fy)
-            ipz = ip2 + dt * (unz + fz)
+            ipx = ip0 + dt * (inx + fx)
+            ipy = ip1 + dt * (iny + fy)
+            ipz = ip2 + dt * (inz + fz)
             iax = ia0 + dt * (unax + fax)
             iay = ia1 + dt * (unay + fay)
             iaz = ia2 + dt * (unaz + faz)

@@ -190,7 +190,11 @@ def numpy_step(
     w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha, eps=eps_p, eps_diff=eps_pq)
     u = u_n + c[:, C_UD:C_UD + 3]
     u = u - pg.ki * c[:, C_IERR:C_IERR + 3]  # PID baseline's integral (0 for the ISMC)
+    u_wanted = u
     u, limited = limit_thrust_accel(u, min_z=pg.min_thrust_accel_mps2, tan_tilt=float(np.tan(pg.max_tilt_rad)))
+    # While limited, s integrates the nominal law minus what the limiter took away, so that
+    # u_d does not learn the limiter as a disturbance (and wind up through it).
+    u_n_int = np.where(limited[:, None], u_n + (u - u_wanted), u_n)
     z_b = thrust_axis(euler)
     thrust_cmd = m * np.sum(u * z_b, axis=1)  # eq. 22: projection on the current body axis
 
@@ -226,7 +230,7 @@ def numpy_step(
     torque = torque * gain[:, None]
 
     # --- controller state update
-    nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n + f)
+    nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n_int + f)
     nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
