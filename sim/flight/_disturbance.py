@@ -159,7 +159,8 @@ WIND_MIN_HEIGHT_M = 1.0
 
 def _dryden_cdf(x: np.ndarray) -> np.ndarray:
     """∫0^x s⁴/(1+s²)³ ds: the cumulative Dryden energy spectrum in k·L (unnormalised)."""
-    return (3.0 * np.arctan(x) - x * (5.0 * x * x + 3.0) / (1.0 + x * x) ** 2) / 8.0
+    out: np.ndarray = (3.0 * np.arctan(x) - x * (5.0 * x * x + 3.0) / (1.0 + x * x) ** 2) / 8.0
+    return out
 
 
 def dryden_correlation(distance_m: np.ndarray, length_m: float, *, longitudinal: bool) -> np.ndarray:

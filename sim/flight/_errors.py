@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 __all__ = ["ERROR_PRESETS", "ErrorModel", "error_preset"]
 
@@ -175,18 +176,18 @@ class ErrorModel:
 # * Spread: mass ±2 %, inertia ±5 %, thrust gain ±3 % (1 σ; manufacturing and payload spread).
 # * Battery: LiPo voltage sag over a flight costs ~20-30 % of the thrust at a given command
 #   by the end of the pack (issue 20); 25 % ± 5 %.
-_RTK = {
+_RTK: dict[str, Any] = {
     "gnss_noise_m": 0.01, "gnss_vertical_factor": 1.5, "gnss_bias_m": 0.01,
     "gnss_bias_walk_m_per_sqrt_s": 0.001, "gnss_rate_hz": 10.0, "estimator_bandwidth_rad_s": 2.0,
     # Show clocks synchronised to GNSS time through the ground station: ~1 ms.
     "clock_offset_s": 0.001,
 }
-_VEHICLE = {
+_VEHICLE: dict[str, Any] = {
     "drag_coeff_kg_per_m": 0.018, "motor_time_constant_s": 0.02,
     "mass_spread": 0.02, "inertia_spread": 0.05, "thrust_spread": 0.03,
     "battery_sag": 0.25, "battery_sag_spread": 0.05,
 }
-_WIND = {"wind_ref_height_m": 10.0, "wind_shear_exponent": 1.0 / 7.0, "turbulence_length_m": 152.0,
+_WIND: dict[str, Any] = {"wind_ref_height_m": 10.0, "wind_shear_exponent": 1.0 / 7.0, "turbulence_length_m": 152.0,
          "turbulence_vertical_factor": 1.0 / 1.72}
 
 #: Named error models ("ideal", "calm-rtk", "gusty-rtk", "gps-only").

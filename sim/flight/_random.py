@@ -12,7 +12,10 @@ is a pure function of its key, hashed with SplitMix64 (Steele, Lea & Flood 2014,
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["STREAMS", "hashed_normal", "hashed_uniform"]
 
@@ -25,14 +28,15 @@ STREAMS = {
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
-def _mix(z: np.ndarray) -> np.ndarray:
+def _mix(z: Any) -> np.ndarray:
     """SplitMix64's finaliser (bijective on uint64; wraps on purpose)."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return z ^ (z >> np.uint64(31))
+    out: np.ndarray = np.asarray(z ^ (z >> np.uint64(31)))
+    return out
 
 
-def _hash(seed: int, drone: np.ndarray, stream: int, counter: np.ndarray, lane: int) -> np.ndarray:
+def _hash(seed: int, drone: ArrayLike, stream: int, counter: ArrayLike, lane: int) -> np.ndarray:
     with np.errstate(over="ignore"):
         h = _mix(np.uint64(seed & 0xFFFFFFFFFFFFFFFF) * _GOLDEN + np.uint64(stream))
         h = _mix(h ^ (np.asarray(drone, dtype=np.uint64) * _GOLDEN))
@@ -40,7 +44,7 @@ def _hash(seed: int, drone: np.ndarray, stream: int, counter: np.ndarray, lane: 
     return h
 
 
-def hashed_uniform(seed: int, drone: np.ndarray, stream: int, counter: np.ndarray, lane: int = 0) -> np.ndarray:
+def hashed_uniform(seed: int, drone: ArrayLike, stream: int, counter: ArrayLike, lane: int = 0) -> np.ndarray:
     """Uniforms in (0, 1), one per broadcast element of ``drone`` and ``counter``.
 
     Args:
@@ -51,10 +55,11 @@ def hashed_uniform(seed: int, drone: np.ndarray, stream: int, counter: np.ndarra
         lane: Sub-stream (Box-Muller uses lanes 0 and 1).
     """
     h = _hash(seed, drone, stream, counter, lane)
-    return ((h >> np.uint64(11)).astype(np.float64) + 0.5) * (1.0 / 9007199254740992.0)
+    out: np.ndarray = ((h >> np.uint64(11)).astype(np.float64) + 0.5) * (1.0 / 9007199254740992.0)
+    return out
 
 
-def hashed_normal(seed: int, drone: np.ndarray, stream: int, counter: np.ndarray) -> np.ndarray:
+def hashed_normal(seed: int, drone: ArrayLike, stream: int, counter: ArrayLike) -> np.ndarray:
     """Standard normals keyed like :func:`hashed_uniform` (Box-Muller, cosine branch)."""
     u1 = hashed_uniform(seed, drone, stream, counter, 0)
     u2 = hashed_uniform(seed, drone, stream, counter, 1)

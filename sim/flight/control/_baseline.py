@@ -13,8 +13,9 @@ the finite-time exponents and the integral sliding mode add. Under a persistent
 disturbance a PD leaves a steady error ``≈ ||Δ1|| / kp``; the integral term (as flight
 stacks' position controllers have, e.g. PX4's velocity-loop integrator) removes a
 constant one (wind, mass error, battery sag) with anti-windup (clamp ``integral_limit``,
-frozen while a rotor saturates, integral separation outside ``integral_zone``). ``ki = 0`` gives the paper's comparison PD
-(:meth:`BaselineGains.paper`). The default ``ki = 2`` keeps the position loop's
+frozen while a rotor saturates, integral separation outside ``integral_zone``).
+``ki = 0`` gives the paper's comparison PD (:meth:`BaselineGains.paper`). The default ``ki = 2``
+keeps the position loop's
 characteristic polynomial ``s³ + kd s² + kp s + ki`` well inside Routh's bound
 ``ki < kp kd = 20``, leaving margin for the attitude loop's lag.
 """

@@ -186,7 +186,10 @@ class IsmcGains:
         return out[0], out[1], out[2], out[3]
 
     def as_vector(self, dt_s: float = 1e-3) -> np.ndarray:
-        """Pack for the fused kernel: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ,φp_s,φp_q,φa_s,φa_q,k_i,i_lim,i_zone,u_z_min,tan_tilt_max]``."""
+        """Pack for the fused kernel (``dt_s`` scales the layers on ``s - s_prev``).
+
+        Layout: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ, φp_s,φp_q,φa_s,φa_q, k_i,i_lim,i_zone, u_z_min,tan_tilt_max]``.
+        """
         p, a, f = self.position, self.attitude, self.filter
         return np.array(
             [p.k1, p.k2, p.r1, p.r2, p.alpha, a.k3, a.k4, a.r3, a.r4, a.beta,

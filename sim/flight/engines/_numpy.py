@@ -53,9 +53,9 @@ from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
     C_IATT,
-    C_IPOS,
     C_IERR,
     C_INNOV,
+    C_IPOS,
     C_LAST_THRUST,
     C_PHAT,
     C_ROTOR,
@@ -85,13 +85,13 @@ from sim.flight.engines._state import (
     RefChunk,
     TrackingReference,
 )
-from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
 
 # The shared types, re-exported for callers that still import them from here.
 from sim.flight.engines._state import STATS_SIZE as STATS_SIZE
 from sim.flight.engines._state import TELEMETRY_FIELDS as TELEMETRY_FIELDS
 from sim.flight.engines._state import SimResult as SimResult
 from sim.flight.engines._state import hover_state as hover_state
+from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
 
 __all__ = ["init_controller", "numpy_step", "run_chunk_numpy"]
 

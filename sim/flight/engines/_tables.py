@@ -33,7 +33,6 @@ from sim.flight.engines._state import (
     D_CLOCK,
     D_DRAG,
     D_IX,
-    D_IY,
     D_IZ,
     D_MASS,
     D_MOTOR,
@@ -109,7 +108,8 @@ class ErrorTables:
 
         def spread(stream: str, sigma: float, axes: int = 1) -> np.ndarray:
             z = hashed_normal(self.seed, self.ids[:, None], STREAMS[stream], np.arange(axes)[None, :])
-            return 1.0 + sigma * np.clip(z, -SPREAD_CLIP_SIGMA, SPREAD_CLIP_SIGMA)
+            out: np.ndarray = 1.0 + sigma * np.clip(z, -SPREAD_CLIP_SIGMA, SPREAD_CLIP_SIGMA)
+            return out
 
         if e.mass_spread > 0:
             d[:, D_MASS] *= spread("mass", e.mass_spread)[:, 0]
@@ -191,8 +191,14 @@ class ErrorTables:
                 walk = e.gnss_bias_walk_m_per_sqrt_s * math.sqrt(ge * self.dt_s)
                 steps = walk * self._axis_sigma * hashed_normal(self.seed, drone, STREAMS["gnss_walk"], counter)
                 steps[epochs == 0] = 0.0  # the bias starts at its initial draw
-                bias = self._bias[None] + np.cumsum(steps, axis=0)
-                self._bias = bias[-1].copy()
+                # One epoch after the other (not a cumsum from the chunk's start): the same
+                # additions in the same order whatever the chunking, so the same bits.
+                bias = np.empty_like(steps)
+                current = self._bias
+                for e_row in range(epochs.size):
+                    current = current + steps[e_row]
+                    bias[e_row] = current
+                self._bias = current.copy()
                 self._bias_epoch = int(epochs[-1])
                 white = e.gnss_noise_m * self._axis_sigma * hashed_normal(
                     self.seed, drone, STREAMS["gnss_white"], counter
