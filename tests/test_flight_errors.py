@@ -213,11 +213,12 @@ def test_seeds_reproduce_and_a_drone_flies_the_same_alone_or_in_any_chunking():
     np.testing.assert_array_equal(sub.final_state, a.final_state[rows])
 
 
-@pytest.mark.parametrize("preset", ["gusty-rtk", "gps-only"])
-def test_engines_agree_with_the_error_models_on(preset):
+@pytest.mark.parametrize(("preset", "gains"), [("gusty-rtk", IsmcGains()), ("gps-only", IsmcGains()),
+                                               ("gusty-rtk", BaselineGains())])
+def test_engines_agree_with_the_error_models_on(preset, gains):
     model = ErrorModel(**{**error_preset(preset).__dict__, "clock_offset_s": 0.02})
     ref = _line_reference(12)
-    kw = dict(duration_s=1.0, errors=model, seed=9, output_every=25, telemetry=True, chunk_steps=300)
+    kw = dict(duration_s=1.0, errors=model, seed=9, output_every=25, telemetry=True, chunk_steps=300, gains=gains)
     a = simulate(ref, engine="numba", **kw)
     b = simulate(ref, engine="numpy", **kw)
     assert a.diverged() == [] and b.diverged() == []
