@@ -281,6 +281,14 @@ export class Timeline {
       count.title = `${st.show.drones - n} fewer points than drones: use "Fit to N drones"`;
     }
     meta.append(holdLabel, count);
+    if (f.arrive_at_s != null || f.leave_at_s != null) {
+      // Cue times (issue 18): pinned on the music lane.
+      const pin = document.createElement("span");
+      pin.className = "tl-pin";
+      pin.textContent = `⟂ ${f.arrive_at_s != null ? f.arrive_at_s.toFixed(2) : "…"}${f.leave_at_s != null ? `–${f.leave_at_s.toFixed(2)}` : ""} s`;
+      pin.title = "Pinned cue time (drag its marker on the music lane; double-click it to unpin)";
+      meta.append(pin);
+    }
 
     const sw = document.createElement("div");
     sw.className = "tl-swatches";
