@@ -115,3 +115,44 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     assert page.evaluate("() => document.getElementById('music-audio').paused")
     ui.shot("issue18-music-lane")
+
+
+def test_offline_html_plays_the_music_with_the_recording(browser, tmp_path):
+    """The exported HTML, opened from disk: "Sound on" starts the music, which follows the recording's clock."""
+    from app.exports import export_show
+    from app.media import AudioTrack
+    from formations import parse_show
+    from tests.test_media_audio import show_doc
+
+    y, _ = click_track(BPM, OFFSET_S, duration_s=60.0, sr=22_050)
+    buf = io.BytesIO()
+    sf.write(buf, y, 22_050, format="OGG")
+    audio = AudioTrack(data=buf.getvalue(), container="ogg", media_type="audio/ogg", filename="clicks.ogg")
+    doc = show_doc("offline music")
+    doc["formations"][0]["hold_s"] = 40.0
+    html = export_show(parse_show(doc), "viser-html", audio=audio).content
+    path = tmp_path / "show.html"
+    path.write_bytes(html)
+    ctx = browser.new_context(viewport={"width": 1200, "height": 800})
+    errors: list[str] = []
+    try:
+        page = ctx.new_page()
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(path.as_uri())
+        page.get_by_role("button", name="Play the music with the show").click()
+        page.wait_for_function("() => { const a = window.__SWARMSHOW_AUDIO_ELEMENT__; "
+                               "return a && !a.paused && a.currentTime > 1.0; }", timeout=30_000)
+        # The music's time is the recording's (its time slider), within the follower's tolerance.
+        samples = []
+        for _ in range(8):
+            samples.append(page.evaluate("""() => [window.__SWARMSHOW_AUDIO_ELEMENT__.currentTime,
+                parseFloat(document.querySelector('[role="slider"]').getAttribute('aria-valuenow'))]"""))
+            page.wait_for_timeout(400)
+        # (Both clocks jitter on a loaded machine: the recording steps with its frames, the audio clock
+        # in its own quanta, and each sample takes a round trip; the median keeps the signal.)
+        diff = np.median([abs(a - b) for a, b in samples])
+        assert diff < 0.5, samples
+        assert samples[-1][0] - samples[0][0] > 1.5, samples  # the music plays on
+    finally:
+        ctx.close()
+    assert not errors, errors
