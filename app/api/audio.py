@@ -8,6 +8,7 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse, StreamingResponse
+from pydantic import BaseModel
 
 from app.api import deps
 from app.api.errors import ApiError
@@ -24,7 +25,6 @@ ANALYSIS_BUDGET_S = 300.0
 CHUNK_BYTES = 256 * 1024
 
 _UPLOAD_CONTENT = {
-    "audio/*": {"schema": {"type": "string", "format": "binary"}},
     "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
     "multipart/form-data": {
         "schema": {
@@ -35,6 +35,43 @@ _UPLOAD_CONTENT = {
     },
 }
 _RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
+
+
+class AudioInfoOut(BaseModel):
+    """What the server keeps of a show's music."""
+
+    show_id: str
+    filename: str
+    media_type: str
+    size: int
+    sha256: str
+    duration_s: float | None
+    sample_rate_hz: int | None
+    channels: int | None
+    tempo_bpm: float | None
+    beats: int
+    onsets: int
+    url: str
+    analysis_url: str
+
+
+class AudioAnalysisOut(BaseModel):
+    """Waveform peaks (min, max pairs, -127..127, ``peaks_per_s`` pairs a second), beats and onsets."""
+
+    container: str
+    media_type: str
+    sample_rate_hz: int
+    channels: int
+    duration_s: float
+    peaks_per_s: int
+    peaks: list[int]
+    tempo_bpm: float | None = None
+    beats_s: list[float] = []
+    onsets_s: list[float] = []
+
+
+_AUDIO_TYPES = {t: {} for t in ("audio/wav", "audio/mpeg", "audio/ogg", "audio/flac")}
+_ERROR_JSON = {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorOut"}}}
 
 
 def _bad(msg: str, status: int = 422, field: str = "file") -> ApiError:
@@ -86,8 +123,11 @@ def _summary(show_id: str, filename: str, media_type: str, size: int, sha256: st
 
 @router.put(
     "/shows/{show_id}/audio",
+    status_code=201,
+    response_model=AudioInfoOut,
     summary="Upload a show's music (WAV, MP3, OGG or FLAC)",
-    responses={**error_responses(404, 413, 422), 415: {"description": "Not a WAV, MP3, OGG or FLAC file."}},
+    responses={**error_responses(404, 413, 422),
+               415: {"description": "Not a WAV, MP3, OGG or FLAC file.", "content": _ERROR_JSON}},
     openapi_extra={"requestBody": {"required": True, "content": _UPLOAD_CONTENT}},
 )
 async def put_audio(
@@ -125,7 +165,8 @@ def _record(request: Request, show_id: str, *, analysis: bool = False) -> Any:
     return record
 
 
-@router.get("/shows/{show_id}/audio/info", summary="A show's music: name, type, size, duration, tempo",
+@router.get("/shows/{show_id}/audio/info", response_model=AudioInfoOut,
+            summary="A show's music: name, type, size, duration, tempo",
             responses=error_responses(404))
 async def audio_info(request: Request, show_id: str) -> JSONResponse:
     """What :func:`put_audio` answered for the stored track."""
@@ -134,7 +175,7 @@ async def audio_info(request: Request, show_id: str) -> JSONResponse:
 
 
 @router.get("/shows/{show_id}/audio/analysis", summary="Waveform peaks, beats and onsets of a show's music",
-            responses=error_responses(404))
+            response_model=AudioAnalysisOut, responses=error_responses(404))
 async def audio_analysis(request: Request, show_id: str) -> Response:
     """``{duration_s, peaks_per_s, peaks: [min0, max0, min1, max1, ...] (-127..127), tempo_bpm, beats_s, onsets_s}``."""
     r = _record(request, show_id, analysis=True)
@@ -142,9 +183,9 @@ async def audio_analysis(request: Request, show_id: str) -> Response:
 
 
 @router.get("/shows/{show_id}/audio", summary="Stream a show's music (HTTP ranges)", response_class=Response,
-            responses={200: {"description": "The audio file.", "content": {"audio/*": {}}},
-                       206: {"description": "A byte range of it."}, **error_responses(404),
-                       416: {"description": "The range is outside the file."}})
+            responses={200: {"description": "The audio file.", "content": _AUDIO_TYPES},
+                       206: {"description": "A byte range of it.", "content": _AUDIO_TYPES}, **error_responses(404),
+                       416: {"description": "The range is outside the file.", "content": _ERROR_JSON}})
 async def get_audio(request: Request, show_id: str) -> Response:
     """The stored file as uploaded; a ``Range: bytes=a-b`` request gets 206 with that part, so that the
     browser's audio element can seek without downloading the whole track."""
