@@ -70,7 +70,7 @@ class AudioAnalysisOut(BaseModel):
     onsets_s: list[float] = []
 
 
-_AUDIO_TYPES = {t: {} for t in ("audio/wav", "audio/mpeg", "audio/ogg", "audio/flac")}
+_AUDIO_TYPES: dict[str, dict[str, Any]] = {t: {} for t in ("audio/wav", "audio/mpeg", "audio/ogg", "audio/flac")}
 _ERROR_JSON = {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorOut"}}}
 
 
