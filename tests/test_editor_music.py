@@ -76,7 +76,7 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
     # Check: the formations get markers at their planned arrivals.
     page.get_by_role("button", name="Check the show").click()
     expect(page.locator("#report-body")).to_contain_text("Minimum distance", timeout=60_000)
-    planned = page.evaluate("() => window.swarmshow.music.markers().find((m) => m.k === 1).t")
+    planned = page.evaluate("() => window.swarmshow.music.markers().find((m) => m.k === 1 && m.kind === 'arrive').t")
 
     # Drag formation 2's marker 3.1 s later: it lands on the nearest beat and pins the arrival there.
     canvas = page.locator("#music-canvas")
@@ -95,13 +95,20 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
     assert abs(pinned - (planned + 3.1)) < 0.5  # ... the one nearest the drop
     assert np.abs(clicks - pinned).min() <= 0.02  # ... which is a click of the track
 
-    # Saved and checked again, the plan reaches formation 2 exactly at the beat.
+    # Its departure pinned at the playhead, 6.1 s later: on the nearest beat too.
+    page.evaluate(f"() => window.swarmshow.music.seek({pinned + 6.1})")
+    page.get_by_role("button", name="Pin the current formation's departure at the playhead").click()
+    left = ui.state("s.show.formations[1].leave_at_s")
+    assert min(abs(left - b) for b in beats) < 1e-3 and abs(left - (pinned + 6.1)) <= 0.25
+
+    # Saved and checked again, the plan reaches formation 2 exactly at the beat and leaves it on the other.
     page.keyboard.press("Control+s")
     page.wait_for_function("() => !window.swarmshow.state.dirty")
     show_id = ui.state("s.meta.id")
     res = httpx.post(f"{ui.base}/api/shows/{show_id}/check", timeout=120).json()
     holds = [s for s in res["plan"]["segments"] if s["kind"] == "hold"]
     assert holds[1]["start_s"] == pytest.approx(pinned, abs=1e-6)
+    assert holds[1]["start_s"] + holds[1]["duration_s"] == pytest.approx(left, abs=1e-6)
 
     # The 3D preview plays with the sound: the lane's Play starts the audio and drives the viewer.
     page.get_by_role("button", name="3D preview").click()

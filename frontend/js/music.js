@@ -10,6 +10,8 @@ import { columnPeaks, snapTime } from "./musicmath.js";
 
 /** Snap distance to a beat, CSS pixels. */
 const SNAP_PX = 10;
+/** Height of the departure markers' handles along the lane's bottom, CSS pixels. */
+const LEAVE_HANDLE_PX = 14;
 /** Grab distance of a marker, CSS pixels. */
 const GRAB_PX = 7;
 /** Audio and viewer clocks further apart than this are re-aligned, seconds. */
@@ -34,7 +36,7 @@ export class MusicLane {
     this.file = /** @type {HTMLInputElement} */ (document.getElementById("music-file"));
     this.playBtn = /** @type {HTMLButtonElement} */ (document.getElementById("btn-music-play"));
     this.timeEl = document.getElementById("music-time");
-    this.snapBox = /** @type {HTMLInputElement} */ (document.getElementById("music-snap"));
+    this.snapBox = /** @type {HTMLSelectElement} */ (document.getElementById("music-snap"));
     /** @type {any|null} the analysis: duration_s, peaks_per_s, peaks, tempo_bpm, beats_s, onsets_s */
     this.analysis = null;
     /** @type {any|null} what the server says of the stored track */
@@ -56,7 +58,8 @@ export class MusicLane {
     });
     document.getElementById("btn-music-remove").addEventListener("click", () => this.remove());
     this.playBtn.addEventListener("click", () => this.toggle());
-    document.getElementById("btn-music-pin").addEventListener("click", () => this.pinCurrent(this.time_s));
+    document.getElementById("btn-music-pin").addEventListener("click", () => this.pinCurrent(this.time_s, "arrive"));
+    document.getElementById("btn-music-pin-leave").addEventListener("click", () => this.pinCurrent(this.time_s, "leave"));
     document.getElementById("btn-music-unpin").addEventListener("click", () => this.unpin(this.state.current));
     this.canvas.addEventListener("pointerdown", (e) => this._down(e));
     this.canvas.addEventListener("pointermove", (e) => this._move(e));
@@ -258,14 +261,19 @@ export class MusicLane {
 
   // ---- cues ----------------------------------------------------------------------------------
 
-  /** @returns {number[]} the snap points (beats), seconds, ascending. */
+  /** @returns {number[]} the snap points (beats, onsets or both, as chosen), seconds, ascending. */
   snapPoints() {
-    return this.analysis && this.snapBox.checked ? this.analysis.beats_s : [];
+    const a = this.analysis;
+    const mode = this.snapBox.value;
+    if (!a || mode === "off") return [];
+    if (mode === "onsets") return a.onsets_s;
+    if (mode === "both") return [...a.beats_s, ...a.onsets_s].sort((x, y) => x - y);
+    return a.beats_s;
   }
 
   /**
-   * Each formation's marker: its pinned arrival, else its planned one (after a check), else none.
-   * @returns {{k: number, t: number, pinned: boolean, leave: number|null}[]}
+   * Each formation's cue markers: its arrival and its departure, pinned or (after a check) planned.
+   * @returns {{k: number, kind: "arrive"|"leave", t: number, pinned: boolean}[]}
    */
   markers() {
     const show = this.state.show;
@@ -274,43 +282,59 @@ export class MusicLane {
     const holds = plan ? plan.segments.filter((s) => s.kind === "hold") : [];
     const out = [];
     show.formations.forEach((f, k) => {
-      const planned = holds[k] ? holds[k].start_s : null;
-      const t = f.arrive_at_s != null ? f.arrive_at_s : planned;
-      if (t != null) out.push({ k, t, pinned: f.arrive_at_s != null, leave: f.leave_at_s != null ? f.leave_at_s : null });
+      const hold = holds[k] || null;
+      const arrive = f.arrive_at_s != null ? f.arrive_at_s : hold ? hold.start_s : null;
+      const leave = f.leave_at_s != null ? f.leave_at_s : hold ? hold.start_s + hold.duration_s : null;
+      if (arrive != null) out.push({ k, kind: "arrive", t: arrive, pinned: f.arrive_at_s != null });
+      if (leave != null) out.push({ k, kind: "leave", t: leave, pinned: f.leave_at_s != null });
     });
     return out;
   }
 
   /**
-   * Pin the current formation's arrival at `t` (snapped to the nearest beat).
-   * @param {number} t seconds
+   * Pin the current formation's arrival (or departure) at `t`, snapped to the nearest snap point.
+   * @param {number} t seconds @param {"arrive"|"leave"} [kind]
    */
-  pinCurrent(t) {
-    this.pin(this.state.current, t);
+  pinCurrent(t, kind = "arrive") {
+    this.pin(this.state.current, kind, +snapTime(t, this.snapPoints(), 0.25).toFixed(3));
   }
 
   /**
-   * Pin formation `k` to arrive at `t` seconds (a fixed transition length gives way to the pin).
-   * @param {number} k @param {number} t
+   * Pin formation `k` to arrive (or leave) at `t` seconds. A fixed transition length gives way to an
+   * arrival pin; a departure pin before the arrival pin is dropped.
+   * @param {number} k @param {"arrive"|"leave"} kind @param {number} t
    */
-  pin(k, t) {
+  pin(k, kind, t) {
     const st = this.state;
     if (!st.show || !st.show.formations[k]) return;
-    const snapped = +snapTime(t, this.snapPoints(), 0.25).toFixed(3);
-    st.edit(`Pin "${st.show.formations[k].name}" at ${snapped.toFixed(2)} s`, () => {
+    t = Math.max(0, t);
+    const verb = kind === "arrive" ? "arrival" : "departure";
+    st.edit(`Pin the ${verb} of "${st.show.formations[k].name}" at ${t.toFixed(2)} s`, () => {
       const f = st.show.formations[k];
-      f.arrive_at_s = Math.max(0, snapped);
-      delete f.transition_s;
-      if (f.leave_at_s != null && f.leave_at_s <= f.arrive_at_s) delete f.leave_at_s;
+      if (kind === "arrive") {
+        f.arrive_at_s = t;
+        delete f.transition_s;
+        if (f.leave_at_s != null && f.leave_at_s <= t) delete f.leave_at_s;
+      } else {
+        f.leave_at_s = t;
+        if (f.arrive_at_s != null && f.arrive_at_s >= t) delete f.arrive_at_s;
+      }
     });
   }
 
-  /** @param {number} k formation index: its arrival follows the plan again */
-  unpin(k) {
+  /**
+   * Unpin formation `k`'s arrival, departure or both: they follow the plan (and hold_s) again.
+   * @param {number} k @param {"arrive"|"leave"|"both"} [kind]
+   */
+  unpin(k, kind = "both") {
     const st = this.state;
     const f = st.show && st.show.formations[k];
-    if (!f || f.arrive_at_s == null) return;
-    st.edit(`Unpin "${f.name}"`, () => { delete st.show.formations[k].arrive_at_s; });
+    if (!f) return;
+    const fields = kind === "both" ? ["arrive_at_s", "leave_at_s"] : [`${kind}_at_s`];
+    if (!fields.some((x) => f[x] != null)) return;
+    st.edit(`Unpin "${f.name}"`, () => {
+      for (const x of fields) delete st.show.formations[k][x];
+    });
   }
 
   _x(t) {
@@ -321,12 +345,14 @@ export class MusicLane {
     return (x / Math.max(1, this.canvas.clientWidth)) * this.span();
   }
 
-  _hit(x) {
+  /** The marker under (x, y): departures by their handle along the bottom, arrivals elsewhere. */
+  _hit(x, y) {
+    const kind = y >= this.canvas.clientHeight - LEAVE_HANDLE_PX ? "leave" : "arrive";
     let best = null;
     let bestD = GRAB_PX;
     for (const m of this.markers()) {
       const d = Math.abs(this._x(m.t) - x);
-      if (d <= bestD) {
+      if (m.kind === kind && d <= bestD) {
         bestD = d;
         best = m;
       }
@@ -336,14 +362,13 @@ export class MusicLane {
 
   /** @param {PointerEvent} e */
   _down(e) {
-    const x = e.offsetX;
-    const m = this._hit(x);
+    const m = this._hit(e.offsetX, e.offsetY);
     if (m) {
-      this._drag = { k: m.k, t: m.t };
+      this._drag = { k: m.k, kind: m.kind, t: m.t };
       this.state.setCurrent(m.k);
     } else {
       this._drag = { seek: true };
-      this.seek(this._t(x));
+      this.seek(this._t(e.offsetX));
     }
     this.canvas.setPointerCapture(e.pointerId);
   }
@@ -352,7 +377,7 @@ export class MusicLane {
   _move(e) {
     const d = this._drag;
     if (!d) {
-      this.canvas.style.cursor = this._hit(e.offsetX) ? "ew-resize" : "pointer";
+      this.canvas.style.cursor = this._hit(e.offsetX, e.offsetY) ? "ew-resize" : "pointer";
       return;
     }
     const t = Math.max(0, this._t(e.offsetX));
@@ -370,25 +395,14 @@ export class MusicLane {
     const d = this._drag;
     this._drag = null;
     if (this.canvas.hasPointerCapture(e.pointerId)) this.canvas.releasePointerCapture(e.pointerId);
-    if (d && !d.seek && d.moved) {
-      const m = this.markers().find((x) => x.k === d.k);
-      if (!m || Math.abs(m.t - d.t) > 1e-6 || !m.pinned) {
-        const t = +d.t.toFixed(3);
-        const st = this.state;
-        st.edit(`Pin "${st.show.formations[d.k].name}" at ${t.toFixed(2)} s`, () => {
-          const f = st.show.formations[d.k];
-          f.arrive_at_s = t;
-          delete f.transition_s;
-          if (f.leave_at_s != null && f.leave_at_s <= t) delete f.leave_at_s;
-        });
-      }
-    }
+    if (d && !d.seek && d.moved) this.pin(d.k, d.kind, +d.t.toFixed(3));
+    else this.draw();
   }
 
   /** @param {MouseEvent} e */
   _dbl(e) {
-    const m = this._hit(e.offsetX);
-    if (m && m.pinned) this.unpin(m.k);
+    const m = this._hit(e.offsetX, e.offsetY);
+    if (m && m.pinned) this.unpin(m.k, m.kind);
   }
 
   // ---- drawing -------------------------------------------------------------------------------
@@ -439,32 +453,37 @@ export class MusicLane {
         g.fillRect(x, 12, 1, h - 12);
       }
     }
-    // Formation markers.
+    // Formation markers: arrivals (diamonds from the top), departures (handles along the bottom).
     const show = this.state.show;
     for (const m of this.markers()) {
-      const dragging = this._drag && this._drag.k === m.k;
-      const t = dragging ? this._drag.t : m.t;
-      const x = this._x(t);
+      const dragging = this._drag && this._drag.k === m.k && this._drag.kind === m.kind;
+      const x = this._x(dragging ? this._drag.t : m.t);
       const current = show && m.k === this.state.current;
-      g.strokeStyle = g.fillStyle = m.pinned || dragging ? (current ? "#ff9f43" : "#e0e0e0") : "#7f8ea3";
+      const solid = m.pinned || dragging;
+      g.strokeStyle = g.fillStyle = solid ? (current ? "#ff9f43" : "#e0e0e0") : "#7f8ea3";
       g.lineWidth = current ? 2 : 1;
       g.beginPath();
-      g.moveTo(x, 12);
-      g.lineTo(x, h);
-      g.stroke();
-      g.beginPath();
-      g.moveTo(x, 12);
-      g.lineTo(x - 5, 18);
-      g.lineTo(x, 24);
-      g.lineTo(x + 5, 18);
-      g.closePath();
-      if (m.pinned || dragging) g.fill();
-      else g.stroke();
-      g.fillText(show.formations[m.k].name.slice(0, 16), x + 6, 22);
-      if (m.leave != null) {
-        const xl = this._x(m.leave);
-        g.fillRect(x, h - 4, Math.max(1, xl - x), 2);
-        g.fillRect(xl - 1, h - 10, 2, 8);
+      if (m.kind === "arrive") {
+        g.moveTo(x, 12);
+        g.lineTo(x, h - LEAVE_HANDLE_PX);
+        g.stroke();
+        g.beginPath();
+        g.moveTo(x, 12);
+        g.lineTo(x - 5, 18);
+        g.lineTo(x, 24);
+        g.lineTo(x + 5, 18);
+        g.closePath();
+        if (solid) g.fill();
+        else g.stroke();
+        g.fillText(show.formations[m.k].name.slice(0, 16), x + 6, 22);
+      } else {
+        g.moveTo(x, h - 2 * LEAVE_HANDLE_PX);
+        g.lineTo(x, h);
+        g.stroke();
+        g.beginPath();
+        g.rect(x - 4, h - LEAVE_HANDLE_PX + 2, 4, LEAVE_HANDLE_PX - 4);
+        if (solid) g.fill();
+        else g.stroke();
       }
     }
     // Playhead.
