@@ -108,3 +108,27 @@ def test_api_exports_take_the_stored_track(tmp_path):
         csv = client.get(f"/api/shows/{sid}/export/skybrush-csv")
         names = zipfile.ZipFile(io.BytesIO(csv.content)).namelist()
         assert csv.status_code == 200 and not any(n.endswith(".mp3") for n in names)  # other formats ignore it
+
+
+def test_cli_export_with_audio(show, tmp_path, capsys):
+    from app.cli import main
+    from formations import dump_show
+
+    src = tmp_path / "show.json"
+    src.write_text(dump_show(show))
+    song = tmp_path / "song.flac"
+    song.write_bytes(track("FLAC").data)
+    out = tmp_path / "show.skyc"
+    assert main(["export", str(src), "--format", "skyc", "-o", str(out), "--audio", str(song)]) == 0
+    z = zipfile.ZipFile(out)
+    media = json.loads(z.read("show.json"))["media"]["audio"]
+    assert media["filename"] == "song.flac" and sniff_container(z.read("music.mp3")) == "mp3"
+    # A bad track: exit 2, one line naming --audio and the reason, nothing written.
+    bad = tmp_path / "bad.wav"
+    bad.write_bytes(track("WAV").data[:100])
+    out2 = tmp_path / "bad.skyc"
+    capsys.readouterr()
+    assert main(["export", str(src), "--format", "skyc", "-o", str(out2), "--audio", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--audio" in err and "truncated" in err and len(err.splitlines()) == 1
+    assert not out2.exists()
