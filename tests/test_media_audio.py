@@ -238,3 +238,13 @@ def test_bad_uploads_are_4xx_naming_file_and_store_nothing(client):
     r = client.get(f"/api/shows/{sid}/audio", headers={"Range": f"bytes={len(wav) + 5}-"})
     assert r.status_code == 416
     assert json.loads(client.get(f"/api/shows/{sid}/audio/analysis").content)["duration_s"] == pytest.approx(1.0)
+
+
+def test_a_track_over_the_length_limit_is_413_before_decoding(client):
+    sid = _new_show(client)
+    # 21 minutes of silence: FLAC stores it in a few kilobytes, and its header says how long it is.
+    data = encode(np.zeros(8_000 * 60 * 21, np.int16), "FLAC", sr=8_000)
+    assert len(data) < 2 * 1024 * 1024
+    r = client.put(f"/api/shows/{sid}/audio", content=data)
+    assert r.status_code == 413, r.text
+    assert r.json()["detail"][0]["path"] == "file" and "the limit is 1200 s" in r.json()["detail"][0]["msg"]

@@ -151,3 +151,23 @@ def test_bad_pins_are_refused_with_their_path(patch, path, words):
         parse_show(doc)
     first = err.value.errors[0]
     assert first["path"].startswith(path) and words in first["msg"], first
+
+
+def test_check_answers_an_infeasible_cue_with_422_and_the_earliest_time(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from app.server import create_app
+    from app.settings import AppSettings
+    from formations import dump_show
+
+    free = plan_show(build(small()))
+    start = free.transitions[1].start_s
+    show = build(small(f1_arrive_at_s=start + 1.0))
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1, viewer=False))
+    with TestClient(app, base_url="http://127.0.0.1") as client:
+        sid = client.post("/api/shows", content=dump_show(show)).json()["id"]
+        r = client.post(f"/api/shows/{sid}/check")
+        assert r.status_code == 422, r.text
+        problem = r.json()["detail"][0]
+        assert problem["path"] == "formations[1].arrive_at_s" and "'sphere'" in problem["msg"]
+        assert start < problem["earliest_s"] <= start + free.transitions[1].duration_s
