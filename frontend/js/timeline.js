@@ -267,6 +267,11 @@ export class Timeline {
     hold.step = "0.5";
     hold.value = String(f.hold_s);
     hold.setAttribute("aria-label", `Hold time of formation ${k + 1}, seconds`);
+    if (f.leave_at_s != null) {
+      // A departure pin (issue 18) sets the hold's end: hold_s is not used.
+      hold.disabled = true;
+      hold.title = `The hold lasts until the departure pin at ${f.leave_at_s} s`;
+    }
     hold.addEventListener("change", () => setTimeout(() => {
       const v = Number(hold.value);
       if (!(v > 0)) { hold.value = String(f.hold_s); return; }
