@@ -287,6 +287,8 @@ def _plan_failure(exc: Exception) -> TaskFailure:
     problem: dict[str, Any] = {"loc": ["show", *_path_loc(path)], "path": path, "msg": str(exc)}
     if getattr(exc, "minimum_s", None) is not None:
         problem["minimum_s"] = exc.minimum_s  # type: ignore[attr-defined]
+    if getattr(exc, "earliest_s", None) is not None:
+        problem["earliest_s"] = exc.earliest_s  # type: ignore[attr-defined]  # an infeasible cue time (issue 18)
     return TaskFailure(FailureKind.INVALID, [problem])
 
 

@@ -34,7 +34,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("app.jobs",),
     ("app.tasks",),
     ("app.exports", "app.store"),
-    ("app.settings", "app.version", "app.web"),
+    ("app.settings", "app.version", "app.web", "app.media"),
     ("sim.bench", "sim.flight", "sim"),
     ("sim.verify",),
     ("sim.plan",),

@@ -336,6 +336,24 @@ async def simulate_show(
     return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
 
 
+#: Export formats that carry the show's music.
+AUDIO_FORMATS = ("skyc", "viser-html")
+
+
+def _audio_track(request: Request, show_id: str) -> Any:
+    """The show's stored music as an ``app.media.AudioTrack``, or None."""
+    from app.media import AudioTrack, sniff_container
+
+    store = deps.store(request)
+    rec = store.get_audio(show_id, analysis=True)
+    if rec is None:
+        return None
+    data = store.read_audio(show_id)
+    duration = float(json.loads(rec.analysis or "{}").get("duration_s") or 0.0)
+    return AudioTrack(data=data, container=sniff_container(data) or "mp3", media_type=rec.media_type,
+                      filename=rec.filename, duration_s=duration)
+
+
 def export_formats() -> tuple[str, ...]:
     """Every format ``GET /api/shows/{id}/export/{fmt}`` serves (``show`` first)."""
     try:
@@ -409,6 +427,10 @@ async def export_show(
         options["fps"] = fps
     if origin is not None:
         options["origin"] = _parse_origin(origin)
+    if fmt in AUDIO_FORMATS:
+        audio = await asyncio.to_thread(_audio_track, request, show_id)
+        if audio is not None:
+            options["audio"] = audio  # issue 18: the show's music goes into the file
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 if TYPE_CHECKING:
+    from app.media import AudioTrack
     from formations import ShowFile
     from sim import ShowPlan
 
@@ -50,12 +51,14 @@ class ExportOptions:
             from true north (0: +y points north, +x east).
         source: ``"planned"`` (the exact plan) or ``"simulated"`` (the flown
             trajectory of the flight simulation; sampled formats only).
+        audio: the show's music (``.skyc`` and ``viser-html`` embed it; issue 18).
     """
 
     fps: float | None = None
     origin: tuple[float, float, float] | None = None
     heading_deg: float = 0.0
     source: Source = "planned"
+    audio: AudioTrack | None = None
 
     def __post_init__(self) -> None:
         if self.fps is not None:

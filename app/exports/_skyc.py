@@ -45,6 +45,7 @@ import numpy as np
 
 from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
+from app.exports._media import add_skyc_audio
 from sim.plan import horner
 
 #: Largest deviation of the Bézier curves from the plan, metres (the issue allows 1 cm).
@@ -274,6 +275,7 @@ def export_skyc(ctx: ExportContext) -> ExportResult:
         )
     doc = build_show_json(ctx)
     z = ZipBuilder()
+    add_skyc_audio(ctx, doc, z)  # issue 18: the show's music as media.audio
     z.add("show.json", json.dumps(doc, separators=(",", ":"), allow_nan=False))
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}.skyc",

@@ -30,6 +30,7 @@ import viser
 
 from app.exports._archive import safe_stem
 from app.exports._core import ExportContext, ExportError, ExportResult
+from app.exports._media import html_with_audio
 from app.exports._tracks import framing_camera, make_track, show_bounds
 from sim import ShowPlan
 from sim.geometry import closest_pair
@@ -184,6 +185,7 @@ def export_viser_html_file(ctx: ExportContext) -> ExportResult:
         html = export_viser_html(ctx.plan, flight=flight, source=options.source, fps=options.fps)
     except ExportBudgetError as exc:
         raise ExportError(str(exc)) from None
+    html = html_with_audio(html, options.audio)  # issue 18: the music plays with the recording
     ctx.progress(1.0)
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}.html",

@@ -17,6 +17,7 @@ from typing import Any, Literal
 from fastapi import APIRouter, Body, FastAPI, Request
 from pydantic import BaseModel, ConfigDict
 
+from app.viewer._clock import clock_router
 from app.viewer._relay import viewer_router
 from app.viewer._viewer import MAX_SHOWS, Viewer
 
@@ -167,6 +168,7 @@ def install(app: FastAPI) -> None:
     """Add the viewer to an app made by ``create_app``: routes now, the viser server in the lifespan."""
     app.include_router(viewer_router(None))
     app.include_router(playback_router(), prefix="/api")
+    app.include_router(clock_router(), prefix="/api")  # issue 18: the editor's music follows the 3D view
     app.state.startup.append(_start)
     app.state.shutdown.append(_stop)
 

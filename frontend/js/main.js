@@ -8,6 +8,7 @@ import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
+import { MusicLane } from "./music.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
@@ -67,6 +68,13 @@ const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOp
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"));
 const exportMenu = new ExportMenu(state, persist);
+// The music lane (issue 18) places unpinned formations where the last check planned them.
+const music = new MusicLane(state, {
+  plan: () => (report.result ? report.result.plan : null),
+  previewOpen: () => preview.isOpen,
+});
+const renderReport = report.render.bind(report);
+report.render = () => { renderReport(); music.draw(); };
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
 
@@ -400,5 +408,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music };
 start();
