@@ -245,7 +245,7 @@ class ShowData:
                    drones=show.drones, formations=len(show.formations))
 
 
-: Problems a draft keeps (a 20 MB file of bad numbers has a million): the rest are counted.
+#: Problems a draft keeps (a 20 MB file of bad numbers has a million): the rest are counted.
 MAX_DRAFT_PROBLEMS = 50
 
 
