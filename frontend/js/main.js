@@ -11,6 +11,7 @@ import { HistoryPanel } from "./history.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
+import { Playhead } from "./playhead.js";
 import { ReportPanel } from "./report.js";
 import { SettingsForm } from "./settings.js";
 import { installShortcuts, renderHelp } from "./shortcuts.js";
@@ -66,6 +67,7 @@ const report = new ReportPanel($("report-body"), state, persist, { timeline, vie
 const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"));
+const playhead = new Playhead(state, timeline, preview);
 const exportMenu = new ExportMenu(state, persist);
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
@@ -358,5 +360,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, playhead };
 start();
