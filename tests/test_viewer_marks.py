@@ -116,12 +116,13 @@ def test_flown_beside_planned_colours_the_gap(viewer, plan):
     offset[:, 0, 0] = 0.3
     flight = SimpleNamespace(times_s=t, positions_m=s.positions_m + offset, colors_rgb=s.colors_rgb)
     viewer.load(plan, name="a", flight=flight)
+    assert plan.drone_count == 16  # the mean below: 0.3 m / 16, in millimetres (under 10 cm)
     viewer.seek(t[len(t) // 2])
     viewer.render()
     dev = viewer.last_deviation_m
     assert dev is not None and dev[0] == pytest.approx(0.3, abs=1e-6) and np.all(dev[1:] < 1e-6)
     assert viewer._gap_lines.visible and viewer._planned_ghost.visible
-    assert "max 0.30 m (#0)" in viewer._readout.content
+    assert "max 0.30 m (#0) · mean 18.75 mm" in viewer._readout.content
     cols = viewer._gap_lines.colors
     assert tuple(cols[1, 0]) == tuple(deviation_colors(np.array([0.0]), 1.0)[0])  # on the plan: green
     # The planned source shows no gap.

@@ -630,7 +630,8 @@ class _Playback:
         if dev is None or len(dev) == 0:
             return ""
         worst = int(np.argmax(dev))
-        return f"  \n**Flown vs planned** max {dev[worst]:.2f} m (#{worst}) · mean {float(dev.mean()):.2f} m"
+        biggest, mean = _length(float(dev[worst])), _length(float(dev.mean()))
+        return f"  \n**Flown vs planned** max {biggest} (#{worst}) · mean {mean}"
 
     def _draw_marks(self, near: list[Problem], frame: Frame, planned: np.ndarray | None) -> None:
         """Violations near the playhead in red; with the flight, the plan in grey and each drone's gap coloured."""
@@ -715,6 +716,11 @@ class _Playback:
                 return None
             return self.render(frame_dt_s=dt if self._playing else None)
 
+
+
+def _length(value_m: float) -> str:
+    """A small length readably: millimetres below 10 cm (a well-tracked flight is off by fractions of one)."""
+    return f"{value_m * 1000.0:.2f} mm" if value_m < 0.1 else f"{value_m:.2f} m"
 
 
 class _Toggle:
