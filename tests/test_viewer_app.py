@@ -150,3 +150,31 @@ def test_live_viewer_websocket_outlives_the_header_timeout(tmp_path):
         assert httpx.get(f"{server.base}/api/health").status_code == 200
     finally:
         server.stop()
+
+
+def test_seek_endpoint_refuses_unknown_pages_and_bad_bodies(client, show_id):
+    """``POST /api/viewer/{token}/seek`` moves one browser's playback: an unknown token is 404, a body must name
+    exactly one of a time and a formation (422 naming the field). (Moving a real page is the browser test's.)"""
+    assert client.post("/api/viewer/nope/seek", json={"time_s": 3.0}).status_code == 404
+    r = client.post("/api/viewer/nope/seek", json={"time_s": -1.0})
+    assert r.status_code == 422 and "time_s" in r.text
+    assert client.post("/api/viewer/nope/seek", json={"at": 1}).status_code == 422
+    viewer = client.app.state.viewer
+    pb = viewer._main  # stands in for a browser's playback: the endpoint finds playbacks by token
+    viewer._clients[999] = pb
+    try:
+        for body in ({}, {"time_s": 1.0, "formation": 0}):
+            r = client.post(f"/api/viewer/{pb.token}/seek", json=body)
+            assert r.status_code == 422 and "exactly one" in r.text, r.text
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"formation": 0})
+        assert r.status_code == 422 and "formation" in r.text  # nothing on screen yet
+        assert client.post(f"/api/shows/{show_id}/playback", json={}).status_code == 200
+        plan = viewer._shows[viewer.current].plan
+        holds = [seg.start_s for _, seg in plan.formation_segments()]
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"formation": len(holds) - 1})
+        assert r.status_code == 200 and r.json()["time_s"] == pytest.approx(holds[-1])
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"time_s": 1e5})
+        assert r.status_code == 200 and r.json()["time_s"] == pytest.approx(plan.duration_s)  # clamped
+        assert client.post(f"/api/viewer/{pb.token}/seek", json={"formation": len(holds)}).status_code == 422
+    finally:
+        viewer._clients.pop(999)
