@@ -1,9 +1,10 @@
 """The live 3D viewer: a loopback viser server, its scene, GUI and a 30 Hz playback thread.
 
-One :class:`Viewer` serves every connected browser the same state (scene and
-GUI are server-wide in viser), so loading a show or pressing play is seen by
-all of them. The app relays browsers to it through its own port (see
-:mod:`app.viewer._relay`).
+One :class:`Viewer` holds the shows; each browser gets its own playback on its own
+scene and GUI (``client.scene``, ``client.gui``) in per-client mode (the app's), or
+every browser sees one server-wide playback. Besides the drones it draws the check's
+violations and, with a flight, the gap to the plan (:mod:`app.viewer._marks`). The
+app relays browsers to it through its own port (see :mod:`app.viewer._relay`).
 """
 
 from __future__ import annotations
