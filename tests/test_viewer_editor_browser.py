@@ -65,8 +65,14 @@ def _viewer_state(page) -> dict | None:
     return page.evaluate("() => window.swarmshow.playhead.preview.viewerState()")
 
 
-def _frame_readout(page) -> str:
-    return page.frame_locator("#preview-frame").get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
+def _preview_panel(page):
+    """The preview's viewer page with its control panel open (a narrow pane starts with it minimised)."""
+    frame = page.frame_locator("#preview-frame")
+    expand = frame.get_by_role("button", name="Expand panel")
+    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=30_000)
+    if expand.count():
+        expand.click()
+    return frame
 
 
 FENCE = {"geofence": {"x_min_m": -50, "x_max_m": 50, "y_min_m": -10, "y_max_m": 30}}
@@ -100,7 +106,7 @@ def test_violations_are_markers_on_the_timeline_and_drawn_in_the_preview(ui: Pag
     _wait_until("the preview at the worst violation",
                 lambda: (s := _viewer_state(page)) and abs(s["time_s"] - worst_t) < 0.06)
     # The viewer draws it once the check (run in a worker after the show is on screen) has arrived.
-    frame = page.frame_locator("#preview-frame")
+    frame = _preview_panel(page)
     expect(frame.get_by_text(re.compile(r"Problems\s+\d+ in the check · now:"))).to_be_visible(timeout=60_000)
     expect(frame.get_by_role("button", name="Next problem")).to_be_enabled()
 
@@ -128,10 +134,10 @@ def test_timeline_and_preview_share_one_playhead_per_tab(ui: Page, tmp_path):
         expect(page.locator(".tl-card.playhead")).to_have_attribute("data-index", "2")
         assert _viewer_state(other.page)["time_s"] == 0  # the other tab's viewer did not move
         # Play in the viewer: the timeline's readout follows its clock.
-        page.frame_locator("#preview-frame").get_by_role("button", name="Play").click()
+        _preview_panel(page).get_by_role("button", name="Play").click()
         t0 = holds[2]
         _wait_until("the timeline to show the viewer playing",
-                    lambda: (m := re.search(r"▶ 3D ([\d.]+) s", page.inner_text("#tl-playhead")))
+                    lambda: (m := re.search(r"3D ▶ ([\d.]+) s", page.inner_text("#tl-playhead")))
                     and float(m.group(1)) > t0 + 0.3)
         page.frame_locator("#preview-frame").get_by_role("button", name="Pause").click()
     finally:

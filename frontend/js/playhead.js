@@ -116,7 +116,7 @@ export class Playhead {
 
   _poll() {
     const vs = this.preview.viewerState();
-    this.readout.textContent = vs ? `${vs.playing ? "▶" : "⏸"} 3D ${vs.time_s.toFixed(1)} s` : "";
+    this.readout.textContent = vs ? `3D ${vs.playing ? "▶" : "‖"} ${vs.time_s.toFixed(1)} s` : "";
     this._mark(vs);
   }
 
