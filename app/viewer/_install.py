@@ -15,9 +15,10 @@ import threading
 from typing import Any, Literal
 
 from fastapi import APIRouter, Body, FastAPI, Request
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.viewer._clock import clock_router
+from app.viewer._marks import check_report_json
 from app.viewer._relay import viewer_router
 from app.viewer._viewer import MAX_SHOWS, Viewer
 
@@ -30,6 +31,21 @@ class PlaybackRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     source: Source = "planned"
+
+
+class SeekRequest(BaseModel):
+    """Body of ``POST /api/viewer/{token}/seek``: a time, or a formation whose hold to jump to."""
+
+    model_config = ConfigDict(extra="forbid")
+    time_s: float | None = Field(None, ge=0, le=1e6, description="Show time, seconds (clamped to the show).")
+    formation: int | None = Field(None, ge=0, le=100_000, description="Jump to the start of this formation's hold.")
+
+
+class SeekOut(BaseModel):
+    """Where that browser's playback now is."""
+
+    time_s: float
+    show: str | None
 
 
 class PlaybackOut(BaseModel):
@@ -58,6 +74,8 @@ class _Loader:
         self._lock = threading.Lock()
         # (show id) -> (content hash, plan, flight or None)
         self._cache: dict[str, tuple[str, Any, Any]] = {}
+        # (content hash) -> check report JSON of its plan
+        self._reports: dict[str, Any] = {}
 
     def load(self, show_id: str, source: Source = "planned") -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
@@ -95,8 +113,25 @@ class _Loader:
             self._cache[show_id] = (record.content_hash, plan, flight)
             while len(self._cache) > MAX_SHOWS:
                 del self._cache[next(iter(self._cache))]
-        viewer.load(plan, name=label, flight=flight, source=source)
+        report = self._reports.get(record.content_hash)
+        viewer.load(plan, name=label, flight=flight, source=source, report=report)
+        if report is None:
+            # The exact check runs in a worker after the show is on screen; its violations appear when it is done.
+            threading.Thread(target=self._check, args=(record.content_hash, label, plan), daemon=True,
+                             name="viewer-check").start()
         return record, plan, cached
+
+    def _check(self, content_hash: str, label: str, plan: Any) -> None:
+        try:
+            report = self.app.state.jobs.run_sync(check_report_json, plan)
+        except Exception as exc:  # the show still plays, only without its violations drawn
+            log.warning("viewer: cannot check %s: %s", label, exc)
+            return
+        with self._lock:
+            self._reports[content_hash] = report
+            while len(self._reports) > MAX_SHOWS:
+                del self._reports[next(iter(self._reports))]
+        self.viewer.set_report(label, report)
 
     def catalog(self) -> dict[str, str]:
         """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
@@ -135,6 +170,32 @@ def playback_router() -> APIRouter:
             show_id=record.id, revision=record.revision, name=record.name, source=source,
             drones=plan.drone_count, duration_s=plan.duration_s, viewer_url="/viser/", cached=cached,
         )
+
+    @router.post(
+        "/viewer/{token}/seek",
+        response_model=SeekOut,
+        summary="Move one browser's 3D playback (the editor's shared playhead)",
+        responses=error_responses(404, 422, 503),
+    )
+    async def seek(request: Request, token: str, body: SeekRequest) -> SeekOut:
+        """Seek the playback of the viewer page carrying ``token`` (the editor reads it from its preview
+        pane): to ``time_s``, or to the start of ``formation``'s hold. Other browsers are not touched."""
+        from app.api.errors import ApiError
+
+        viewer: Viewer | None = getattr(request.app.state, "viewer", None)
+        if viewer is None:
+            raise ApiError(503, "the 3D viewer is not running")
+        pb = viewer.playback_by_token(token[:64])
+        if pb is None:
+            raise ApiError(404, "no viewer page with this token (reload the preview)")
+        if (body.time_s is None) == (body.formation is None):
+            raise ApiError(422, "give exactly one of time_s and formation", field="body")
+        if body.formation is not None:
+            if pb.seek_formation(body.formation) is None:
+                raise ApiError(422, f"formation {body.formation} is not in the show on screen", field="formation")
+        else:
+            pb.seek(float(body.time_s or 0.0))
+        return SeekOut(time_s=pb.time_s, show=pb.current)
 
     return router
 
@@ -176,4 +237,4 @@ def install(app: FastAPI) -> None:
 #: Alias matching the brief's name.
 install_viewer = install
 
-__all__ = ["PlaybackOut", "PlaybackRequest", "install", "install_viewer", "playback_router"]
+__all__ = ["PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install", "install_viewer", "playback_router"]

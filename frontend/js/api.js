@@ -335,3 +335,12 @@ export async function exportFormats() {
 function resolveRef(spec, ref) {
   return ref.replace(/^#\//, "").split("/").reduce((o, k) => (o ? o[k] : undefined), spec);
 }
+
+/**
+ * Move the 3D playback of one viewer page (the editor's own preview pane): to a time or a formation's hold.
+ * @param {string} token the page's token (see Preview.viewerState)
+ * @param {{time_s?: number, formation?: number}} where
+ */
+export function viewerSeek(token, where) {
+  return request("POST", `/api/viewer/${encodeURIComponent(token)}/seek`, { json: where });
+}

@@ -12,6 +12,7 @@ import { MusicLane } from "./music.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
+import { Playhead } from "./playhead.js";
 import { ReportPanel } from "./report.js";
 import { SettingsForm } from "./settings.js";
 import { installShortcuts, renderHelp } from "./shortcuts.js";
@@ -67,6 +68,7 @@ const report = new ReportPanel($("report-body"), state, persist, { timeline, vie
 const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"));
+const playhead = new Playhead(state, timeline, preview);
 const exportMenu = new ExportMenu(state, persist);
 // The music lane (issue 18) places unpinned formations where the last check planned them.
 const music = new MusicLane(state, {
@@ -408,5 +410,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead };
 start();
