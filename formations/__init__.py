@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from formations._demo import demo_show as demo_show
 from formations._demo import load_demo_show as load_demo_show
+from formations._effects import LightEffect as LightEffect
+from formations._effects import Lights as Lights
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
@@ -38,6 +40,8 @@ __all__ = [
     "HomeFromGrid",
     "HomeFromPoints",
     "HomeGrid",
+    "LightEffect",
+    "Lights",
     "Settings",
     "ShowFile",
     "ShowValidationError",

@@ -32,6 +32,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from formations._effects import Lights, lights_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -365,6 +366,8 @@ class ShowFile(_ArrayCachingModel):
     ] = Field(description="Ground start positions: a grid or explicit points (metres).")
     settings: Settings = Field(default_factory=Settings)
     formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
+    # Issue 18: light effects over the base colours (None, left out of the file, keeps older shows' hashes).
+    lights: Lights | None = Field(None, description="Drone groups and the stack of light effects (see sim.light).")
 
     @field_validator("name")
     @classmethod
@@ -503,6 +506,10 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+    if show.lights is not None:
+        problem = lights_problem(show.lights, n, [f.name for f in show.formations])
+        if problem is not None:
+            return ("lights", *problem[0]), problem[1]
     return None
 
 
