@@ -131,19 +131,22 @@ def test_bench_light_colors_5000_drones_10_minutes(lit, record_result) -> None:
     """Every drone's colour at every 25 fps frame of the 10-minute show, in blocks of frames."""
     show, plan = lit
     times = np.arange(int(plan.duration_s * FPS) + 1) / FPS
-    t0 = time.perf_counter()
+    # CPU time of this (single-threaded) process: the machine is shared, and wall time under a load of
+    # 10 on 2 cores measures the neighbours. Wall time is recorded beside it.
+    c0, w0 = time.process_time(), time.perf_counter()
     for a in range(0, len(times), CHUNK_FRAMES):
         base_colors(plan, times[a:a + CHUNK_FRAMES])
-    base_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    base_s, base_wall_s = time.process_time() - c0, time.perf_counter() - w0
+    c0, w0 = time.process_time(), time.perf_counter()
     stack = LightStack.from_show(show, plan)
     checksum = 0.0
     for a in range(0, len(times), CHUNK_FRAMES):
         checksum += float(show_colors(show, plan, times[a:a + CHUNK_FRAMES], stack=stack)[:, ::97].sum())
-    lights_s = time.perf_counter() - t0
+    lights_s, lights_wall_s = time.process_time() - c0, time.perf_counter() - w0
     record_result({
         "drones": DRONES, "show_duration_s": plan.duration_s, "fps": FPS, "frames": len(times),
-        "effects": len(EFFECTS), "lights_s": lights_s, "base_colors_s": base_s,
+        "effects": len(EFFECTS), "lights_cpu_s": lights_s, "lights_wall_s": lights_wall_s,
+        "base_colors_cpu_s": base_s, "base_colors_wall_s": base_wall_s,
         "ratio_to_base_colors": lights_s / base_s, "target_s": TARGET_S, "ratio_to_target": lights_s / TARGET_S,
         "checksum": checksum,
     })

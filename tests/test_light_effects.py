@@ -398,3 +398,16 @@ def test_show_without_lights_keeps_its_hash() -> None:
     del doc["lights"]
     show = parse_show(doc)
     assert "\"lights\":" not in show.canonical_json()
+
+
+def test_plan_positions_kernel_matches_the_plan(plan) -> None:
+    from sim.light import plan_positions
+
+    rng = np.random.default_rng(0)
+    t = np.sort(rng.uniform(-1.0, plan.duration_s + 1.0, 300))
+    np.testing.assert_allclose(plan_positions(plan, t), plan.motion.evaluate(t).positions_m, atol=1e-9)
+    shuffled = rng.permutation(t)
+    np.testing.assert_allclose(plan_positions(plan, shuffled, np.array([2, 5])),
+                               plan.motion.evaluate(shuffled, np.array([2, 5])).positions_m, atol=1e-9)
+    part = plan_positions(plan, t, frames=np.arange(0, 300, 2))
+    np.testing.assert_array_equal(part[1::2], 0.0)

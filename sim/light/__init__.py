@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from sim.light._evaluate import LightStack as LightStack
 from sim.light._evaluate import base_colors as base_colors
+from sim.light._evaluate import plan_positions as plan_positions
 from sim.light._evaluate import show_colors as show_colors
 from sim.light._evaluate import uniform_hash as uniform_hash
 
-__all__ = ["LightStack", "base_colors", "show_colors", "uniform_hash"]
+__all__ = ["LightStack", "base_colors", "plan_positions", "show_colors", "uniform_hash"]

@@ -26,7 +26,6 @@ from formations._effects import (
     SparkleKind,
     StrobeKind,
     SweepKind,
-    TargetAll,
     TargetBox,
     TargetDrones,
     TargetFormation,
@@ -34,10 +33,9 @@ from formations._effects import (
     TargetPlane,
 )
 from formations._show import hex_to_rgb
+from sim.light import _kernels as _k
 from sim.plan import ShowPlan
 
-#: Most (frame, drone) cells evaluated at once: bounds memory to a few hundred MB whatever the show.
-BLOCK_CELLS = 2_000_000
 #: Largest decoded image frame, pixels (a 4K frame); bigger ones are scaled down on decoding.
 MAX_IMAGE_PIXELS = 3840 * 2160
 
@@ -103,6 +101,15 @@ def _decode_frames(kind: ImageKind) -> list[np.ndarray]:
     return frames
 
 
+def _stack_frames(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Frames of different sizes in one zero-padded (F, H, W, 4) array, and their (F, 2) sizes."""
+    sizes = np.array([f.shape[:2] for f in frames], dtype=np.int64)
+    stack = np.zeros((len(frames), int(sizes[:, 0].max()), int(sizes[:, 1].max()), 4), dtype=np.float32)
+    for j, f in enumerate(frames):
+        stack[j, : f.shape[0], : f.shape[1]] = f
+    return stack, sizes
+
+
 @dataclass
 class _Prepared:
     """An effect with what its evaluation needs precomputed (all drones)."""
@@ -113,7 +120,7 @@ class _Prepared:
     rank: np.ndarray | None = None  # chase: each drone's place in [0, 1)
     stops: np.ndarray | None = None  # (K, 3) colours
     color: np.ndarray | None = None  # (3,) colour
-    images: list[np.ndarray] | None = None
+    image_stack: tuple[np.ndarray, np.ndarray] | None = None  # (F, H, W, 4) padded frames, (F, 2) sizes
 
 
 class LightStack:
@@ -150,7 +157,7 @@ class LightStack:
             if isinstance(k, ChaseKind):
                 p.rank = self._ranks(k, plan, fx.start_s)
             if isinstance(k, ImageKind):
-                p.images = _decode_frames(k)
+                p.image_stack = _stack_frames(_decode_frames(k))
             self._effects.append(p)
 
     @classmethod
@@ -204,10 +211,10 @@ class LightStack:
             drones: which drones the n columns are (slice or index array; default all).
 
         Returns:
-            (T, n, 3) float64 colours in [0, 1].
+            (T, n, 3) float32 colours in [0, 1] (``base_rgb`` itself when it is float32: painted in place).
         """
         t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
-        out = np.array(base_rgb, dtype=np.float32)
+        out = np.asarray(base_rgb, dtype=np.float32)
         if out.ndim != 3 or out.shape[0] != len(t) or out.shape[2] != 3:
             raise ValueError(f"base_rgb must be (T, n, 3) with T = {len(t)}, got {out.shape}")
         ids = np.arange(self.drone_count)[drones if drones is not None else slice(None)]
@@ -217,94 +224,71 @@ class LightStack:
             raise ValueError("these effects need the drones' positions")
         for p in self._effects:
             self._paint(p, t, out, positions_m, ids)
-        return out.astype(np.float64)
+        return out
 
     def _paint(self, p: _Prepared, t: np.ndarray, out: np.ndarray, pos: np.ndarray | None, ids: np.ndarray) -> None:
+        """Paint effect ``p`` into ``out`` (T, n, 3) float32 in place: per-frame parts in numpy, the
+        per-drone part in :func:`sim.light._kernels.paint`."""
         fx = p.fx
         frames = np.flatnonzero((t >= fx.start_s) & (t < fx.end_s))
         if not len(frames):
             return
-        if p.rows is not None:
-            cols = np.flatnonzero(np.isin(ids, p.rows))
-            if not len(cols):
-                return
-        else:
-            cols = None
-        step = max(1, BLOCK_CELLS // max(out.shape[1] if cols is None else len(cols), 1))
-        for a in range(0, len(frames), step):
-            fr = frames[a:a + step]
-            tt = t[fr]
-            env = _envelope(fx, tt)  # (Tb,)
-            if p.windows is not None:
-                inside = np.zeros(len(tt), dtype=bool)
-                for w0, w1 in p.windows:
-                    inside |= (tt >= w0) & (tt < w1)
-                env = env * inside
-            sel = fr if cols is None else np.ix_(fr, cols)
-            drone_ids = ids if cols is None else ids[cols]
-            block_pos = None if pos is None else pos[sel]
-            color, cover = self._kind(p, tt, drone_ids, block_pos)
-            alpha = env[:, None].astype(np.float32) * np.float32(fx.opacity)
-            if cover is not None:
-                alpha = alpha * cover
-            mask = _target_mask(fx, block_pos)
-            if mask is not None:
-                alpha = alpha * mask
-            alpha = np.broadcast_to(alpha, (len(fr), len(drone_ids)))[..., None]
-            below = out[sel]
-            out[sel] = _blend(fx.blend, below, color, alpha)
-
-    def _kind(
-        self, p: _Prepared, t: np.ndarray, ids: np.ndarray, pos: np.ndarray | None
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """(colour broadcastable to (Tb, n, 3), coverage broadcastable to (Tb, n) or None)."""
-        k, fx = p.fx.effect, p.fx
-        if isinstance(k, SolidKind):
+        cols = np.arange(len(ids)) if p.rows is None else np.flatnonzero(np.isin(ids, p.rows))
+        if not len(cols):
+            return
+        tt = t[frames]
+        alpha = _envelope(fx, tt) * fx.opacity
+        if p.windows is not None:
+            inside = np.zeros(len(tt), dtype=bool)
+            for w0, w1 in p.windows:
+                inside |= (tt >= w0) & (tt < w1)
+            alpha = alpha * inside
+        k = fx.effect
+        rgb = np.zeros((len(tt), 3))
+        kprm = np.zeros(8)
+        kprm[0] = fx.start_s
+        code = _k.K_FLAT
+        if isinstance(k, SolidKind | ChaseKind | SparkleKind | StrobeKind):
             assert p.color is not None
-            return p.color[None, None, :], None
+            rgb[:] = p.color
         if isinstance(k, RampKind):
             assert p.stops is not None
-            s = np.clip((t - fx.start_s) / (fx.end_s - fx.start_s), 0.0, 1.0) * (len(p.stops) - 1)
-            return _lerp_stops(p.stops, s, wrap=False)[:, None, :], None
-        if isinstance(k, SweepKind):
-            assert p.stops is not None and pos is not None
-            if k.mode == "linear":
-                d = np.asarray(k.axis) / np.linalg.norm(k.axis)
-                along = pos @ d
-            else:
-                along = np.linalg.norm(pos - np.asarray(k.center_m), axis=-1)
-            phase = (along - k.speed_mps * (t - fx.start_s)[:, None]) / k.length_m
-            x = (phase - np.floor(phase)) * len(p.stops)
-            return _lerp_stops(p.stops, x, wrap=True), None
-        if isinstance(k, ChaseKind):
-            assert p.color is not None and p.rank is not None
-            head = (t - fx.start_s) / k.period_s
-            rel = p.rank[ids][None, :] - head[:, None]
-            rel -= np.floor(rel)  # in [0, 1)
-            if k.shape == "wave":
-                b = 0.5 * (1.0 + np.cos(2.0 * np.pi * rel))
-            else:
-                dist = np.minimum(rel, 1.0 - rel)
-                b = np.clip(1.0 - dist / k.width, 0.0, 1.0)
-            return p.color[None, None, :], b.astype(np.float32)
-        if isinstance(k, SparkleKind):
-            assert p.color is not None
-            offset = uniform_hash(k.seed, ids, np.full(len(ids), -1))  # (n,) each drone's phase
-            x = (t - fx.start_s)[:, None] / k.flash_s + offset[None, :]
-            slot = np.floor(x)
-            u = x - slot
-            lit = uniform_hash(k.seed, ids[None, :], slot.astype(np.int64)) < k.density
-            b = np.where(lit, 1.0 - np.abs(2.0 * u - 1.0), 0.0)
-            return p.color[None, None, :], b.astype(np.float32)
-        if isinstance(k, StrobeKind):
-            assert p.color is not None
-            x = (t - fx.start_s) * k.frequency_hz
-            on = (x - np.floor(x)) < k.duty
-            return p.color[None, None, :], on.astype(np.float32)[:, None]
-        if isinstance(k, ImageKind):
-            assert p.images is not None and pos is not None
-            return _project(k, p.images, t - fx.start_s, pos)
-        raise AssertionError(f"unknown effect kind {k!r}")  # pragma: no cover - the models are closed
+            x = np.clip((tt - fx.start_s) / (fx.end_s - fx.start_s), 0.0, 1.0) * (len(p.stops) - 1)
+            rgb = _lerp_stops(p.stops, x, wrap=False)
+        elif isinstance(k, StrobeKind):
+            x = (tt - fx.start_s) * k.frequency_hz
+            alpha = alpha * ((x - np.floor(x)) < k.duty)
+        elif isinstance(k, SweepKind):
+            code = _k.K_SWEEP_LINEAR if k.mode == "linear" else _k.K_SWEEP_RADIAL
+            vec = np.asarray(k.axis) / np.linalg.norm(k.axis) if k.mode == "linear" else np.asarray(k.center_m)
+            kprm[2:7] = [k.speed_mps, k.length_m, *vec]
+        elif isinstance(k, ChaseKind):
+            code = _k.K_CHASE_WAVE if k.shape == "wave" else _k.K_CHASE_PULSE
+            kprm[2:4] = [k.period_s, k.width]
+        elif isinstance(k, SparkleKind):
+            code = _k.K_SPARKLE
+            kprm[2:4] = [k.flash_s, k.density]
+        elif isinstance(k, ImageKind):
+            code = _k.K_IMAGE
+            cx, _, cz = k.center_m
+            kprm[1:6] = [k.fps, cx - k.width_m / 2.0, cz + k.height_m / 2.0, k.width_m, k.height_m]
+        tgt, tprm = _k.T_NONE, np.zeros(6)
+        if isinstance(fx.target, TargetBox):
+            tgt, tprm = _k.T_BOX, np.r_[fx.target.min_m, fx.target.max_m]
+        elif isinstance(fx.target, TargetPlane):
+            tgt, tprm = _k.T_PLANE, np.r_[fx.target.point_m, fx.target.normal]
+        images, sizes = p.image_stack if p.image_stack is not None else (_NO_IMAGE, np.ones((1, 2), np.int64))
+        _k.paint(
+            out, pos if pos is not None else _NO_POS, t, frames, alpha.astype(np.float64), rgb.astype(np.float64),
+            cols.astype(np.int64), ids[cols].astype(np.int64), _BLENDS[fx.blend], code, tgt, tprm, kprm,
+            (p.stops if p.stops is not None else np.zeros((1, 3))).astype(np.float64),
+            p.rank if p.rank is not None else np.zeros(1), np.int64(getattr(k, "seed", 0)), images, sizes,
+        )
+
+
+_BLENDS = {"replace": _k.B_REPLACE, "add": _k.B_ADD, "multiply": _k.B_MULTIPLY, "max": _k.B_MAX}
+_NO_POS = np.zeros((1, 1, 3))
+_NO_IMAGE = np.zeros((1, 1, 1, 4), dtype=np.float32)
 
 
 def _needs_positions(fx: LightEffect) -> bool:
@@ -314,27 +298,16 @@ def _needs_positions(fx: LightEffect) -> bool:
 def _envelope(fx: LightEffect, t: np.ndarray) -> np.ndarray:
     """Fade-in x fade-out in [0, 1] at times t inside the effect (linear ramps)."""
     env = np.ones(len(t))
+    with np.errstate(over="ignore"):  # a subnormal fade length is a step
+        return _ramps(fx, t, env)
+
+
+def _ramps(fx: LightEffect, t: np.ndarray, env: np.ndarray) -> np.ndarray:
     if fx.fade_in_s > 0:
         env = np.minimum(env, (t - fx.start_s) / fx.fade_in_s)
     if fx.fade_out_s > 0:
         env = np.minimum(env, (fx.end_s - t) / fx.fade_out_s)
     return np.clip(env, 0.0, 1.0)
-
-
-def _target_mask(fx: LightEffect, pos: np.ndarray | None) -> np.ndarray | None:
-    """(Tb, n) float32 1/0 for position-dependent targets, else None."""
-    t = fx.target
-    if isinstance(t, TargetBox):
-        assert pos is not None
-        lo, hi = np.asarray(t.min_m), np.asarray(t.max_m)
-        inside: np.ndarray = np.all((pos >= lo) & (pos <= hi), axis=-1)
-        return inside.astype(np.float32)
-    if isinstance(t, TargetPlane):
-        assert pos is not None
-        front: np.ndarray = (pos - np.asarray(t.point_m)) @ np.asarray(t.normal) >= 0.0
-        return front.astype(np.float32)
-    assert isinstance(t, TargetAll | TargetDrones | TargetGroup | TargetFormation)
-    return None
 
 
 def _lerp_stops(stops: np.ndarray, x: np.ndarray, *, wrap: bool) -> np.ndarray:
@@ -351,57 +324,32 @@ def _lerp_stops(stops: np.ndarray, x: np.ndarray, *, wrap: bool) -> np.ndarray:
     return out
 
 
-def _project(kind: ImageKind, images: list[np.ndarray], since_s: np.ndarray,
-             pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each drone's pixel of the frame shown at its time: (colour (Tb, n, 3), coverage (Tb, n)).
-
-    The rectangle spans x in cx +- w/2 (left to right as the audience sees it) and z in
-    cz +- h/2 (top row at the top); a drone at (x, z) covers pixel (floor(u W), floor(v H)) with
-    u = (x - x_left) / w, v = (z_top - z) / h, when both are in [0, 1).
-    """
-    cx, _, cz = kind.center_m
-    u = (pos[..., 0] - (cx - kind.width_m / 2.0)) / kind.width_m
-    v = ((cz + kind.height_m / 2.0) - pos[..., 2]) / kind.height_m
-    inside = (u >= 0) & (u < 1) & (v >= 0) & (v < 1)
-    which = np.floor(since_s * kind.fps + 1e-9).astype(np.int64) % len(images)
-    color = np.zeros(pos.shape[:2] + (3,), dtype=np.float32)
-    cover = np.zeros(pos.shape[:2], dtype=np.float32)
-    for f in np.unique(which):
-        img = images[f]
-        h, w = img.shape[:2]
-        rows = np.flatnonzero(which == f)
-        uu, vv = u[rows], v[rows]
-        col = np.clip(np.floor(uu * w).astype(np.int64), 0, w - 1)
-        row = np.clip(np.floor(vv * h).astype(np.int64), 0, h - 1)
-        px = img[row, col]  # (r, n, 4)
-        color[rows] = px[..., :3]
-        cover[rows] = px[..., 3] * inside[rows]
-    return color, cover
-
-
-def _blend(mode: str, below: np.ndarray, color: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """``below`` (Tb, n, 3) with ``color`` blended in at opacity ``alpha`` (Tb, n, 1), clipped to [0, 1]."""
-    if mode == "replace":
-        out = below + alpha * (color - below)
-    elif mode == "add":
-        out = below + alpha * color
-    elif mode == "multiply":
-        out = below * (1.0 - alpha + alpha * color)
-    else:  # max
-        out = below + alpha * (np.maximum(below, color) - below)
-    clipped: np.ndarray = np.clip(out, 0.0, 1.0)
-    return clipped
-
-
 def base_colors(plan: ShowPlan, times_s: ArrayLike, drones: slice | np.ndarray | None = None) -> np.ndarray:
-    """The plan's own colours (linear fades between knots), (T, n, 3) in [0, 1] (as ``ShowPlan.evaluate``)."""
-    t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
-    sel = slice(None) if drones is None else drones
-    k = plan.segment_index(t)
-    t0, t1 = plan.knot_times_s[k], plan.knot_times_s[k + 1]
-    tau = np.clip((t - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)[:, None, None]
-    c = plan.knot_colors_rgb[:, sel]
-    out: np.ndarray = c[k] + tau * (c[k + 1] - c[k])
+    """The plan's own colours (linear fades between knots, as ``ShowPlan.evaluate``), (T, n, 3) float32
+    in [0, 1]."""
+    t = np.ascontiguousarray(np.atleast_1d(np.asarray(times_s, dtype=np.float64)))
+    rows = np.arange(plan.drone_count)[slice(None) if drones is None else drones].astype(np.int64)
+    out = np.empty((len(t), len(rows), 3), dtype=np.float32)
+    _k.base_into(np.ascontiguousarray(plan.knot_times_s, dtype=np.float64),
+                 np.ascontiguousarray(plan.knot_colors_rgb, dtype=np.float64), rows, t, out)
+    return out
+
+
+def plan_positions(plan: ShowPlan, times_s: np.ndarray, drones: slice | np.ndarray | None = None, *,
+                   frames: np.ndarray | None = None) -> np.ndarray:
+    """(T, n, 3) planned positions, metres, at the (increasing) ``times_s``; only ``frames`` filled
+    (the rest zero) when given. A numba pass per drone stepping through its pieces."""
+    t = np.ascontiguousarray(times_s, dtype=np.float64)
+    rows = np.arange(plan.drone_count)[slice(None) if drones is None else drones].astype(np.int64)
+    fr = np.arange(len(t)) if frames is None else np.asarray(frames, dtype=np.int64)
+    if len(fr) > 1 and np.any(np.diff(t[fr]) < 0):
+        order = fr[np.argsort(t[fr], kind="stable")]
+    else:
+        order = fr
+    out = np.zeros((len(t), len(rows), 3))
+    motion = plan.motion
+    _k.positions_at(np.ascontiguousarray(motion.breaks_s), np.ascontiguousarray(motion.coeffs_m), rows, t,
+                    order.astype(np.int64), out)
     return out
 
 
@@ -426,7 +374,7 @@ def show_colors(
         stack: a prepared :class:`LightStack` (saves decoding images again).
 
     Returns:
-        (T, n, 3) float64 colours in [0, 1].
+        (T, n, 3) float32 colours in [0, 1].
     """
     t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
     base = base_colors(plan, t, drones)
@@ -435,11 +383,8 @@ def show_colors(
         return base
     if positions_m is None and st.needs_positions:
         # Only the frames some position-reading effect covers (the rest are never read).
-        need = st.position_frames(t)
-        positions_m = np.zeros(base.shape)
-        if need.any():
-            positions_m[need] = plan.motion.evaluate(t[need], drones, derivatives=0).positions_m
+        positions_m = plan_positions(plan, t, drones, frames=np.flatnonzero(st.position_frames(t)))
     return st.apply(t, base, positions_m, drones)
 
 
-__all__ = ["BLOCK_CELLS", "LightStack", "base_colors", "mix64", "show_colors", "uniform_hash"]
+__all__ = ["LightStack", "base_colors", "mix64", "plan_positions", "show_colors", "uniform_hash"]
