@@ -307,7 +307,8 @@ def _ramps(fx: LightEffect, t: np.ndarray, env: np.ndarray) -> np.ndarray:
         env = np.minimum(env, (t - fx.start_s) / fx.fade_in_s)
     if fx.fade_out_s > 0:
         env = np.minimum(env, (fx.end_s - t) / fx.fade_out_s)
-    return np.clip(env, 0.0, 1.0)
+    out: np.ndarray = np.clip(env, 0.0, 1.0)
+    return out
 
 
 def _lerp_stops(stops: np.ndarray, x: np.ndarray, *, wrap: bool) -> np.ndarray:
