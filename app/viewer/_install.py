@@ -94,13 +94,22 @@ class _Loader:
             self._cache[show_id] = (record.content_hash, plan, flight)
             while len(self._cache) > MAX_SHOWS:
                 del self._cache[next(iter(self._cache))]
-        viewer.load(plan, name=label, flight=flight, source=source)
+        viewer.load(plan, name=label, flight=flight, source=source, lights=_lights(record.json, plan))
         return record, plan, cached
 
     def catalog(self) -> dict[str, str]:
         """``{show id: label}`` of the stored shows (the selector's list)."""
         records, _ = self.app.state.store.list(limit=200)
         return {r.id: _label(r) for r in records}
+
+
+def _lights(show_json: Any, plan: Any) -> Any:
+    """The stored show's light effects over its plan (issue 18), or None when it has none."""
+    from formations import parse_show
+    from sim.light import LightStack
+
+    stack = LightStack.from_show(parse_show(show_json), plan)
+    return stack if stack else None
 
 
 def playback_router() -> APIRouter:

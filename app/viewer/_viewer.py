@@ -58,6 +58,7 @@ class _Entry:
     name: str
     plan: ShowPlan
     flight: Any = None
+    lights: Any = None  # the show's light effects (sim.light.LightStack), painted over the colours
 
 
 #: Eye height of the audience camera, metres.
@@ -295,7 +296,7 @@ class _Playback:
     def _activate(self, name: str, source: Source) -> None:
         with self.viewer._lock:
             entry = self.viewer._shows[name]
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._current, self._source = name, source
             self._time_s = 0.0
             self._playing = False
@@ -373,7 +374,7 @@ class _Playback:
                 self._set_gui(self._source_dd, "value", self._source)
                 return
             t = self._time_s
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._source = source
             self._set_gui(self._source_dd, "value", source)
             self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
@@ -756,7 +757,8 @@ class Viewer:
 
     # ----------------------------------------------------------------- loading
 
-    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None) -> None:
+    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None,
+             lights: Any = None) -> None:
         """Load (or replace) a show: the default playback shows it (new browsers start on it), and
         so do the browsers showing nothing, an older version of it, or that picked it in the selector.
 
@@ -765,12 +767,13 @@ class Viewer:
             name: registry name shown in the selector (loading the same name replaces it).
             flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
             source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
+            lights: the show's light effects (``sim.light.LightStack``), played over the colours.
         """
         if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
             raise ValueError("the flight and the plan have different drone counts")
         with self._lock:
             self._shows.pop(name, None)
-            self._shows[name] = _Entry(name, plan, flight)
+            self._shows[name] = _Entry(name, plan, flight, lights)
             while len(self._shows) > MAX_SHOWS:
                 del self._shows[next(iter(self._shows))]
             src: Source = source or ("simulated" if flight is not None else "planned")
