@@ -6,6 +6,7 @@ import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError } from "./errors.js";
+import { EffectsPanel } from "./effects.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
@@ -69,6 +70,8 @@ const preview = new Preview(state, persist, () => requestAnimationFrame(() => vi
 const exportMenu = new ExportMenu(state, persist);
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
+const effects = new EffectsPanel($("effects-body"), state, { redraw: () => view.redraw(), toast });
+view.colorOverride = (f, base) => effects.colorsFor(f, base);
 
 // ---- page state ------------------------------------------------------------------------------
 
@@ -358,5 +361,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, effects };
 start();
