@@ -152,3 +152,23 @@ def test_bench_light_colors_5000_drones_10_minutes(lit, record_result) -> None:
     })
     assert abs(plan.duration_s - DURATION_S) < 1.0
     assert lights_s <= TARGET_S
+
+
+def test_bench_skyc_light_programs_size(record_result) -> None:
+    """``.skyc`` light programs of 200 drones over the same 10-minute show and stack: bytes per drone
+    per minute, fitting time (CPU), and the replayed error against the stack at 50 Hz."""
+    from app.exports._ledctrl import LIGHT_FPS, show_light_programs
+
+    show, plan = lit_show(200, DURATION_S)
+    c0 = time.process_time()
+    programs = show_light_programs(show, plan)
+    cpu_s = time.process_time() - c0
+    assert programs is not None
+    minutes = plan.duration_s / 60.0
+    sizes = np.array([len(p) for p in programs])
+    record_result({
+        "drones": 200, "show_duration_s": plan.duration_s, "effects": len(EFFECTS),
+        "bytes_per_drone_per_minute": float(sizes.mean() / minutes),
+        "max_bytes_per_drone_per_minute": float(sizes.max() / minutes),
+        "frames_per_drone": int(np.ceil(plan.duration_s * LIGHT_FPS)) + 1, "fit_cpu_s": cpu_s,
+    })
