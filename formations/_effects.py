@@ -23,8 +23,8 @@ Kinds: ``solid``; ``ramp`` (colours evenly spaced in time over the effect); ``sw
 periodic gradient moving along an axis or out from a centre at ``speed_mps``); ``chase`` (a
 pulse or cosine wave running along an order of the drones); ``sparkle`` (seeded random
 flashes); ``strobe``; ``image`` (a PNG/JPEG or a sequence of them projected onto a rectangle
-facing the audience, who look along +y: each drone takes the pixel it covers). Video files are
-not decoded: export the video as an image sequence.
+facing the audience, who look along +y: each drone takes the pixel it covers); ``video`` (the
+same projection of an embedded video, decoded with PyAV).
 """
 
 from __future__ import annotations
@@ -49,6 +49,14 @@ MAX_STOPS = 64
 MAX_IMAGE_FRAMES = 600
 #: Largest encoded image (one frame), bytes of base64 text; the show file's 20 MB bounds the total.
 MAX_IMAGE_CHARS = 4_000_000
+#: Largest embedded video, characters of base64 (about 12 MB of video; the show file's limit is 20 MB).
+MAX_VIDEO_CHARS = 16_000_000
+#: Highest rate a video is sampled at, frames per second.
+MAX_VIDEO_FPS = 25.0
+#: Widest a decoded video frame is kept, pixels.
+MAX_VIDEO_WIDTH_PX = 192
+#: Most frames kept of one video (a minute at 25 fps; longer videos loop their first minute).
+MAX_VIDEO_FRAMES = 1500
 #: Most named drone groups.
 MAX_GROUPS = 200
 #: Longest effect, seconds (a day, as a hold).
@@ -56,6 +64,7 @@ MAX_TIME_S = 86_400.0
 
 _CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
 _DATA_URL = re.compile(r"^data:image/(png|jpeg|jpg);base64,")
+_VIDEO_URL = re.compile(r"^data:video/(mp4|webm|ogg|quicktime);base64,")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
@@ -257,11 +266,63 @@ class ImageKind(BaseModel):
         return value
 
 
+class VideoKind(BaseModel):
+    """A video projected like ``image``: the frame shown at ``t - start_s`` into the video (looped),
+    decoded with PyAV (FFmpeg) at up to :data:`MAX_VIDEO_FPS` frames per second and scaled down to
+    at most :data:`MAX_VIDEO_WIDTH_PX` pixels wide (a drone covers far more than a pixel of it).
+    ``video`` is a ``data:video/...;base64,`` URL (MP4, WebM, Ogg, QuickTime)."""
+
+    model_config = _CONFIG
+    kind: Literal["video"]
+    video: str
+    center_m: Point3
+    width_m: float = Field(gt=0, le=100_000)
+    height_m: float = Field(gt=0, le=100_000)
+
+    @field_validator("video")
+    @classmethod
+    def _video_url(cls, value: str) -> str:
+        if len(value) > MAX_VIDEO_CHARS:
+            raise PydanticCustomError("video_too_large", "the video is {n} characters of base64; the limit is "
+                                      "{limit}", {"n": len(value), "limit": MAX_VIDEO_CHARS})
+        m = _VIDEO_URL.match(value)
+        if m is None:
+            raise PydanticCustomError("video_url", "must be a data:video/mp4 (webm, ogg, quicktime) base64 URL")
+        try:
+            raw = base64.b64decode(value[m.end():], validate=True)
+        except (binascii.Error, ValueError):
+            raise PydanticCustomError("video_base64", "the video is not valid base64") from None
+        problem = probe_video(raw)
+        if problem is not None:
+            raise PydanticCustomError("video_decode", "cannot read the video: {why}", {"why": problem})
+        return value
+
+
+def probe_video(raw: bytes) -> str | None:
+    """Why ``raw`` is not a video PyAV can decode (None when it is): opens the container and decodes its
+    first frame only, so a show file with a broken video is refused when it is loaded."""
+    import io
+
+    try:
+        import av
+    except ImportError:  # pragma: no cover - a runtime dependency
+        return "video decoding needs PyAV (pip install av)"
+    try:
+        with av.open(io.BytesIO(raw), mode="r") as container:
+            if not container.streams.video:
+                return "it has no video stream"
+            for _ in container.decode(video=0):
+                return None
+            return "it has no frames"
+    except Exception as exc:
+        return str(exc).splitlines()[0][:200] or type(exc).__name__
+
+
 Kind = Annotated[
-    SolidKind | RampKind | SweepKind | ChaseKind | SparkleKind | StrobeKind | ImageKind,
+    SolidKind | RampKind | SweepKind | ChaseKind | SparkleKind | StrobeKind | ImageKind | VideoKind,
     Field(discriminator="kind"),
 ]
-KINDS = ("solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image")
+KINDS = ("solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image", "video")
 BLENDS = ("replace", "add", "multiply", "max")
 TARGETS = ("all", "formation", "drones", "group", "box", "plane")
 
@@ -366,5 +427,7 @@ __all__ = [
     "TargetFormation",
     "TargetGroup",
     "TargetPlane",
+    "VideoKind",
     "lights_problem",
+    "probe_video",
 ]

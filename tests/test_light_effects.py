@@ -411,3 +411,58 @@ def test_plan_positions_kernel_matches_the_plan(plan) -> None:
                                plan.motion.evaluate(shuffled, np.array([2, 5])).positions_m, atol=1e-9)
     part = plan_positions(plan, t, frames=np.arange(0, 300, 2))
     np.testing.assert_array_equal(part[1::2], 0.0)
+
+
+VIDEO_COLORS = [(255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 0), (0, 255, 255), (255, 255, 255)]
+
+
+def _video_url(fps: int, colors=VIDEO_COLORS, codec: str = "mpeg4", fmt: str = "mp4") -> str:
+    """A small video made with PyAV: one solid colour per frame at ``fps``."""
+    import av
+
+    buf = io.BytesIO()
+    with av.open(buf, mode="w", format=fmt) as out:
+        stream = out.add_stream(codec, rate=fps)
+        stream.width, stream.height, stream.pix_fmt = 32, 24, "yuv420p"
+        for rgb in colors:
+            frame = av.VideoFrame.from_ndarray(np.full((24, 32, 3), rgb, dtype=np.uint8), format="rgb24")
+            for packet in stream.encode(frame):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    mime = "mp4" if fmt == "mp4" else fmt
+    return f"data:video/{mime};base64," + base64.b64encode(buf.getvalue()).decode()
+
+
+@pytest.mark.parametrize(("fps", "codec", "fmt"), [(2, "mpeg4", "mp4"), (50, "libvpx", "webm")])
+def test_video_projection_shows_the_frame_at_each_time(plan, fps: int, codec: str, fmt: str) -> None:
+    """Each frame is one solid colour, so every drone inside the picture takes the colour of the frame
+    at (t - start) into the video (sampled at min(fps, 25), looped); codecs lose a few levels."""
+    colors = VIDEO_COLORS if fps < 25 else [c for c in VIDEO_COLORS for _ in range(fps // 2)]
+    kind = {"kind": "video", "video": _video_url(fps, colors, codec, fmt), "center_m": [4.0, 0.0, 24.0],
+            "width_m": 40.0, "height_m": 40.0}
+    hold = next(s for s in plan.segments if s.kind == "hold" and s.label == "A")
+    start = hold.start_s
+    show = parse_show(_show_doc([_fx(kind, start_s=start, end_s=start + 6.0)]))
+    rate = min(fps, 25)
+    seconds_per_colour = 1.0 / fps * (1 if fps < 25 else fps // 2)
+    times = start + np.arange(1, 11) * 0.55
+    got = show_colors(show, plan, times)
+    for k, t in enumerate(times):
+        sample = math.floor((t - start) * rate + 1e-9)
+        n_samples = math.ceil(len(colors) / fps * rate)  # the video's length in samples: it loops
+        video_t = (sample % n_samples) / rate
+        want = np.array(VIDEO_COLORS[min(int(video_t / seconds_per_colour + 1e-9), len(VIDEO_COLORS) - 1)]) / 255
+        np.testing.assert_allclose(got[k], np.tile(want, (9, 1)), atol=12 / 255, err_msg=f"t - start = {t - start}")
+
+
+def test_bad_videos_are_refused_with_their_path() -> None:
+    bad = {"kind": "video", "video": "data:video/mp4;base64," + base64.b64encode(b"not a video at all").decode(),
+           "center_m": [0, 0, 20], "width_m": 10, "height_m": 10}
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(_show_doc([_fx(bad)]))
+    assert info.value.errors[0]["path"] == "lights.effects[0].effect.video.video"
+    assert "cannot read the video" in info.value.errors[0]["msg"]
+    bad["video"] = "data:video/avi;base64,AAAA"
+    with pytest.raises(ShowValidationError, match="data:video/mp4"):
+        parse_show(_show_doc([_fx(bad)]))

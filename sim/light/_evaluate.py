@@ -17,6 +17,9 @@ from numpy.typing import ArrayLike
 
 from formations import ShowFile
 from formations._effects import (
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
+    MAX_VIDEO_WIDTH_PX,
     ChaseKind,
     ImageKind,
     LightEffect,
@@ -31,6 +34,7 @@ from formations._effects import (
     TargetFormation,
     TargetGroup,
     TargetPlane,
+    VideoKind,
 )
 from formations._show import hex_to_rgb
 from sim.light import _kernels as _k
@@ -85,7 +89,7 @@ def _formation_windows(plan: ShowPlan) -> dict[str, list[tuple[float, float]]]:
 
 
 def _decode_frames(kind: ImageKind) -> list[np.ndarray]:
-    """The image frames as (H, W, 4) float32 RGBA in [0, 1]."""
+    """The image frames as (H, W, 4) uint8 RGBA."""
     from PIL import Image
 
     frames = []
@@ -97,14 +101,50 @@ def _decode_frames(kind: ImageKind) -> list[np.ndarray]:
             if im.width * im.height > MAX_IMAGE_PIXELS:
                 scale = (MAX_IMAGE_PIXELS / (im.width * im.height)) ** 0.5
                 im = im.resize((max(1, int(im.width * scale)), max(1, int(im.height * scale))))
-            frames.append(np.asarray(im.convert("RGBA"), dtype=np.float32) / 255.0)
+            frames.append(np.asarray(im.convert("RGBA"), dtype=np.uint8))
     return frames
+
+
+def decode_video(kind: VideoKind) -> tuple[list[np.ndarray], float]:
+    """A video's frames sampled at up to ``MAX_VIDEO_FPS`` as (H, W, 4) uint8 RGBA, at most
+    ``MAX_VIDEO_WIDTH_PX`` wide and ``MAX_VIDEO_FRAMES`` many, and their rate (frames per second).
+
+    Frame k is the last decoded frame whose timestamp is at or before k / rate (PyAV / FFmpeg
+    decode; the stream's own timestamps, so variable frame rates play at their real times).
+    """
+    import av
+
+    raw = base64.b64decode(kind.video.split(",", 1)[1])
+    frames: list[np.ndarray] = []
+    with av.open(io.BytesIO(raw), mode="r") as container:
+        stream = container.streams.video[0]
+        native = float(stream.average_rate) if stream.average_rate else MAX_VIDEO_FPS
+        rate = min(native, MAX_VIDEO_FPS)
+        width = stream.codec_context.width or MAX_VIDEO_WIDTH_PX
+        height = stream.codec_context.height or MAX_VIDEO_WIDTH_PX
+        scale = min(1.0, MAX_VIDEO_WIDTH_PX / width)
+        size = (max(1, round(width * scale)), max(1, round(height * scale)))
+        last: np.ndarray | None = None
+        for frame in container.decode(video=0):
+            t = float(frame.time) if frame.time is not None else len(frames) / rate
+            image = frame.to_ndarray(format="rgba", width=size[0], height=size[1])
+            # Fill every sample time up to this frame's with the frame before it, then this one.
+            while last is not None and len(frames) < MAX_VIDEO_FRAMES and (len(frames)) / rate < t - 1e-6:
+                frames.append(last)
+            if len(frames) >= MAX_VIDEO_FRAMES:
+                break
+            last = image
+        if last is not None and len(frames) < MAX_VIDEO_FRAMES:
+            frames.append(last)
+    if not frames:
+        raise ValueError("the video has no frames")
+    return frames, rate
 
 
 def _stack_frames(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Frames of different sizes in one zero-padded (F, H, W, 4) array, and their (F, 2) sizes."""
     sizes = np.array([f.shape[:2] for f in frames], dtype=np.int64)
-    stack = np.zeros((len(frames), int(sizes[:, 0].max()), int(sizes[:, 1].max()), 4), dtype=np.float32)
+    stack = np.zeros((len(frames), int(sizes[:, 0].max()), int(sizes[:, 1].max()), 4), dtype=np.uint8)
     for j, f in enumerate(frames):
         stack[j, : f.shape[0], : f.shape[1]] = f
     return stack, sizes
@@ -121,6 +161,7 @@ class _Prepared:
     stops: np.ndarray | None = None  # (K, 3) colours
     color: np.ndarray | None = None  # (3,) colour
     image_stack: tuple[np.ndarray, np.ndarray] | None = None  # (F, H, W, 4) padded frames, (F, 2) sizes
+    video_fps: float = 0.0  # video: the rate its frames were sampled at
 
 
 class LightStack:
@@ -158,6 +199,9 @@ class LightStack:
                 p.rank = self._ranks(k, plan, fx.start_s)
             if isinstance(k, ImageKind):
                 p.image_stack = _stack_frames(_decode_frames(k))
+            elif isinstance(k, VideoKind):
+                frames, p.video_fps = decode_video(k)
+                p.image_stack = _stack_frames(frames)
             self._effects.append(p)
 
     @classmethod
@@ -268,10 +312,11 @@ class LightStack:
         elif isinstance(k, SparkleKind):
             code = _k.K_SPARKLE
             kprm[2:4] = [k.flash_s, k.density]
-        elif isinstance(k, ImageKind):
+        elif isinstance(k, ImageKind | VideoKind):
             code = _k.K_IMAGE
             cx, _, cz = k.center_m
-            kprm[1:6] = [k.fps, cx - k.width_m / 2.0, cz + k.height_m / 2.0, k.width_m, k.height_m]
+            fps = k.fps if isinstance(k, ImageKind) else p.video_fps
+            kprm[1:6] = [fps, cx - k.width_m / 2.0, cz + k.height_m / 2.0, k.width_m, k.height_m]
         tgt, tprm = _k.T_NONE, np.zeros(6)
         if isinstance(fx.target, TargetBox):
             tgt, tprm = _k.T_BOX, np.r_[fx.target.min_m, fx.target.max_m]
@@ -288,11 +333,11 @@ class LightStack:
 
 _BLENDS = {"replace": _k.B_REPLACE, "add": _k.B_ADD, "multiply": _k.B_MULTIPLY, "max": _k.B_MAX}
 _NO_POS = np.zeros((1, 1, 3))
-_NO_IMAGE = np.zeros((1, 1, 1, 4), dtype=np.float32)
+_NO_IMAGE = np.zeros((1, 1, 1, 4), dtype=np.uint8)
 
 
 def _needs_positions(fx: LightEffect) -> bool:
-    return isinstance(fx.target, TargetBox | TargetPlane) or isinstance(fx.effect, SweepKind | ImageKind)
+    return isinstance(fx.target, TargetBox | TargetPlane) or isinstance(fx.effect, SweepKind | ImageKind | VideoKind)
 
 
 def _envelope(fx: LightEffect, t: np.ndarray) -> np.ndarray:

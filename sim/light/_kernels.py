@@ -80,7 +80,7 @@ def paint(
     stops: np.ndarray,  # (K, 3) gradient stops
     rank: np.ndarray,  # (N,) chase places
     seed: np.int64,
-    images: np.ndarray,  # (F_img, H, W, 4) float32
+    images: np.ndarray,  # (F_img, H, W, 4) uint8 RGBA
     image_size: np.ndarray,  # (F_img, 2) real (H, W) of each frame
 ) -> None:  # pragma: no cover - compiled
     n_stops = stops.shape[0]
@@ -155,10 +155,10 @@ def paint(
                 w_px = image_size[img, 1]
                 row = min(np.int64(np.floor(v * h)), h - 1)
                 col = min(np.int64(np.floor(u * w_px)), w_px - 1)
-                r = images[img, row, col, 0]
-                g = images[img, row, col, 1]
-                bl = images[img, row, col, 2]
-                alpha *= images[img, row, col, 3]
+                r = images[img, row, col, 0] / 255.0
+                g = images[img, row, col, 1] / 255.0
+                bl = images[img, row, col, 2] / 255.0
+                alpha *= images[img, row, col, 3] / 255.0
             if alpha <= 0.0:
                 continue
             out[f, i, 0] = _blend(blend, out[f, i, 0], r, alpha)
