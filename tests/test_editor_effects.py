@@ -98,3 +98,50 @@ def test_add_sweep_and_sparkle_preview_save_and_play(ui: Page) -> None:
     assert ui.state("s.show.lights.effects.length") == 1
     page.get_by_role("button", name="Undo Remove effect").click()
     assert ui.state("s.show.lights.effects.length") == 2
+
+
+def test_image_and_video_effects_preview_on_the_canvas(ui: Page) -> None:
+    """Upload a PNG and a WebM into image / video effects: the canvas preview paints their pixels."""
+    import base64
+
+    import numpy as np
+
+    from tests.test_light_effects import _png_url, _video_url
+
+    page = ui.page
+    _create_show(ui, "Projected", 16)
+    png = ui.tmp / "red.png"
+    png.write_bytes(base64.b64decode(_png_url(np.full((8, 8, 4), (255, 0, 0, 255), dtype=np.uint8)).split(",")[1]))
+    webm = ui.tmp / "clip.webm"
+    webm.write_bytes(base64.b64decode(_video_url(10, [(0, 255, 0)] * 20, "libvpx", "webm").split(",")[1]))
+    centre = ui.state("(() => { const p = s.formation.points;"
+                      " return [0, 1, 2].map((a) => p.reduce((m, q) => m + q[a], 0) / p.length).join(', '); })()")
+
+    page.locator("#effects-panel > summary").click()
+    for kind, path in (("image", png), ("video", webm)):
+        page.get_by_label("Kind of effect to add").select_option(kind)
+        page.get_by_role("button", name="Add a light effect").click()
+        page.locator("#fx-form input[type=file]").set_input_files(str(path))
+        label = "Effect images" if kind == "image" else "Effect video"
+        page.wait_for_function(f"() => window.swarmshow.state.undoStack.at(-1)?.label === '{label}'")
+        page.get_by_label("Effect centre (m)").fill(centre)
+        page.get_by_label("Effect centre (m)").dispatch_event("change")
+        page.get_by_label("Effect width (m)").fill("500")
+        page.get_by_label("Effect width (m)").dispatch_event("change")
+        page.get_by_label("Effect height (m)").fill("500")
+        page.get_by_label("Effect height (m)").dispatch_event("change")
+        if kind == "image":
+            page.locator("#fx-time").fill("1")
+            page.locator("#fx-time").dispatch_event("input")
+            page.wait_for_function("() => { const {state, effects} = window.swarmshow; const f = state.formation;"
+                                   " return effects.colorsFor(f, f.colors).slice(0, 16)"
+                                   ".every((c) => c === '#ff0000'); }")
+    # The video is on top of the stack: green once its frame is decoded.
+    page.locator("#fx-time").fill("1.5")
+    page.locator("#fx-time").dispatch_event("input")
+    page.wait_for_function("() => { const {state, effects} = window.swarmshow; const f = state.formation;"
+                           " const c = effects.colorsFor(f, f.colors)[0];"
+                           " return parseInt(c.slice(3, 5), 16) > 200 && parseInt(c.slice(1, 3), 16) < 60; }",
+                           timeout=15_000)
+    page.keyboard.press("Control+s")
+    expect(page.locator("#save-status")).to_contain_text("Saved")

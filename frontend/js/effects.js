@@ -4,7 +4,9 @@
 
 import { evaluateColors, hexToRgb, rgbToHex } from "./lighteval.js";
 
-export const KINDS = ["solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image"];
+export const KINDS = ["solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image", "video"];
+/** Widest a video frame is kept for the preview, pixels (as the server keeps it). */
+const VIDEO_WIDTH_PX = 192;
 const BLENDS = ["replace", "add", "multiply", "max"];
 const TARGETS = ["all", "formation", "drones", "group", "box", "plane"];
 
@@ -21,6 +23,7 @@ export function newEffect(kind, start) {
     sparkle: { kind, color: "#ffffff", density: 0.2, flash_s: 0.3, seed: 0 },
     strobe: { kind, color: "#ffffff", frequency_hz: 4, duty: 0.5 },
     image: { kind, frames: [], fps: 10, center_m: [0, 0, 50], width_m: 60, height_m: 40 },
+    video: { kind, video: "", center_m: [0, 0, 50], width_m: 60, height_m: 40 },
   };
   return { name: "", start_s: s, end_s: s + 10, fade_in_s: 0, fade_out_s: 0, blend: "replace", opacity: 1,
     target: { kind: "all" }, effect: kinds[kind] };
@@ -31,6 +34,15 @@ function parseNumbers(text, n = 3) {
   const v = String(text).split(/[\s,;]+/).filter(Boolean).map(Number);
   if ((n && v.length !== n) || v.some((x) => !Number.isFinite(x))) return null;
   return v;
+}
+
+/** A data URL's bytes as a Blob (decoded here: the CSP lets fetch reach only the server). @param {string} url */
+function dataUrlBlob(url) {
+  const comma = url.indexOf(",");
+  const bin = atob(url.slice(comma + 1));
+  const bytes = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+  return new Blob([bytes], { type: url.slice(5, url.indexOf(";")) });
 }
 
 /** Read a PNG/JPEG file as a data URL. @param {File} file @returns {Promise<string>} */
@@ -59,6 +71,8 @@ export class EffectsPanel {
     this.playing = false;
     /** @type {Map<string, {w: number, h: number, data: Uint8ClampedArray}|null>} decoded image frames */
     this.images = new Map();
+    /** @type {Map<string, {el: HTMLVideoElement, frame: any, busy: boolean}>} preview videos by data URL */
+    this.videos = new Map();
     this._build();
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "live" || e.detail.kind === "selection") return;
@@ -162,8 +176,50 @@ export class EffectsPanel {
     return out.map(rgbToHex).concat(base.slice(n));
   }
 
+  /** The frame of a video effect showing at the preview time (a one-element list), or null while it seeks.
+   * @param {any} fx */
+  _videoFrame(fx) {
+    const url = fx.effect.video;
+    if (!url) return null;
+    let v = this.videos.get(url);
+    if (!v) {
+      const el = document.createElement("video");
+      el.muted = true;
+      el.preload = "auto";
+      const entry = { el, frame: /** @type {any} */ (null), busy: false };
+      el.addEventListener("seeked", () => {
+        const w = Math.min(VIDEO_WIDTH_PX, el.videoWidth || VIDEO_WIDTH_PX);
+        const h = Math.max(1, Math.round((w * (el.videoHeight || 1)) / (el.videoWidth || 1)));
+        const c = document.createElement("canvas");
+        c.width = w;
+        c.height = h;
+        const ctx = /** @type {CanvasRenderingContext2D} */ (c.getContext("2d"));
+        ctx.drawImage(el, 0, 0, w, h);
+        entry.frame = { w, h, data: ctx.getImageData(0, 0, w, h).data };
+        entry.busy = false;
+        this.hooks.redraw();
+      });
+      el.addEventListener("loadedmetadata", () => this.hooks.redraw());
+      el.addEventListener("error", () => { entry.busy = false; });
+      // The editor's CSP allows media from blob: URLs, not data: ones.
+      el.src = URL.createObjectURL(dataUrlBlob(url));
+      this.videos.set(url, entry);
+      v = entry;
+    }
+    const dur = v.el.duration;
+    if (Number.isFinite(dur) && dur > 0 && !v.busy) {
+      const t = (((this.time - fx.start_s) % dur) + dur) % dur;
+      if (!v.frame || Math.abs(v.el.currentTime - t) > 0.04) {
+        v.busy = true;
+        v.el.currentTime = t;
+      }
+    }
+    return v.frame ? [v.frame] : null;
+  }
+
   /** Decoded frames of an image effect, or null while any is loading. @param {any} fx */
   _frames(fx) {
+    if (fx.effect && fx.effect.kind === "video") return this._videoFrame(fx);
     const urls = (fx.effect && fx.effect.frames) || [];
     const out = [];
     for (const url of urls) {
@@ -432,6 +488,20 @@ export class EffectsPanel {
       });
       row(`images (${(e.frames || []).length})`, file);
       num("fps", e.fps ?? 10, (v, c) => { c.effect.fps = v; }, { min: "0" });
+      vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
+      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
+      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+    } else if (e.kind === "video") {
+      const file = document.createElement("input");
+      file.type = "file";
+      file.accept = "video/mp4,video/webm,video/ogg,video/quicktime";
+      file.addEventListener("change", async () => {
+        const f = (file.files || [])[0];
+        if (!f) return;
+        const url = await readDataUrl(f);
+        this.change(k, "Effect video", (c) => { c.effect.video = url; });
+      });
+      row(e.video ? "video (loaded)" : "video", file);
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
       num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
       num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });

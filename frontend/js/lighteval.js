@@ -70,7 +70,7 @@ export function envelope(fx, t) {
  * @param {number[][]} base (n, 3) base colours in [0, 1]
  * @param {number} t show time, seconds
  * @param {(fx: any) => (Array<{w: number, h: number, data: Uint8ClampedArray}>|null)} [images] decoded image
- *   frames of an image effect (RGBA bytes), or null while they load
+ *   frames of an image effect (RGBA bytes; for a video, the frame at this time), or null while they load
  * @returns {number[][]} (n, 3) colours in [0, 1]
  */
 export function evaluateColors(show, formationName, points, base, t, images) {
@@ -112,8 +112,9 @@ export function evaluateColors(show, formationName, points, base, t, images) {
       }
     }
     const stops = e.kind === "sweep" ? e.colors.map(hexToRgb) : null;
-    const frames = e.kind === "image" && images ? images(fx) : null;
-    if (e.kind === "image" && !frames) continue;
+    const projected = e.kind === "image" || e.kind === "video";
+    const frames = projected && images ? images(fx) : null;
+    if (projected && !frames) continue;
     for (let i = 0; i < n; i++) {
       if (only && !only.has(i)) continue;
       const p = points[i];
@@ -149,8 +150,9 @@ export function evaluateColors(show, formationName, points, base, t, images) {
         const u = x - slot;
         if (hash01(seed, i, slot) >= (e.density ?? 0.2)) continue;
         alpha *= 1 - Math.abs(2 * u - 1);
-      } else if (e.kind === "image" && frames) {
-        const img = frames[Math.floor(since * (e.fps ?? 10) + 1e-9) % frames.length];
+      } else if (projected && frames) {
+        // A video's callback hands the one frame showing at this time.
+        const img = e.kind === "video" ? frames[0] : frames[Math.floor(since * (e.fps ?? 10) + 1e-9) % frames.length];
         const u = (p[0] - (e.center_m[0] - e.width_m / 2)) / e.width_m;
         const v = (e.center_m[2] + e.height_m / 2 - p[2]) / e.height_m;
         if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) continue;
