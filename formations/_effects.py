@@ -32,6 +32,7 @@ from __future__ import annotations
 import base64
 import binascii
 import re
+from functools import lru_cache
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -49,11 +50,17 @@ MAX_STOPS = 64
 MAX_IMAGE_FRAMES = 600
 #: Largest encoded image (one frame), bytes of base64 text; the show file's 20 MB bounds the total.
 MAX_IMAGE_CHARS = 4_000_000
+#: Most pixels of one image frame (decoded RGBA costs 4 bytes a pixel; a small PNG can hold a huge image).
+MAX_IMAGE_PIXELS = 4096 * 4096
+#: Most pixels of all image frames of a show together (256 MB decoded).
+MAX_SHOW_IMAGE_PIXELS = 64 * 1024 * 1024
+#: Most video effects in a show (each decodes to at most MAX_VIDEO_FRAMES small frames).
+MAX_VIDEOS = 4
 #: Largest embedded video, characters of base64 (about 12 MB of video; the show file's limit is 20 MB).
 MAX_VIDEO_CHARS = 16_000_000
 #: Highest rate a video is sampled at, frames per second.
 MAX_VIDEO_FPS = 25.0
-#: Widest a decoded video frame is kept, pixels.
+#: Widest (and tallest) a decoded video frame is kept, pixels.
 MAX_VIDEO_WIDTH_PX = 192
 #: Most frames kept of one video (a minute at 25 fps; longer videos loop their first minute).
 MAX_VIDEO_FRAMES = 1500
@@ -263,6 +270,12 @@ class ImageKind(BaseModel):
                 raise PydanticCustomError("image_base64", "frame {k} is not valid base64", {"k": k}) from None
             if not (head.startswith(b"\x89PNG") or head.startswith(b"\xff\xd8")):
                 raise PydanticCustomError("image_format", "frame {k} is neither a PNG nor a JPEG", {"k": k})
+            w, h = image_size(text)
+            if w * h > MAX_IMAGE_PIXELS:
+                raise PydanticCustomError(
+                    "image_pixels", "frame {k} is {w} x {h} pixels; the limit is {limit} pixels",
+                    {"k": k, "w": w, "h": h, "limit": MAX_IMAGE_PIXELS},
+                )
         return value
 
 
@@ -296,6 +309,21 @@ class VideoKind(BaseModel):
         if problem is not None:
             raise PydanticCustomError("video_decode", "cannot read the video: {why}", {"why": problem})
         return value
+
+
+@lru_cache(maxsize=256)
+def image_size(data_url: str) -> tuple[int, int]:
+    """(width, height) of a PNG/JPEG data URL, from its header only (no pixels decoded)."""
+    import io
+
+    from PIL import Image, UnidentifiedImageError
+
+    raw = base64.b64decode(data_url.split(",", 1)[1])
+    try:
+        with Image.open(io.BytesIO(raw)) as im:
+            return int(im.width), int(im.height)
+    except (UnidentifiedImageError, OSError, ValueError) as exc:
+        raise PydanticCustomError("image_decode", "cannot read the image: {why}", {"why": str(exc)[:200]}) from None
 
 
 def probe_video(raw: bytes) -> str | None:
@@ -394,7 +422,19 @@ def lights_problem(lights: Lights, drones: int, formation_names: list[str]) -> t
         if bad:
             return ("groups", name), f"drone index {bad[0]} is out of range for {drones} drones"
     names = set(formation_names)
+    pixels = 0
+    videos = 0
     for k, fx in enumerate(lights.effects):
+        if isinstance(fx.effect, ImageKind):
+            pixels += sum(w * h for w, h in map(image_size, fx.effect.frames))
+            if pixels > MAX_SHOW_IMAGE_PIXELS:
+                return ("effects", k, "effect", "frames"), (
+                    f"the show's images hold more than {MAX_SHOW_IMAGE_PIXELS} pixels together; use smaller "
+                    "images or fewer frames")
+        elif isinstance(fx.effect, VideoKind):
+            videos += 1
+            if videos > MAX_VIDEOS:
+                return ("effects", k, "effect", "video"), f"at most {MAX_VIDEOS} video effects per show"
         t = fx.target
         if isinstance(t, TargetDrones):
             bad = [i for i in t.indices if i >= drones]

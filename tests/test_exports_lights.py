@@ -22,7 +22,7 @@ from formations import parse_show
 from sim.light import LightStack, show_colors
 from sim.plan import plan_show
 from tests import ledctrl_reader
-from tests.test_light_effects import _png_url, _show_doc
+from tests.test_light_effects import _png_url, _show_doc, _video_url
 
 ALL_KINDS = [
     {"start_s": 0.0, "end_s": 40.0, "effect": {"kind": "ramp", "colors": ["#200000", "#0040ff", "#ff8000"]}},
@@ -42,7 +42,10 @@ def lit():
         "start_s": 12.0, "end_s": 30.0, "effect": {
             "kind": "image", "frames": [_png_url(np.random.default_rng(k).integers(0, 256, (6, 8, 3), dtype=np.uint8))
                                         for k in range(2)],
-            "fps": 1.0, "center_m": [4.0, 0.0, 26.0], "width_m": 16.0, "height_m": 16.0}}])
+            "fps": 1.0, "center_m": [4.0, 0.0, 26.0], "width_m": 16.0, "height_m": 16.0}}, {
+        "start_s": 30.0, "end_s": 36.0, "blend": "add", "effect": {
+            "kind": "video", "video": _video_url(2), "center_m": [4.0, 0.0, 26.0], "width_m": 6.0,
+            "height_m": 30.0}}])
     show = parse_show(doc)
     return show, plan_show(show)
 

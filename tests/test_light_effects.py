@@ -466,3 +466,32 @@ def test_bad_videos_are_refused_with_their_path() -> None:
     bad["video"] = "data:video/avi;base64,AAAA"
     with pytest.raises(ShowValidationError, match="data:video/mp4"):
         parse_show(_show_doc([_fx(bad)]))
+
+
+def test_decoding_budgets_are_enforced_when_the_show_is_loaded() -> None:
+    """A small PNG can hold a huge image and a show many of them: pixels are counted from the headers."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4100, 4100)).save(buf, format="PNG")
+    huge = "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
+    kind = {"kind": "image", "frames": [huge], "center_m": [0, 0, 20], "width_m": 10, "height_m": 10}
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(_show_doc([_fx(kind)]))
+    assert info.value.errors[0]["path"] == "lights.effects[0].effect.image.frames"
+    assert "pixels" in info.value.errors[0]["msg"]
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4000, 4000)).save(buf, format="PNG")
+    big = "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
+    kind["frames"] = [big] * 5  # 80 M pixels together
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(_show_doc([_fx(kind)]))
+    assert info.value.errors[0]["path"] == "lights.effects[0].effect.frames"
+
+    video = {"kind": "video", "video": _video_url(2, VIDEO_COLORS[:2]), "center_m": [0, 0, 20], "width_m": 10,
+             "height_m": 10}
+    parse_show(_show_doc([_fx(video)] * 4))
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(_show_doc([_fx(video)] * 5))
+    assert info.value.errors[0]["path"] == "lights.effects[4].effect.video"

@@ -122,7 +122,7 @@ def decode_video(kind: VideoKind) -> tuple[list[np.ndarray], float]:
         rate = min(native, MAX_VIDEO_FPS)
         width = stream.codec_context.width or MAX_VIDEO_WIDTH_PX
         height = stream.codec_context.height or MAX_VIDEO_WIDTH_PX
-        scale = min(1.0, MAX_VIDEO_WIDTH_PX / width)
+        scale = min(1.0, MAX_VIDEO_WIDTH_PX / width, MAX_VIDEO_WIDTH_PX / height)
         size = (max(1, round(width * scale)), max(1, round(height * scale)))
         last: np.ndarray | None = None
         for frame in container.decode(video=0):
