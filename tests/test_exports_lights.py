@@ -184,3 +184,41 @@ def test_tracks_carry_the_effects(lit) -> None:
     np.testing.assert_allclose(frame.colors_rgb, show_colors(show, plan, [15.0])[0], atol=1e-6)
     plain = make_track(plan, None, "planned")
     assert np.abs(plain.sample(t)[1] - colors).max() > 0.1
+
+
+def _recorded_drone_colors(html: bytes) -> list[np.ndarray]:
+    """Every colour array recorded for the drones' point cloud, resolving viser's binary placeholders
+    (buffers stored 8-byte aligned after the msgpack, in ``binaryBufferLengths`` order)."""
+    import msgspec
+    import zstandard
+
+    from tests.test_viewer_export import EMBED
+
+    data = base64.b64decode(EMBED.search(html).group(1))
+    inner = zstandard.ZstdDecompressor().decompress(data[8:], max_output_size=int.from_bytes(data[:8], "little"))
+    n = int.from_bytes(inner[:8], "little")
+    rec = msgspec.msgpack.decode(inner[8:8 + n])
+    buffers, pos = [], 8 + n
+    for length in rec["binaryBufferLengths"]:
+        pos += (8 - pos % 8) % 8
+        buffers.append(inner[pos:pos + length])
+        pos += length
+    out = []
+    for _, m in rec["messages"]:
+        if m.get("name") == "/drones" and m["type"] == "SceneNodeUpdateMessage" and "colors" in m["updates"]:
+            ref = m["updates"]["colors"]
+            out.append(np.frombuffer(buffers[ref["__binary_index"]], dtype=np.uint8).reshape(-1, 3))
+    return out
+
+
+def test_offline_html_playback_carries_the_effects() -> None:
+    """A solid green over 5-15 s: recorded keyframes paint every drone green (and never without it)."""
+    from app.exports._viser_html import _led_uint8
+
+    show = parse_show(_show_doc([{"start_s": 5.0, "end_s": 15.0, "effect": {"kind": "solid", "color": "#00ff00"}}]))
+    plan = plan_show(show)
+    green = _led_uint8(np.tile([0.0, 1.0, 0.0], (show.drones, 1)))
+    lit = _recorded_drone_colors(export_show(show, "viser-html", fps=2.0, plan=plan).content)
+    assert sum(np.array_equal(c, green) for c in lit) >= 1
+    plain = _recorded_drone_colors(export_show(parse_show(_show_doc([])), "viser-html", fps=2.0, plan=plan).content)
+    assert len(plain) > 3 and not any(np.array_equal(c, green) for c in plain)
