@@ -32,7 +32,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from formations._effects import Lights, lights_problem
+from formations._effects import KINDS, TARGETS, Lights, lights_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -546,11 +546,19 @@ class ShowValidationError(ValueError):
         return cls(out)
 
 
+_EFFECT_TAGS = {("effect", k) for k in KINDS} | {("target", k) for k in TARGETS}
+
+
 def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
     for i in range(len(loc) - 2):
         if loc[i] == "home" and loc[i + 1] in ("grid", "points") and loc[i + 2] == loc[i + 1]:
             return loc[: i + 1] + loc[i + 2 :]
+    # Light effects: lights.effects[k].effect.<kind>.field -> lights.effects[k].effect.field (and target).
+    if loc[:1] == ("lights",):
+        for i in range(len(loc) - 1):
+            if (loc[i], loc[i + 1]) in _EFFECT_TAGS:
+                return loc[: i + 1] + loc[i + 2 :]
     return loc
 
 

@@ -71,7 +71,7 @@ def replay(code: bytes, n_frames: int) -> np.ndarray:
             target = np.array(rgb, dtype=float)
             k = np.arange(1, d + 1)[:, None]
             seg = color + (target - color) * k / d
-            end = min(t + d + 1, n_frames + 1)
+            end = min(t + d + 1, n_frames)
             out[t + 1:end] = seg[: max(0, end - t - 1)]
             if t < n_frames:
                 out[t] = color
