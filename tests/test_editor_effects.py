@@ -145,3 +145,19 @@ def test_image_and_video_effects_preview_on_the_canvas(ui: Page) -> None:
                            timeout=15_000)
     page.keyboard.press("Control+s")
     expect(page.locator("#save-status")).to_contain_text("Saved")
+
+
+def test_a_refused_effect_shows_its_error_in_the_panel(ui: Page) -> None:
+    page = ui.page
+    _create_show(ui, "Refused", 9)
+    page.locator("#effects-panel > summary").click()
+    page.get_by_role("button", name="Add a light effect").click()
+    page.get_by_label("Effect end (s)").fill("0")
+    page.get_by_label("Effect end (s)").dispatch_event("change")
+    page.keyboard.press("Control+s")
+    expect(page.locator('#effects-panel [data-error-for="lights"]')).to_contain_text("effects[0].end_s")
+    page.get_by_role("button", name="Undo Effect end (s)").click()
+    assert ui.state("s.show.lights.effects[0].end_s") == 10
+    page.keyboard.press("Control+s")
+    expect(page.locator("#save-status")).to_contain_text("Saved")
+    expect(page.locator('#effects-panel [data-error-for="lights"]')).to_have_text("")

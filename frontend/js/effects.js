@@ -284,8 +284,10 @@ export class EffectsPanel {
    */
   change(k, label, fn) {
     const s = this.state.show;
-    const copy = JSON.parse(JSON.stringify(s.lights.effects[k]));
-    if (fn(copy) === false) return;
+    const before = JSON.stringify(s.lights.effects[k]);
+    const copy = JSON.parse(before);
+    // No step for a change that changes nothing (a field's change event fires again on blur).
+    if (fn(copy) === false || JSON.stringify(copy) === before) return;
     this.state.edit(label, () => {
       const list = [...s.lights.effects];
       list[k] = copy;
