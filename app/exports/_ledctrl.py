@@ -138,26 +138,66 @@ def varuint(value: int) -> bytes:
             return bytes(out)
 
 
-def _set(rgb: tuple[int, int, int], frames: int) -> bytes:
-    r, g, b = rgb
-    if r == g == b:
-        if r == 0:
-            return bytes((OP_SET_BLACK,)) + varuint(frames)
-        if r == 255:
-            return bytes((OP_SET_WHITE,)) + varuint(frames)
-        return bytes((OP_SET_GRAY, r)) + varuint(frames)
-    return bytes((OP_SET_COLOR, r, g, b)) + varuint(frames)
+@nb.njit(cache=True, inline="always")
+def _put_varuint(buf: np.ndarray, at: int, value: int) -> int:  # pragma: no cover - compiled
+    while True:
+        byte = value & 0x7F
+        value >>= 7
+        if value:
+            buf[at] = byte | 0x80
+            at += 1
+        else:
+            buf[at] = byte
+            return at + 1
 
 
-def _fade(rgb: tuple[int, int, int], frames: int) -> bytes:
-    r, g, b = rgb
-    if r == g == b:
+@nb.njit(cache=True, inline="always")
+def _put_op(buf: np.ndarray, at: int, fade: bool, r: int, g: int, b: int,
+            frames: int) -> int:  # pragma: no cover - compiled
+    """SET / FADE of a colour, in the shortest form (black, white and greys need no three bytes)."""
+    if r == g and g == b:
         if r == 0:
-            return bytes((OP_FADE_TO_BLACK,)) + varuint(frames)
+            buf[at] = OP_FADE_TO_BLACK if fade else OP_SET_BLACK
+            return _put_varuint(buf, at + 1, frames)
         if r == 255:
-            return bytes((OP_FADE_TO_WHITE,)) + varuint(frames)
-        return bytes((OP_FADE_TO_GRAY, r)) + varuint(frames)
-    return bytes((OP_FADE_TO_COLOR, r, g, b)) + varuint(frames)
+            buf[at] = OP_FADE_TO_WHITE if fade else OP_SET_WHITE
+            return _put_varuint(buf, at + 1, frames)
+        buf[at] = OP_FADE_TO_GRAY if fade else OP_SET_GRAY
+        buf[at + 1] = r
+        return _put_varuint(buf, at + 2, frames)
+    buf[at] = OP_FADE_TO_COLOR if fade else OP_SET_COLOR
+    buf[at + 1] = r
+    buf[at + 2] = g
+    buf[at + 3] = b
+    return _put_varuint(buf, at + 4, frames)
+
+
+@nb.njit(cache=True, inline="always")
+def _same(colors: np.ndarray, a: int, b: int) -> bool:  # pragma: no cover - compiled
+    return bool(colors[a, 0] == colors[b, 0] and colors[a, 1] == colors[b, 1] and colors[a, 2] == colors[b, 2])
+
+
+@nb.njit(cache=True, nogil=True)
+def _encode(frames: np.ndarray, colors: np.ndarray, buf: np.ndarray) -> int:  # pragma: no cover - compiled
+    """Bytecode of the keyframes into buf; returns its length. Runs of holds fold into the SET at the
+    start or become one SLEEP after a fade; every change of colour is a FADE."""
+    k_count = frames.shape[0]
+    # Holds at the start fold into the first SET.
+    k = 1
+    while k < k_count and _same(colors, k, 0):
+        k += 1
+    at = _put_op(buf, 0, False, colors[0, 0], colors[0, 1], colors[0, 2], frames[k - 1] - frames[0])
+    while k < k_count:
+        at = _put_op(buf, at, True, colors[k, 0], colors[k, 1], colors[k, 2], frames[k] - frames[k - 1])
+        j = k + 1
+        while j < k_count and _same(colors, j, k):
+            j += 1
+        if j > k + 1:
+            buf[at] = OP_SLEEP
+            at = _put_varuint(buf, at + 1, frames[j - 1] - frames[k])
+        k = j
+    buf[at] = OP_END
+    return at + 1
 
 
 def encode_keyframes(frames: np.ndarray, colors: np.ndarray) -> bytes:
@@ -168,31 +208,12 @@ def encode_keyframes(frames: np.ndarray, colors: np.ndarray) -> bytes:
         frames: (K,) strictly increasing keyframe frames, the first 0.
         colors: (K, 3) keyframe colours, integers 0-255.
     """
-    ops: list[list] = []  # ["set" | "sleep" | "fade", rgb, frames]
-    first = tuple(int(v) for v in colors[0])
-    ops.append(["set", first, 0])
-    current = first
-    for k in range(1, len(frames)):
-        dur = int(frames[k] - frames[k - 1])
-        rgb = tuple(int(v) for v in colors[k])
-        if rgb == current:
-            if ops[-1][0] in ("set", "sleep"):
-                ops[-1][2] += dur
-            else:
-                ops.append(["sleep", rgb, dur])
-        else:
-            ops.append(["fade", rgb, dur])
-            current = rgb
-    code = bytearray()
-    for op, rgb, dur in ops:
-        if op == "set":
-            code += _set(rgb, dur)
-        elif op == "sleep":
-            code += bytes((OP_SLEEP,)) + varuint(dur)
-        else:
-            code += _fade(rgb, dur)
-    code.append(OP_END)
-    return bytes(code)
+    f = np.ascontiguousarray(frames, dtype=np.int64)
+    c = np.ascontiguousarray(colors, dtype=np.int64)
+    if len(f) == 0 or c.shape != (len(f), 3) or np.any(np.diff(f) <= 0) or c.min() < 0 or c.max() > 255:
+        raise ValueError("keyframes must be increasing frames with (K, 3) colours in 0-255")
+    buf = np.empty(16 * len(f) + 16, dtype=np.uint8)  # per keyframe a FADE (<= 9 bytes) and a SLEEP (<= 6)
+    return buf[: _encode(f, c, buf)].tobytes()
 
 
 def fitted_program(track: np.ndarray, tolerance: float = TOLERANCE_LEVELS) -> bytes:
