@@ -495,3 +495,15 @@ def test_decoding_budgets_are_enforced_when_the_show_is_loaded() -> None:
     with pytest.raises(ShowValidationError) as info:
         parse_show(_show_doc([_fx(video)] * 5))
     assert info.value.errors[0]["path"] == "lights.effects[4].effect.video"
+
+
+def test_editing_only_the_effects_does_not_plan_again() -> None:
+    from sim.plan import cached_plan_show, clear_plan_cache, plan_cache_info
+
+    clear_plan_cache()
+    a = cached_plan_show(parse_show(_show_doc([_fx({"kind": "solid", "color": "#ff0000"})])))
+    b = cached_plan_show(parse_show(_show_doc([_fx({"kind": "strobe", "color": "#00ff00"})])))
+    assert a is b and plan_cache_info()["misses"] == 1
+    doc = _show_doc([])
+    doc["formations"][0]["hold_s"] = 7.0
+    assert cached_plan_show(parse_show(doc)) is not a
