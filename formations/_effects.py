@@ -318,11 +318,11 @@ def image_size(data_url: str) -> tuple[int, int]:
 
     from PIL import Image, UnidentifiedImageError
 
-    raw = base64.b64decode(data_url.split(",", 1)[1])
     try:
+        raw = base64.b64decode(data_url.split(",", 1)[1], validate=True)
         with Image.open(io.BytesIO(raw)) as im:
             return int(im.width), int(im.height)
-    except (UnidentifiedImageError, OSError, ValueError) as exc:
+    except (UnidentifiedImageError, OSError, ValueError) as exc:  # binascii.Error is a ValueError
         raise PydanticCustomError("image_decode", "cannot read the image: {why}", {"why": str(exc)[:200]}) from None
 
 

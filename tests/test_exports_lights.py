@@ -222,3 +222,22 @@ def test_offline_html_playback_carries_the_effects() -> None:
     assert sum(np.array_equal(c, green) for c in lit) >= 1
     plain = _recorded_drone_colors(export_show(parse_show(_show_doc([])), "viser-html", fps=2.0, plan=plan).content)
     assert len(plain) > 3 and not any(np.array_equal(c, green) for c in plain)
+
+
+def test_light_fitting_has_a_budget(lit, monkeypatch) -> None:
+    from app.exports import ExportError, _ledctrl
+
+    show, plan = lit
+    monkeypatch.setattr(_ledctrl, "MAX_LIGHT_CELLS", show.drones * 100)
+    with pytest.raises(ExportError, match="exceeds the limit"):
+        export_show(show, "skyc", plan=plan)
+
+
+def test_undecodable_image_base64_is_a_validation_error() -> None:
+    from formations import ShowValidationError
+
+    bad = "data:image/png;base64,iVBORw0KGgoAAAANSUhEUg" + "!!!!"
+    kind = {"kind": "image", "frames": [bad], "center_m": [0, 0, 20], "width_m": 10, "height_m": 10}
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(_show_doc([{"start_s": 0.0, "end_s": 5.0, "effect": kind}]))
+    assert info.value.errors[0]["path"] == "lights.effects[0].effect.frames"

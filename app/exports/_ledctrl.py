@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING
 import numba as nb
 import numpy as np
 
+from app.exports._core import ExportError
+
 if TYPE_CHECKING:
     from formations import ShowFile
     from sim import ShowPlan
@@ -232,6 +234,9 @@ __all__ = [
 ]
 
 
+#: Most (drone, 50 Hz frame) colours evaluated for one export's light programs: bounds its CPU (about
+#: 50 s) and keeps 20,000 drones x 10 minutes possible.
+MAX_LIGHT_CELLS = 600_000_000
 #: Drones per block when evaluating colours for the light programs (bounds memory: a 10-minute show
 #: at 50 Hz is 30,000 frames, so a block is about 25 MB of colours and 50 MB of positions).
 BLOCK_DRONES = 64
@@ -254,6 +259,10 @@ def show_light_programs(
     if not stack:
         return None
     n_frames = int(np.ceil(plan.duration_s * LIGHT_FPS - 1e-9)) + 1
+    if n_frames * plan.drone_count > MAX_LIGHT_CELLS:
+        raise ExportError(
+            f"{plan.drone_count} drones x {n_frames} light frames (50 Hz) = {n_frames * plan.drone_count} exceeds the "
+            f"limit of {MAX_LIGHT_CELLS} for fitting light effects; shorten the show or remove its effects")
     times = np.minimum(np.arange(n_frames) / LIGHT_FPS, plan.duration_s)
     out: list[bytes] = []
     n = plan.drone_count
@@ -266,4 +275,4 @@ def show_light_programs(
     return out
 
 
-__all__ += ["BLOCK_DRONES", "show_light_programs"]
+__all__ += ["BLOCK_DRONES", "MAX_LIGHT_CELLS", "show_light_programs"]
