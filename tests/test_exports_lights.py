@@ -241,3 +241,23 @@ def test_undecodable_image_base64_is_a_validation_error() -> None:
     with pytest.raises(ShowValidationError) as info:
         parse_show(_show_doc([{"start_s": 0.0, "end_s": 5.0, "effect": kind}]))
     assert info.value.errors[0]["path"] == "lights.effects[0].effect.frames"
+
+
+def test_simulated_source_paints_the_effects_at_the_flown_positions(lit) -> None:
+    """With ``--source simulated`` the effects go over the flown colours at the flown positions: a flight
+    that is the plan shifted 1 m along x moves a sweep's colours by exactly that shift."""
+    from types import SimpleNamespace
+
+    show, plan = lit
+    t = np.arange(int(plan.duration_s * 20) + 1) / 20.0
+    sample = plan.evaluate(t)
+    shift = np.array([1.0, 0.0, 0.0])
+    flight = SimpleNamespace(times_s=t, positions_m=sample.positions_m + shift, colors_rgb=sample.colors_rgb)
+    result = export_show(show, "waypoints-csv", fps=4.0, plan=plan, flight=flight, source="simulated")
+    t_col, rgb = _csv_colors(result.content, "drone_006.csv")
+    stack = LightStack.from_show(show, plan)
+    ev = plan.evaluate(t_col)
+    want = stack.apply(t_col, ev.colors_rgb[:, 5:6], ev.positions_m[:, 5:6] + shift, np.array([5]))[:, 0]
+    assert np.abs(rgb - np.clip(np.rint(want * 255.0), 0, 255)).max() <= 1
+    unshifted = show_colors(show, plan, t_col)[:, 5]
+    assert np.abs(rgb - np.clip(np.rint(unshifted * 255.0), 0, 255)).max() > 20  # the flown positions were used
