@@ -70,6 +70,8 @@ def test_add_sweep_and_sparkle_preview_save_and_play(ui: Page) -> None:
     page.locator("#fx-time").dispatch_event("input")
     assert _preview_colors(ui) != at2
 
+    ui.shot("effects-panel")
+
     # Play advances the preview time; pause stops it.
     page.get_by_role("button", name="Play the effect preview").click()
     page.wait_for_function("() => window.swarmshow.effects.time > 2.8")
