@@ -236,10 +236,21 @@ class StrobeKind(BaseModel):
     duty: float = Field(0.5, gt=0, lt=1)
 
 
+def _check_camera(camera_m: list[float] | None, center_m: list[float]) -> None:
+    if camera_m is not None and not camera_m[1] < center_m[1]:
+        raise PydanticCustomError(
+            "camera_behind", "camera_m y {cy} must be in front of the picture (less than center_m y {py})",
+            {"cy": camera_m[1], "py": center_m[1]},
+        )
+
+
 class ImageKind(BaseModel):
     """Images projected onto the audience's view: the rectangle ``width_m`` x ``height_m`` centred on
     ``center_m`` in the x-z plane (the front view; the audience looks along +y). A drone inside it
-    takes the colour of the pixel it covers (alpha as opacity); one outside is untouched.
+    takes the colour of the pixel it covers (alpha as opacity); one outside is untouched. With
+    ``camera_m`` (the audience's eye) each drone is first projected through the camera onto the
+    picture's plane y = center_m[1], so the picture looks undistorted from there; drones at or
+    behind the camera's y are untouched.
     ``frames`` are PNG/JPEG data URLs, shown at ``fps`` (and looped) from ``start_s``."""
 
     model_config = _CONFIG
@@ -249,6 +260,14 @@ class ImageKind(BaseModel):
     center_m: Point3
     width_m: float = Field(gt=0, le=100_000)
     height_m: float = Field(gt=0, le=100_000)
+    camera_m: Point3 | None = Field(
+        None, description="Audience camera, metres: drones are projected through it onto the picture's plane "
+        "(y = center_m[1]); None: straight along +y (the front view).")
+
+    @model_validator(mode="after")
+    def _camera_in_front(self) -> ImageKind:
+        _check_camera(self.camera_m, self.center_m)
+        return self
 
     @field_validator("frames")
     @classmethod
@@ -291,6 +310,12 @@ class VideoKind(BaseModel):
     center_m: Point3
     width_m: float = Field(gt=0, le=100_000)
     height_m: float = Field(gt=0, le=100_000)
+    camera_m: Point3 | None = Field(None, description="Audience camera, metres (as for ``image``).")
+
+    @model_validator(mode="after")
+    def _camera_in_front(self) -> VideoKind:
+        _check_camera(self.camera_m, self.center_m)
+        return self
 
     @field_validator("video")
     @classmethod

@@ -154,9 +154,16 @@ def _reference(doc: dict, plan, t: float, i: int, pos: list[float], base: list[f
         elif kind == "image":
             img = images[k]
             h, w = len(img), len(img[0])
-            cx, _, cz = e["center_m"]
-            u = (pos[0] - (cx - e["width_m"] / 2)) / e["width_m"]
-            v = (cz + e["height_m"] / 2 - pos[2]) / e["height_m"]
+            cx, cy, cz = e["center_m"]
+            x, z = pos[0], pos[2]
+            if e.get("camera_m") is not None:  # similar triangles through the camera onto y = cy
+                c = e["camera_m"]
+                if pos[1] <= c[1]:
+                    continue
+                s = (cy - c[1]) / (pos[1] - c[1])
+                x, z = c[0] + s * (pos[0] - c[0]), c[2] + s * (pos[2] - c[2])
+            u = (x - (cx - e["width_m"] / 2)) / e["width_m"]
+            v = (cz + e["height_m"] / 2 - z) / e["height_m"]
             if not (0 <= u < 1 and 0 <= v < 1):
                 continue
             px = img[int(v * h)][int(u * w)]
@@ -294,6 +301,40 @@ def test_image_sequence_projection_matches_the_pixels(plan) -> None:
     assert np.abs(show_colors(show, plan, t) - plan.evaluate(t).colors_rgb).max() > 0.05
 
 
+def test_image_through_the_audience_camera(plan) -> None:
+    """Perspective from a camera in front: the scalar reference and a closed form (a drone on the ray from
+    the camera through a pixel's centre takes that pixel, whatever its depth)."""
+    rng = np.random.default_rng(5)
+    px = rng.integers(0, 256, (4, 5, 4), dtype=np.uint8)
+    px[..., 3] = 255
+    kind = {"kind": "image", "frames": [_png_url(px)], "center_m": [4.0, 40.0, 24.0], "width_m": 30.0,
+            "height_m": 24.0, "camera_m": [2.0, -60.0, 1.7]}
+    doc = _show_doc([_fx(kind, start_s=0.0, end_s=40.0)])
+    imgs = {0: [[list(p / 255.0) for p in row] for row in px]}
+    show = parse_show(doc)
+    got = show_colors(show, plan, TIMES)
+    sample = plan.evaluate(TIMES)
+    for k, t in enumerate(TIMES):
+        for i in range(9):
+            want = _reference(doc, plan, float(t), i, sample.positions_m[k, i].tolist(),
+                              sample.colors_rgb[k, i].tolist(), imgs)
+            np.testing.assert_allclose(got[k, i], want, atol=2e-5)
+    # Closed form: put drone positions on rays through pixel centres at two depths.
+    from sim.light import LightStack
+
+    cam = np.array([2.0, -60.0, 1.7])
+    centres = np.array([[4.0 - 15.0 + (c + 0.5) * 6.0, 40.0, 24.0 + 12.0 - (r + 0.5) * 6.0]
+                        for r in range(4) for c in range(5)])
+    rays = np.concatenate([cam + (centres - cam) * s for s in (0.5, 1.7)])
+    stack = LightStack.from_show(show, plan)
+    base = np.zeros((1, len(rays), 3))
+    # apply() takes any n columns with drone ids; the image effect does not read ids.
+    stack.drone_count = len(rays)
+    out = stack.apply([10.0], base, rays[None])[0]
+    want = np.tile(px[..., :3].reshape(-1, 3) / 255.0, (2, 1))
+    np.testing.assert_allclose(out, want, atol=1e-6)
+
+
 def test_jpeg_frames_decode(plan) -> None:
     px = np.full((4, 4, 3), (200, 30, 90), dtype=np.uint8)
     kind = {"kind": "image", "frames": [_png_url(px, "JPEG")], "center_m": [4.0, 0.0, 24.0],
@@ -376,6 +417,9 @@ def test_apply_checks_shapes(plan) -> None:
     (lambda fx: fx.update(effect={"kind": "sweep", "colors": ["#ffffff", "#000000"], "axis": [0, 0, 0]}),
      "lights.effects[0].effect.axis", "zero"),
     (lambda fx: fx.update(effect={"kind": "wobble"}), "lights.effects[0].effect", ""),
+    (lambda fx: fx.update(effect={"kind": "image", "frames": [_png_url(np.zeros((2, 2, 3), np.uint8))],
+                                  "center_m": [0, 10, 20], "width_m": 1, "height_m": 1, "camera_m": [0, 10, 2]}),
+     "lights.effects[0].effect", "in front of the picture"),
 ])
 def test_bad_effects_name_their_path(change, path: str, words: str) -> None:
     fx = _fx({"kind": "solid", "color": "#ffffff"})

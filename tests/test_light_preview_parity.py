@@ -1,8 +1,9 @@
 """The editor's live light preview (frontend/js/lighteval.js) paints the same colours as sim.light.
 
-Drones resting on a formation's points, every effect kind the browser evaluates by itself
-(images need the browser's decoder and are covered by the browser test), at many times: node
-runs the JavaScript, numpy the server's kernels, and the two agree to float32 rounding.
+Drones resting on a formation's points, every effect kind (images handed to the JavaScript already
+decoded, as the browser's canvas decodes them; the front view and through an audience camera), at
+many times: node runs the JavaScript, numba the server's kernels, and the two agree to float32
+rounding.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import pytest
 from formations import parse_show
 from sim.light import LightStack
 from sim.plan import plan_show
-from tests.test_light_effects import _show_doc
+from tests.test_light_effects import _png_url, _show_doc
 
 NODE = shutil.which("node")
 LIGHTEVAL = Path(__file__).resolve().parents[1] / "frontend" / "js" / "lighteval.js"
@@ -54,7 +55,8 @@ let text = "";
 process.stdin.on("data", (d) => { text += d; });
 process.stdin.on("end", () => {
   const c = JSON.parse(text);
-  const out = c.times.map((t) => evaluateColors(c.show, c.formation, c.points, c.base, t));
+  const images = (fx) => (c.images[fx.name] || null);
+  const out = c.times.map((t) => evaluateColors(c.show, c.formation, c.points, c.base, t, images));
   process.stdout.write(JSON.stringify(out));
 });
 """
@@ -62,7 +64,21 @@ process.stdin.on("end", () => {
 
 @pytest.mark.skipif(NODE is None, reason="node is not installed")
 def test_browser_preview_matches_the_server() -> None:
-    doc = _show_doc(EFFECTS, groups={"g": [0, 1, 2, 3]})
+    rng = np.random.default_rng(1)
+    frames = [rng.integers(0, 256, (5, 7, 4), dtype=np.uint8) for _ in range(2)]
+    image_fx = [
+        {"name": "front", "start_s": 4.0, "end_s": 22.0, "blend": "max", "effect": {
+            "kind": "image", "frames": [_png_url(f) for f in frames], "fps": 1.5, "center_m": [4.0, 0.0, 24.0],
+            "width_m": 11.0, "height_m": 10.0}},
+        {"name": "camera", "start_s": 10.0, "end_s": 30.0, "effect": {
+            "kind": "image", "frames": [_png_url(frames[1])], "center_m": [4.0, 30.0, 24.0], "width_m": 20.0,
+            "height_m": 16.0, "camera_m": [1.0, -50.0, 2.0]}},
+    ]
+    decoded = {
+        "front": [{"w": 7, "h": 5, "data": f.ravel().tolist()} for f in frames],
+        "camera": [{"w": 7, "h": 5, "data": frames[1].ravel().tolist()}],
+    }
+    doc = _show_doc(EFFECTS + image_fx, groups={"g": [0, 1, 2, 3]})
     show = parse_show(doc)
     plan = plan_show(show)
     f = show.formations[0]
@@ -73,7 +89,7 @@ def test_browser_preview_matches_the_server() -> None:
     want = stack.apply(times, np.broadcast_to(base, (len(times), *base.shape)).copy(),
                        np.broadcast_to(points, (len(times), *points.shape)).copy())
     case = {"show": doc, "formation": f.name, "points": points.tolist(), "base": base.tolist(),
-            "times": times.tolist()}
+            "times": times.tolist(), "images": decoded}
     assert NODE is not None
     proc = subprocess.run([NODE, "--input-type=module", "-e", _RUNNER % json.dumps(LIGHTEVAL.as_uri())],
                           input=json.dumps(case), capture_output=True, text=True, timeout=60)

@@ -493,6 +493,7 @@ export class EffectsPanel {
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
       num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
       num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      this._cameraField(k, e);
     } else if (e.kind === "video") {
       const file = document.createElement("input");
       file.type = "file";
@@ -507,6 +508,32 @@ export class EffectsPanel {
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
       num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
       num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      this._cameraField(k, e);
     }
+  }
+
+  /** The audience camera of an image / video effect: "x, y, z", blank for the straight front view.
+   * @param {number} k @param {any} e */
+  _cameraField(k, e) {
+    const input = document.createElement("input");
+    input.type = "text";
+    input.placeholder = "front view (x, y, z: camera)";
+    input.value = e.camera_m ? e.camera_m.join(", ") : "";
+    input.setAttribute("aria-label", "Effect audience camera (m)");
+    input.addEventListener("change", () => {
+      const text = input.value.trim();
+      const v = text ? parseNumbers(text) : null;
+      if (text && !v) { this.hooks.toast?.("camera: three numbers, x, y, z, or blank", { error: true }); return; }
+      this.change(k, "Effect camera", (c) => {
+        if (v) c.effect.camera_m = v;
+        else delete c.effect.camera_m;
+      });
+    });
+    const div = document.createElement("div");
+    div.className = "row";
+    const l = document.createElement("label");
+    l.textContent = "camera (m)";
+    div.append(l, input);
+    this.$form.append(div);
   }
 }

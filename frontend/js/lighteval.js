@@ -153,8 +153,18 @@ export function evaluateColors(show, formationName, points, base, t, images) {
       } else if (projected && frames) {
         // A video's callback hands the one frame showing at this time.
         const img = e.kind === "video" ? frames[0] : frames[Math.floor(since * (e.fps ?? 10) + 1e-9) % frames.length];
-        const u = (p[0] - (e.center_m[0] - e.width_m / 2)) / e.width_m;
-        const v = (e.center_m[2] + e.height_m / 2 - p[2]) / e.height_m;
+        let x = p[0];
+        let z = p[2];
+        if (e.camera_m) {
+          // Through the audience camera onto the picture's plane y = center_m[1].
+          const cam = e.camera_m;
+          if (p[1] <= cam[1]) continue;
+          const s = (e.center_m[1] - cam[1]) / (p[1] - cam[1]);
+          x = cam[0] + s * (p[0] - cam[0]);
+          z = cam[2] + s * (p[2] - cam[2]);
+        }
+        const u = (x - (e.center_m[0] - e.width_m / 2)) / e.width_m;
+        const v = (e.center_m[2] + e.height_m / 2 - z) / e.height_m;
         if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) continue;
         const k = 4 * (Math.min(Math.floor(v * img.h), img.h - 1) * img.w + Math.min(Math.floor(u * img.w), img.w - 1));
         c = [img.data[k] / 255, img.data[k + 1] / 255, img.data[k + 2] / 255];

@@ -289,7 +289,7 @@ class LightStack:
             alpha = alpha * inside
         k = fx.effect
         rgb = np.zeros((len(tt), 3))
-        kprm = np.zeros(8)
+        kprm = np.zeros(12)
         kprm[0] = fx.start_s
         code = _k.K_FLAT
         if isinstance(k, SolidKind | ChaseKind | SparkleKind | StrobeKind):
@@ -317,6 +317,8 @@ class LightStack:
             cx, _, cz = k.center_m
             fps = k.fps if isinstance(k, ImageKind) else p.video_fps
             kprm[1:6] = [fps, cx - k.width_m / 2.0, cz + k.height_m / 2.0, k.width_m, k.height_m]
+            if k.camera_m is not None:
+                kprm[6:11] = [1.0, *k.camera_m, k.center_m[1]]
         tgt, tprm = _k.T_NONE, np.zeros(6)
         if isinstance(fx.target, TargetBox):
             tgt, tprm = _k.T_BOX, np.r_[fx.target.min_m, fx.target.max_m]

@@ -147,8 +147,18 @@ def paint(
                 else:
                     continue
             elif kind == K_IMAGE:
-                u = (pos[f, i, 0] - kprm[2]) / kprm[4]
-                v = (kprm[3] - pos[f, i, 2]) / kprm[5]
+                px = pos[f, i, 0]
+                pz = pos[f, i, 2]
+                if kprm[6] > 0.0:
+                    # Through the camera (kprm[7:10]) onto the picture's plane y = kprm[10].
+                    dy = pos[f, i, 1] - kprm[8]
+                    if dy <= 0.0:
+                        continue
+                    s = (kprm[10] - kprm[8]) / dy
+                    px = kprm[7] + s * (px - kprm[7])
+                    pz = kprm[9] + s * (pz - kprm[9])
+                u = (px - kprm[2]) / kprm[4]
+                v = (kprm[3] - pz) / kprm[5]
                 if u < 0.0 or u >= 1.0 or v < 0.0 or v >= 1.0:
                     continue
                 h = image_size[img, 0]
