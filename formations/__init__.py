@@ -1,6 +1,7 @@
 """The show model and formation sources.
 
-The show file format (``swarmshow/1``) and its validation live in ``_show``;
+The show file format (``swarmshow/1``) and its validation live in ``_show``, its light
+effects (``lights``: groups and the effect stack) in ``_effects``;
 formation sources (shapes, strokes, text, image, SVG, transforms, spacing
 repair) are re-exported from :mod:`formations.sources`.
 """
