@@ -15,7 +15,8 @@ the colour ``r`` below it, channels in [0, 1]:
 * ``max``: r + a (max(r, e) - r)
 
 Targets: ``all``; ``formation`` (every drone, while the show is at that formation: from the
-start of the transition into it to the end of its hold); ``drones`` (indices); ``group`` (a
+start of the transition into it to the end of its hold); ``drones`` (indices); ``points`` (the
+drones assigned to some points of a formation: the editor's selection); ``group`` (a
 name from ``lights.groups``, a list of drone indices); ``box`` (drones inside an axis-aligned
 box at that instant); ``plane`` (drones on the side of a plane its normal points to).
 
@@ -101,6 +102,17 @@ class TargetDrones(BaseModel):
     indices: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=20_000)]
 
 
+class TargetPoints(BaseModel):
+    """The drones that fly to these points (indices into its ``points``) of formation ``formation`` (the
+    first of that name): the editor's selection. The drones are found in the plan's assignment and
+    stay the target for the effect's whole time range."""
+
+    model_config = _CONFIG
+    kind: Literal["points"]
+    formation: str = Field(min_length=1, max_length=200)
+    indices: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=100_000)]
+
+
 class TargetGroup(BaseModel):
     """The drones of the named group in ``lights.groups``.
 
@@ -145,7 +157,7 @@ class TargetPlane(BaseModel):
 
 
 Target = Annotated[
-    TargetAll | TargetFormation | TargetDrones | TargetGroup | TargetBox | TargetPlane,
+    TargetAll | TargetFormation | TargetDrones | TargetPoints | TargetGroup | TargetBox | TargetPlane,
     Field(discriminator="kind"),
 ]
 
@@ -377,7 +389,7 @@ Kind = Annotated[
 ]
 KINDS = ("solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image", "video")
 BLENDS = ("replace", "add", "multiply", "max")
-TARGETS = ("all", "formation", "drones", "group", "box", "plane")
+TARGETS = ("all", "formation", "drones", "points", "group", "box", "plane")
 
 
 class LightEffect(BaseModel):
@@ -439,9 +451,11 @@ class Lights(BaseModel):
         return value
 
 
-def lights_problem(lights: Lights, drones: int, formation_names: list[str]) -> tuple[tuple[str | int, ...], str] | None:
-    """The first rule ``lights`` breaks against the show (drone count, formation names), as
-    (path inside ``lights``, reason), or None. Called by the show file's cross-field validator."""
+def lights_problem(
+    lights: Lights, drones: int, formation_names: list[str], point_counts: list[int] | None = None
+) -> tuple[tuple[str | int, ...], str] | None:
+    """The first rule ``lights`` breaks against the show (drone count, formation names and point
+    counts), as (path inside ``lights``, reason), or None. Called by the show file's cross-field validator."""
     for name, idx in lights.groups.items():
         bad = [i for i in idx if i >= drones]
         if bad:
@@ -467,8 +481,14 @@ def lights_problem(lights: Lights, drones: int, formation_names: list[str]) -> t
                 return ("effects", k, "target", "indices"), f"drone index {bad[0]} is out of range for {drones} drones"
         elif isinstance(t, TargetGroup) and t.group not in lights.groups:
             return ("effects", k, "target", "group"), f"no drone group named {t.group!r} in lights.groups"
-        elif isinstance(t, TargetFormation) and t.formation not in names:
+        elif isinstance(t, TargetFormation | TargetPoints) and t.formation not in names:
             return ("effects", k, "target", "formation"), f"no formation named {t.formation!r}"
+        if isinstance(t, TargetPoints) and point_counts is not None:
+            m = point_counts[formation_names.index(t.formation)]
+            bad = [i for i in t.indices if i >= m]
+            if bad:
+                return ("effects", k, "target", "indices"), (
+                    f"point index {bad[0]} is out of range: formation {t.formation!r} has {m} points")
     return None
 
 
@@ -492,6 +512,7 @@ __all__ = [
     "TargetFormation",
     "TargetGroup",
     "TargetPlane",
+    "TargetPoints",
     "VideoKind",
     "lights_problem",
     "probe_video",

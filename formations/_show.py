@@ -507,7 +507,8 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
     if show.lights is not None:
-        problem = lights_problem(show.lights, n, [f.name for f in show.formations])
+        problem = lights_problem(show.lights, n, [f.name for f in show.formations],
+                                 [len(f.points) for f in show.formations])
         if problem is not None:
             return ("lights", *problem[0]), problem[1]
     return None

@@ -99,6 +99,10 @@ def _reference(doc: dict, plan, t: float, i: int, pos: list[float], base: list[f
             continue
         if tg["kind"] == "group" and i not in doc["lights"]["groups"][tg["group"]]:
             continue
+        if tg["kind"] == "points":
+            tr = next(tr for tr in plan.transitions if tr.to_name == tg["formation"])
+            if int(tr.goal_index[i]) not in tg["indices"]:
+                continue
         if tg["kind"] == "box" and not all(tg["min_m"][c] <= pos[c] <= tg["max_m"][c] for c in range(3)):
             continue
         if tg["kind"] == "plane" and sum((pos[c] - tg["point_m"][c]) * tg["normal"][c] for c in range(3)) < 0:
@@ -252,6 +256,7 @@ def test_blend_closed_forms(plan) -> None:
     {"kind": "box", "min_m": [-1, -1, 19], "max_m": [5, 1, 25]},
     {"kind": "plane", "point_m": [4, 0, 0], "normal": [1, 0, 0.2]},
     {"kind": "formation", "formation": "B"},
+    {"kind": "points", "formation": "B", "indices": [0, 2, 7]},
 ], ids=lambda t: t["kind"])
 def test_targets(plan, target: dict) -> None:
     doc = _show_doc([_fx({"kind": "solid", "color": "#00ff80"}, target=target, start_s=0.0, end_s=40.0)],
@@ -403,6 +408,8 @@ def test_apply_checks_shapes(plan) -> None:
     (lambda fx: fx.update(target={"kind": "group", "group": "nope"}), "lights.effects[0].target.group", "nope"),
     (lambda fx: fx.update(target={"kind": "formation", "formation": "C"}), "lights.effects[0].target.formation",
      "no formation"),
+    (lambda fx: fx.update(target={"kind": "points", "formation": "A", "indices": [9]}),
+     "lights.effects[0].target.indices", "formation 'A' has 9 points"),
     (lambda fx: fx.update(target={"kind": "box", "min_m": [0, 0, 5], "max_m": [1, 1, 1]}),
      "lights.effects[0].target", "min_m <= max_m"),
     (lambda fx: fx.update(effect={"kind": "strobe", "color": "#fff"}), "lights.effects[0].effect.color", ""),

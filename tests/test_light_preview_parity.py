@@ -97,3 +97,27 @@ def test_browser_preview_matches_the_server() -> None:
     got = np.array(json.loads(proc.stdout))
     np.testing.assert_allclose(got, want, atol=2e-5)
     assert np.abs(got - base).max() > 0.3  # the effects change the colours
+
+
+@pytest.mark.skipif(NODE is None, reason="node is not installed")
+def test_browser_preview_of_a_points_target() -> None:
+    """The canvas shows points, so a ``points`` target paints exactly those points of the formation on
+    screen (the server finds the drones that fly there); on another formation it paints nothing."""
+    fx = [{"start_s": 0.0, "end_s": 30.0, "target": {"kind": "points", "formation": "A", "indices": [1, 3]},
+           "effect": {"kind": "solid", "color": "#ff00ff"}}]
+    doc = _show_doc(fx)
+    f = parse_show(doc).formations[0]
+    base = f.colors_rgb[:9]
+    out = []
+    for name in ("A", "B"):
+        case = {"show": doc, "formation": name, "points": f.points_m[:9].tolist(), "base": base.tolist(),
+                "times": [5.0], "images": {}}
+        assert NODE is not None
+        proc = subprocess.run([NODE, "--input-type=module", "-e", _RUNNER % json.dumps(LIGHTEVAL.as_uri())],
+                              input=json.dumps(case), capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        out.append(np.array(json.loads(proc.stdout))[0])
+    want = base.copy()
+    want[[1, 3]] = [1.0, 0.0, 1.0]
+    np.testing.assert_allclose(out[0], want, atol=1e-9)
+    np.testing.assert_allclose(out[1], base, atol=1e-9)

@@ -8,7 +8,7 @@ export const KINDS = ["solid", "ramp", "sweep", "chase", "sparkle", "strobe", "i
 /** Widest a video frame is kept for the preview, pixels (as the server keeps it). */
 const VIDEO_WIDTH_PX = 192;
 const BLENDS = ["replace", "add", "multiply", "max"];
-const TARGETS = ["all", "formation", "drones", "group", "box", "plane"];
+const TARGETS = ["all", "formation", "points", "drones", "group", "box", "plane"];
 
 /** A new effect of `kind` starting at `start` seconds. @param {string} kind @param {number} start */
 export function newEffect(kind, start) {
@@ -404,7 +404,10 @@ export class EffectsPanel {
       const fresh = {
         all: { kind: "all" },
         formation: { kind: "formation", formation: this.state.formation ? this.state.formation.name : names[0] },
-        drones: { kind: "drones", indices: this.state.selection.size ? [...this.state.selection].sort((a, b) => a - b) : [0] },
+        // The selection is of formation points: the drones that fly there are the plan's to choose.
+        points: { kind: "points", formation: this.state.formation ? this.state.formation.name : names[0],
+          indices: this.state.selection.size ? [...this.state.selection].sort((a, b) => a - b) : [0] },
+        drones: { kind: "drones", indices: [0] },
         group: { kind: "group", group: Object.keys(this.state.show.lights.groups || {})[0] || "group" },
         box: { kind: "box", min_m: [-10, -10, 0], max_m: [10, 10, 100] },
         plane: { kind: "plane", point_m: [0, 0, 0], normal: [1, 0, 0] },
@@ -414,19 +417,37 @@ export class EffectsPanel {
     if (tg.kind === "formation") {
       sel("formation", this.state.show.formations.map((/** @type {any} */ f) => f.name), tg.formation,
         (v, c) => { c.target.formation = v; });
-    } else if (tg.kind === "drones") {
+    } else if (tg.kind === "drones" || tg.kind === "points") {
+      const what = tg.kind === "drones" ? "drones" : "points";
+      if (tg.kind === "points") {
+        sel("of formation", this.state.show.formations.map((/** @type {any} */ f) => f.name), tg.formation,
+          (v, c) => { c.target.formation = v; });
+      }
       const input = document.createElement("input");
       input.type = "text";
       input.value = tg.indices.join(", ");
       input.addEventListener("change", () => {
         const v = parseNumbers(input.value, 0);
         if (!v || !v.length || v.some((x) => x < 0 || !Number.isInteger(x))) {
-          this.hooks.toast?.("drones: indices like 0, 4, 8", { error: true });
+          this.hooks.toast?.(`${what}: indices like 0, 4, 8`, { error: true });
           return;
         }
-        this.change(k, "Effect drones", (c) => { c.target.indices = v; });
+        this.change(k, `Effect ${what}`, (c) => { c.target.indices = v; });
       });
-      row("drones", input);
+      row(what, input);
+      if (tg.kind === "points") {
+        const use = document.createElement("button");
+        use.type = "button";
+        use.textContent = "Use selection";
+        use.setAttribute("aria-label", "Target the selected points of the current formation");
+        use.addEventListener("click", () => {
+          if (!this.state.selection.size || !this.state.formation) return;
+          const name = this.state.formation.name;
+          const idx = [...this.state.selection].sort((a, b) => a - b);
+          this.change(k, "Effect points", (c) => { c.target = { kind: "points", formation: name, indices: idx }; });
+        });
+        form.append(use);
+      }
     } else if (tg.kind === "group") {
       const input = document.createElement("input");
       input.type = "text";

@@ -84,11 +84,13 @@ export function evaluateColors(show, formationName, points, base, t, images) {
     if (!fx.enabled || fx.opacity <= 0 || !(t >= fx.start_s && t < fx.end_s)) continue;
     const tg = fx.target || { kind: "all" };
     if (tg.kind === "formation" && tg.formation !== formationName) continue;
+    // Points of another formation: the drones that fly there are not known here (the plan assigns them).
+    if (tg.kind === "points" && tg.formation !== formationName) continue;
     const a0 = envelope(fx, t) * fx.opacity;
     const e = fx.effect || {};
     const since = t - fx.start_s;
     let only = null;
-    if (tg.kind === "drones") only = new Set(tg.indices || []);
+    if (tg.kind === "drones" || tg.kind === "points") only = new Set(tg.indices || []);
     if (tg.kind === "group") only = new Set((lights.groups || {})[tg.group] || []);
     let color = e.color ? hexToRgb(e.color) : [1, 1, 1];
     let frameAlpha = a0;

@@ -34,6 +34,7 @@ from formations._effects import (
     TargetFormation,
     TargetGroup,
     TargetPlane,
+    TargetPoints,
     VideoKind,
 )
 from formations._show import hex_to_rgb
@@ -86,6 +87,14 @@ def _formation_windows(plan: ShowPlan) -> dict[str, list[tuple[float, float]]]:
             out.setdefault(seg.label, []).append((seg.start_s if start is None else start, seg.end_s))
             start = None
     return out
+
+
+def _drones_at_points(plan: ShowPlan, formation: str, points: list[int]) -> np.ndarray:
+    """(m,) sorted drones that CAPT sent to ``points`` of the first formation named ``formation``."""
+    for tr in plan.transitions:
+        if tr.to_name == formation:
+            return np.flatnonzero(np.isin(tr.goal_index, np.asarray(points, dtype=np.int64)))
+    return np.zeros(0, dtype=np.int64)
 
 
 def _decode_frames(kind: ImageKind) -> list[np.ndarray]:
@@ -189,6 +198,8 @@ class LightStack:
                 rows = np.unique(np.asarray(groups[t.group], dtype=np.int64))
             elif isinstance(t, TargetFormation):
                 win = windows.get(t.formation, [])
+            elif isinstance(t, TargetPoints):
+                rows = _drones_at_points(plan, t.formation, t.indices)
             p = _Prepared(fx, rows, win)
             k = fx.effect
             if isinstance(k, RampKind | SweepKind):
