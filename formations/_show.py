@@ -32,6 +32,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from formations._effects import KINDS, TARGETS, Lights, lights_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -418,6 +419,8 @@ class ShowFile(_ArrayCachingModel):
     ] = Field(description="Ground start positions: a grid or explicit points (metres).")
     settings: Settings = Field(default_factory=Settings)
     formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
+    # Issue 18: light effects over the base colours (None, left out of the file, keeps older shows' hashes).
+    lights: Lights | None = Field(None, description="Drone groups and the stack of light effects (see sim.light).")
 
     @field_validator("name")
     @classmethod
@@ -556,6 +559,11 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+    if show.lights is not None:
+        problem = lights_problem(show.lights, n, [f.name for f in show.formations],
+                                 [len(f.points) for f in show.formations])
+        if problem is not None:
+            return ("lights", *problem[0]), problem[1]
     return _pin_order_problem(show)
 
 
@@ -607,11 +615,19 @@ class ShowValidationError(ValueError):
         return cls(out)
 
 
+_EFFECT_TAGS = {("effect", k) for k in KINDS} | {("target", k) for k in TARGETS}
+
+
 def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
     for i in range(len(loc) - 2):
         if loc[i] == "home" and loc[i + 1] in ("grid", "points") and loc[i + 2] == loc[i + 1]:
             return loc[: i + 1] + loc[i + 2 :]
+    # Light effects: lights.effects[k].effect.<kind>.field -> lights.effects[k].effect.field (and target).
+    if loc[:1] == ("lights",):
+        for i in range(len(loc) - 1):
+            if (loc[i], loc[i + 1]) in _EFFECT_TAGS:
+                return loc[: i + 1] + loc[i + 2 :]
     return loc
 
 

@@ -36,6 +36,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("app.exports", "app.store"),
     ("app.settings", "app.version", "app.web", "app.media"),
     ("sim.bench", "sim.flight", "sim"),
+    ("sim.light",),
     ("sim.verify",),
     ("sim.plan",),
     ("sim.geometry",),

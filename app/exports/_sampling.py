@@ -55,6 +55,10 @@ def iter_samples(
     at ``times_s`` (the flight is sampled far faster than any export rate).
     """
     n = ctx.show.drones
+    from sim.light import LightStack, show_colors
+
+    # Issue 18: the show's light effects over the base colours (an empty stack changes nothing).
+    stack = LightStack.from_show(ctx.show, ctx.plan)
     if ctx.options.source == "simulated":
         flight = ctx.flight
         ft = np.asarray(flight.times_s, dtype=np.float64)
@@ -69,6 +73,8 @@ def iter_samples(
             b = min(a + block, n)
             pos = fpos[i, a:b] * (1.0 - w) + fpos[j, a:b] * w
             col = fcol[i, a:b] * (1.0 - w) + fcol[j, a:b] * w
+            if stack:  # painted over the flown colours at the flown positions
+                col = stack.apply(times_s, col, pos, slice(a, b))
             yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
         return
     plan = ctx.plan
@@ -82,8 +88,11 @@ def iter_samples(
     for a in range(0, n, block):
         b = min(a + block, n)
         pos = plan.motion.evaluate(times_s, slice(a, b), derivatives=0).positions_m
-        C = plan.knot_colors_rgb[:, a:b]
-        col = C[k0] + tau * (C[k1] - C[k0])
+        if stack:
+            col = show_colors(ctx.show, plan, times_s, drones=slice(a, b), positions_m=pos, stack=stack)
+        else:
+            C = plan.knot_colors_rgb[:, a:b]
+            col = C[k0] + tau * (C[k1] - C[k0])
         yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
 
 

@@ -33,7 +33,8 @@ Lights are Skybrush / ``ledctrl`` light-program bytecode (pyledctrl's
 ``CommandCode``): ``SET_COLOR r g b duration`` (0x04), ``FADE_TO_COLOR r g b
 duration`` (0x08, linear) and ``END`` (0x00), durations as unsigned LEB128
 varints in frames of 1/50 s. The plan fades colours linearly between knots,
-which ``FADE_TO_COLOR`` reproduces exactly up to the 20 ms frame grid.
+which ``FADE_TO_COLOR`` reproduces exactly up to the 20 ms frame grid. A show with light effects
+(issue 18) gets each drone's colours fitted as fades and holds instead (:mod:`app.exports._ledctrl`).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ import numpy as np
 from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
 from app.exports._media import add_skyc_audio
+from app.exports._ledctrl import show_light_programs
 from sim.plan import horner
 
 #: Largest deviation of the Bézier curves from the plan, metres (the issue allows 1 cm).
@@ -223,6 +225,8 @@ def build_show_json(ctx: ExportContext) -> dict:
     frames = np.rint(plan.knot_times_s * LIGHT_FPS).astype(np.int64)
     colors = np.clip(np.rint(plan.knot_colors_rgb * 255.0), 0, 255).astype(np.int64)
     home = np.round(plan.knot_positions_m[0], _POS_DECIMALS) + 0.0
+    # Issue 18: with light effects, each drone's colours fitted as fades (app.exports._ledctrl).
+    programs = show_light_programs(ctx.show, plan, lambda f: ctx.progress(0.5 + 0.4 * f))
     drones = []
     for i in range(plan.drone_count):
         t = np.round(times[i], _TIME_DECIMALS).tolist()
@@ -231,7 +235,8 @@ def build_show_json(ctx: ExportContext) -> dict:
         h = has[i].tolist()
         points = [[0.0, home[i].tolist(), []]]
         points += [[tj, pj, cj if hj else []] for tj, pj, cj, hj in zip(t, p, c, h, strict=True)]
-        lights = base64.b64encode(light_program(frames, colors[:, i])).decode("ascii")
+        program = programs[i] if programs is not None else light_program(frames, colors[:, i])
+        lights = base64.b64encode(program).decode("ascii")
         drones.append(
             {
                 "type": "generic",

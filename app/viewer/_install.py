@@ -114,7 +114,8 @@ class _Loader:
             while len(self._cache) > MAX_SHOWS:
                 del self._cache[next(iter(self._cache))]
         report = self._reports.get(record.content_hash)
-        viewer.load(plan, name=label, flight=flight, source=source, report=report)
+        viewer.load(plan, name=label, flight=flight, source=source, report=report,
+                    lights=_lights(record.json, plan))
         if report is None:
             # The exact check runs in a worker after the show is on screen; its violations appear when it is done.
             threading.Thread(target=self._check, args=(record.content_hash, label, plan), daemon=True,
@@ -138,6 +139,15 @@ class _Loader:
         they are left out."""
         records, _ = self.app.state.store.list(limit=200)
         return {r.id: _label(r) for r in records if not r.draft}
+
+
+def _lights(show_json: Any, plan: Any) -> Any:
+    """The stored show's light effects over its plan (issue 18), or None when it has none."""
+    from formations import parse_show
+    from sim.light import LightStack
+
+    stack = LightStack.from_show(parse_show(show_json), plan)
+    return stack if stack else None
 
 
 def playback_router() -> APIRouter:

@@ -67,6 +67,7 @@ class _Entry:
     flight: Any = None
     #: The check report (``CheckReport.to_json()``) once it is known.
     report: Any = None
+    lights: Any = None  # the show's light effects (sim.light.LightStack), painted over the colours
 
 
 #: Eye height of the audience camera, metres.
@@ -356,7 +357,7 @@ class _Playback:
     def _activate(self, name: str, source: Source) -> None:
         with self.viewer._lock:
             entry = self.viewer._shows[name]
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._current, self._source = name, source
             self._time_s = 0.0
             self._playing = False
@@ -462,7 +463,7 @@ class _Playback:
                 self._set_gui(self._source_dd, "value", self._source)
                 return
             t = self._time_s
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._source = source
             self._set_gui(self._source_dd, "value", source)
             self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
@@ -920,7 +921,7 @@ class Viewer:
     # ----------------------------------------------------------------- loading
 
     def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None,
-             report: Any = None) -> None:
+             report: Any = None, lights: Any = None) -> None:
         """Load (or replace) a show: the default playback shows it (new browsers start on it), and
         so do the browsers showing nothing, an older version of it, or that picked it in the selector.
 
@@ -930,6 +931,7 @@ class Viewer:
             flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
             source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
             report: the check report (``CheckReport.to_json()``), if known (else see :meth:`set_report`).
+            lights: the show's light effects (``sim.light.LightStack``), played over the colours.
         """
         if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
             raise ValueError("the flight and the plan have different drone counts")
@@ -938,7 +940,7 @@ class Viewer:
             # A new flight of the same plan keeps the plan's check.
             if report is None and old is not None and old.plan is plan:
                 report = old.report
-            self._shows[name] = _Entry(name, plan, flight, report)
+            self._shows[name] = _Entry(name, plan, flight, report, lights)
             while len(self._shows) > MAX_SHOWS:
                 del self._shows[next(iter(self._shows))]
             src: Source = source or ("simulated" if flight is not None else "planned")

@@ -26,6 +26,8 @@ export class CanvasView {
     this.close = new Set();
     /** @type {Set<number>} points flagged by a check violation */
     this.flagged = new Set();
+    /** @type {((f: any, base: string[]) => (string[]|null))|null} colours painted over the formation's (effects preview) */
+    this.colorOverride = null;
     /** Transient drawing from tools: a stroke being drawn, a selection box. */
     this.overlay = { strokes: [], box: null };
     this.onCursor = null;
@@ -374,7 +376,9 @@ export class CanvasView {
     const [a, b] = this.axes;
     const spacing = this.state.show.settings.min_distance_m;
     const r = Math.max(2, Math.min(7, spacing * this.scale * 0.22));
-    const colors = formationColors(f);
+    const base = formationColors(f);
+    // Light effects previewed at a show time (issue 18): the effects panel paints the colours.
+    const colors = (!ghost && this.colorOverride && this.colorOverride(f, base)) || base;
     const sel = this.state.selection;
     // Draw far points first so nearer ones (smaller depth toward the viewer) stay on top.
     const order = f.points.map((_, i) => i);

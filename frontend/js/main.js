@@ -6,6 +6,7 @@ import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
+import { EffectsPanel } from "./effects.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
 import { MusicLane } from "./music.js";
@@ -79,6 +80,8 @@ const renderReport = report.render.bind(report);
 report.render = () => { renderReport(); music.draw(); };
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
+const effects = new EffectsPanel($("effects-body"), state, { redraw: () => view.redraw(), toast });
+view.colorOverride = (f, base) => effects.colorsFor(f, base);
 
 // ---- page state ------------------------------------------------------------------------------
 
@@ -410,5 +413,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects };
 start();
