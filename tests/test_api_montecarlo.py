@@ -38,6 +38,15 @@ def finished(client):
     return sid, events[-1][1]
 
 
+def test_api_presets_are_the_simulations():
+    from typing import get_args
+
+    from app.api.models import PresetName
+    from sim.flight import PRESETS
+
+    assert get_args(PresetName) == PRESETS
+
+
 def test_job_result_holds_the_margin(finished):
     _, job = finished
     mc = job["result"]["montecarlo"]

@@ -149,8 +149,11 @@ def test_monte_carlo_runs_equal_single_flights(plan) -> None:
     seg = np.array([[s["flown_min_m"]["quantiles"].get("0", np.inf) for s in j["segments"]]])
     assert np.nanmin(seg) == pytest.approx(flown.min())
     np.testing.assert_allclose(np.min(mc.segment_min_m, axis=1), flown, rtol=1e-12)
-    # Band: the minimum over runs per bin never exceeds the runs' own minima at that bin.
+    # Band: per time bin, the minimum, quantiles and maximum over the runs of each run's bin minimum.
     assert min(v for v in j["band"]["min_m"] if v is not None) == pytest.approx(flown.min())
+    for key, q in (("q05_m", 0.05), ("median_m", 0.5), ("q95_m", 0.95)):
+        np.testing.assert_allclose(j["band"][key], np.quantile(mc.bin_min_m, q, axis=0), rtol=1e-12)
+    np.testing.assert_allclose(j["band"]["max_m"], mc.bin_min_m.max(axis=0), rtol=1e-12)
     assert j["worst_pairs"][0]["distance_m"] == pytest.approx(flown.min())
     # Bounded memory: nothing in the result is a per-frame, per-drone array.
     for name, value in vars(mc).items():
