@@ -172,6 +172,18 @@ def test_monte_carlo_rejects_bad_arguments(plan) -> None:
         options_for_preset("windy")
 
 
+def test_a_lone_drone_gives_json_without_infinities() -> None:
+    """No pair at all: distances are absent (None), never inf/NaN in the JSON."""
+    import json
+
+    show = make_show([{"name": "dot", "hold_s": 1.0, "points": [[0.0, 0.0, 10.0]], "color": "#ffffff"}],
+                     drones=1, rows=1, cols=1)
+    j = monte_carlo(plan_show(show), runs=2).to_json()
+    json.dumps(j, allow_nan=False)
+    assert j["show_min"]["flown_min_m"]["quantiles"] == {} and j["show_min"]["p_below_min_distance"]["runs_below"] == 0
+    assert all(r["min_distance_m"] is None for r in j["run_list"]) and j["worst_pairs"] == []
+
+
 def test_progress_rises_to_one(plan) -> None:
     seen: list[float] = []
     monte_carlo(plan, FlightOptions(), runs=2, progress=seen.append)

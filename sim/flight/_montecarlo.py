@@ -398,7 +398,8 @@ class MonteCarloResult:
         """Everything the safety report draws, as JSON-safe values (no inf/NaN: None)."""
         limit = self.min_distance_limit_m
         near = limit - FLOWN_DISTANCE_TOLERANCE_M
-        show_min = np.array([r["min_distance_m"] for r in self.runs], dtype=np.float64)
+        # Each run's whole-show minimum is its smallest segment minimum (inf without a pair).
+        show_min = np.min(self.segment_min_m, axis=1, initial=np.inf)
         segments = []
         for p, s in enumerate(self.plan.segments):
             col = self.segment_min_m[:, p]
@@ -517,7 +518,7 @@ class _Accumulator:
         clipped = np.clip(dev, DEVIATION_EDGES_M[0], DEVIATION_EDGES_M[-1])
         self.deviation_counts += np.histogram(clipped, bins=DEVIATION_EDGES_M)[0]
         self.diverged.extend((k, d, t, r) for d, t, r in s.diverged)
-        self.runs[k] = {"run": k, "seed": s.seed, "min_distance_m": s.min_distance_m,
+        self.runs[k] = {"run": k, "seed": s.seed, "min_distance_m": _f(s.min_distance_m),
                         "pair": list(s.pair), "time_s": _f(s.time_s), "diverged": len(s.diverged),
                         "wall_time_s": s.wall_time_s}
 
