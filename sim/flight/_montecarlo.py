@@ -90,7 +90,9 @@ def options_for_preset(name: str, base: FlightOptions | None = None) -> FlightOp
     base = base or FlightOptions()
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r} (expected one of {', '.join(PRESETS)})")
-    # TODO(h20a merge): return base.with_(errors=error_preset(name))
+    # TODO(h20a merge): replace the mapping below by (tested on a merge of h20a at d905766)
+    #     return base.with_(errors=error_preset(name), disturbance="none", mismatch=0.0)
+    # with ``from sim.flight._errors import error_preset``; PRESETS may become tuple(ERROR_PRESETS).
     mapping: dict[str, dict[str, Any]] = {
         "ideal": {"disturbance": "none", "mismatch": 0.0},
         "calm-rtk": {"disturbance": "wind", "mismatch": 0.02},
