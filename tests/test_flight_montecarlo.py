@@ -72,6 +72,24 @@ def test_frame_min_distances_brute_force() -> None:
     assert np.all(d2 > 0) and not np.any(i2 == 5) and not np.any(j2 == 5)
 
 
+def test_non_finite_drones_are_left_out() -> None:
+    """A drone whose state went NaN has no position (distance) and no speed in those frames."""
+    from sim.flight._montecarlo import _frame_speeds
+
+    rng = np.random.default_rng(5)
+    pos = rng.uniform(-20, 20, size=(12, 25, 3))
+    pos[4:, 3] = np.nan
+    d, i, j = frame_min_distances(pos)
+    for f in range(12):
+        keep = np.isfinite(pos[f]).all(axis=1)
+        assert d[f] == pytest.approx(pdist(pos[f][keep]).min(), rel=1e-12)
+    assert not np.isin(3, i[4:]) and not np.isin(3, j[4:])
+    vxy, vz = _frame_speeds(pos, 0.04)
+    assert np.isfinite(vxy).all() and np.isfinite(vz).all()
+    ref = np.abs(np.diff(np.delete(pos, 3, axis=1)[4:, :, 2], axis=0)).max(axis=1) / 0.04
+    assert np.all(vz[5:] >= ref - 1e-9)
+
+
 def test_time_bins_cover_every_frame() -> None:
     for n, b in [(1, 600), (10, 600), (15001, 600), (601, 600), (7, 3)]:
         s = time_bin_starts(n, b)

@@ -143,6 +143,11 @@ def frame_min_distances(
     for f in range(t_count):
         idx = None if alive is None else alive(f)
         pts = positions_m[f] if idx is None else positions_m[f, idx]
+        finite = np.isfinite(pts).all(axis=1)
+        if not finite.all():
+            # A drone whose state went non-finite has no position in this frame.
+            idx = (np.arange(positions_m.shape[1]) if idx is None else idx)[finite]
+            pts = pts[finite]
         # Last frame's distance (plus a little) as the cell size: one O(N) pass as a rule.
         i, j, dist = closest_pair(pts, hint_m=None if hint is None else hint * 1.05 + 1e-3)
         if i >= 0:
@@ -201,6 +206,7 @@ def _frame_speeds(positions_m: np.ndarray, frame_dt_s: float, block: int = 256) 
     for f0 in range(1, t_count, block):
         f1 = min(f0 + block, t_count)
         dp = (positions_m[f0:f1].astype(np.float64) - positions_m[f0 - 1:f1 - 1]) / frame_dt_s  # (b, N, 3)
+        dp[~np.isfinite(dp)] = 0.0  # a drone with a non-finite state has no speed
         vxy[f0:f1] = np.max(np.hypot(dp[..., 0], dp[..., 1]), axis=1, initial=0.0)
         vz[f0:f1] = np.max(np.abs(dp[..., 2]), axis=1, initial=0.0)
     if t_count > 1:
