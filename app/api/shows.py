@@ -17,6 +17,7 @@ from app.api.errors import ApiError, draft_problems, job_body, require_valid, sh
 from app.api.models import (
     CheckOut,
     JobOut,
+    MonteCarloOptions,
     RevisionList,
     RevisionOut,
     ShowList,
@@ -352,6 +353,39 @@ def _audio_track(request: Request, show_id: str) -> Any:
     duration = float(json.loads(rec.analysis or "{}").get("duration_s") or 0.0)
     return AudioTrack(data=data, container=sniff_container(data) or "mp3", media_type=rec.media_type,
                       filename=rec.filename, duration_s=duration)
+
+
+@router.post(
+    "/shows/{show_id}/montecarlo",
+    status_code=202,
+    response_model=JobOut,
+    summary="Fly a show K times for its safety margin (background job)",
+    responses=error_responses(404, 422, 429),
+)
+async def montecarlo_show(
+    request: Request, show_id: str, options: Annotated[MonteCarloOptions | None, Body()] = None
+) -> JSONResponse:
+    """Start a Monte-Carlo job: the show flown ``runs`` times with seeds ``seed0 .. seed0 + runs - 1``
+    under the error-model ``preset``; answers 202 with the job (``Location`` points at it).
+
+    Follow it like a simulation (``GET /api/jobs/{id}``, ``/events``); when done its result holds
+    the flown-separation distribution per segment, the probabilities of coming closer than the
+    minimum and the collision distance with their intervals, the worst pairs, deviations and the
+    extra spacing per segment, and ``GET /api/jobs/{id}/report.html`` (or ``.pdf``) draws the
+    safety report. A run's flight plays in the 3D view with ``POST /api/shows/{id}/playback``
+    ``{"source": "simulated", "job_id": ..., "run": k}``.
+    """
+    record = deps.store(request).get(show_id)
+    assert record.json is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
+    opts = (options or MonteCarloOptions()).model_dump()
+    manager = deps.jobs(request)
+    resolved = tasks.flight_options({**opts, "engine": "numba"}, manager.settings.dask_scheduler)
+    job = await asyncio.to_thread(
+        manager.submit, "montecarlo", tasks.montecarlo_task, show_text=record.json,
+        content_hash=record.content_hash, options=opts, show_id=record.id, show_revision=record.revision,
+        client=deps.client_id(request), task_options=resolved,
+    )
+    return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
 
 
 def export_formats() -> tuple[str, ...]:

@@ -31,6 +31,10 @@ class PlaybackRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     source: Source = "planned"
+    job_id: str | None = Field(None, max_length=64, description=(
+        "With source 'simulated': a Monte-Carlo job of this show (POST /api/shows/{id}/montecarlo) "
+        "whose run `run` is flown and played instead of the default single flight."))
+    run: int | None = Field(None, ge=0, description="The run of `job_id` to play (0-based; seed = seed0 + run).")
 
 
 class SeekRequest(BaseModel):
@@ -72,16 +76,19 @@ class _Loader:
     def __init__(self, app: FastAPI, viewer: Viewer) -> None:
         self.app, self.viewer = app, viewer
         self._lock = threading.Lock()
-        # (show id) -> (content hash, plan, flight or None)
-        self._cache: dict[str, tuple[str, Any, Any]] = {}
+        # (show id) -> ((content hash, Monte-Carlo run or None), plan, flight or None)
+        self._cache: dict[str, tuple[tuple[str, tuple[str, int] | None], Any, Any]] = {}
         # (content hash) -> check report JSON of its plan
         self._reports: dict[str, Any] = {}
 
-    def load(self, show_id: str, source: Source = "planned") -> tuple[Any, Any, bool]:
+    def load(
+        self, show_id: str, source: Source = "planned", run: tuple[str, int] | None = None
+    ) -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
 
         Called from a thread; the planning and the flight run in the job manager's interactive pool
-        under its time budget, never in the server process.
+        under its time budget, never in the server process. ``run`` = ``(job id, k)`` flies run k of
+        a Monte-Carlo job of this show instead of the default single flight.
 
         Returns:
             ``(record, plan, cached)``.
@@ -91,13 +98,22 @@ class _Loader:
         jobs = self.app.state.jobs
         record = self.app.state.store.get(show_id)
         label = _label(record)
+        run_options = self._run_options(record, run) if run is not None and source == "simulated" else None
+        # The cached flight is the one of this content and this run (None: the default flight).
+        key = (record.content_hash, None if run_options is None else run)
         with self._lock:
             hit = self._cache.get(show_id)
-            plan, flight = (hit[1], hit[2]) if hit and hit[0] == record.content_hash else (None, None)
+            plan, flight = (hit[1], hit[2]) if hit and hit[0] == key else (None, None)
+            if hit and hit[0][0] == record.content_hash and plan is None:
+                plan = hit[1]  # same show, another flight: the plan still holds
         cached = plan is not None and (source == "planned" or flight is not None)
         viewer = self.viewer
         try:
-            if source == "simulated" and flight is None:
+            if run_options is not None and flight is None:
+                assert run is not None
+                viewer.set_busy(f"Flying run {run[1]} of {record.name}", 0.0)
+                plan, flight = jobs.run_sync(tasks.viewer_montecarlo_run_task, record.json, run_options, run[1])
+            elif source == "simulated" and flight is None:
                 viewer.set_busy(f"Simulating {record.name}", 0.0)
                 options = tasks.flight_options({}, jobs.settings.dask_scheduler)
                 # Interactive pool and budget: a request waits for it (a long show answers 504, the job
@@ -110,7 +126,7 @@ class _Loader:
             viewer.set_busy(None)
         with self._lock:
             self._cache.pop(show_id, None)
-            self._cache[show_id] = (record.content_hash, plan, flight)
+            self._cache[show_id] = (key, plan, flight)
             while len(self._cache) > MAX_SHOWS:
                 del self._cache[next(iter(self._cache))]
         report = self._reports.get(record.content_hash)
@@ -133,6 +149,25 @@ class _Loader:
             while len(self._reports) > MAX_SHOWS:
                 del self._reports[next(iter(self._reports))]
         self.viewer.set_report(label, report)
+
+    def _run_options(self, record: Any, run: tuple[str, int]) -> dict[str, Any]:
+        """The options of a Monte-Carlo job of ``record``'s show, checked for playing run ``run[1]``.
+
+        Raises:
+            JobNotFound: no such job (404).
+            ApiError: 422 naming ``job_id`` (not a Monte-Carlo job of this show) or ``run`` (out of range).
+        """
+        from app.api.errors import ApiError
+
+        job = self.app.state.jobs.get(run[0])
+        if job.kind != "montecarlo" or job.content_hash != record.content_hash:
+            raise ApiError(422, [{"loc": ["body", "job_id"], "path": "job_id", "msg": (
+                f"job {run[0]!r} is not a Monte-Carlo job of this show as it is now")}])
+        runs = int(job.options.get("runs", 0))
+        if not 0 <= run[1] < runs:
+            raise ApiError(422, [{"loc": ["body", "run"], "path": "run",
+                                  "msg": f"run must be in 0..{runs - 1} (the job flew {runs} runs)"}])
+        return dict(job.options)
 
     def catalog(self) -> dict[str, str]:
         """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
@@ -173,9 +208,16 @@ def playback_router() -> APIRouter:
         if loader is None:
             raise ApiError(503, "the 3D viewer is not running")
         require_valid(request.app.state.store.get(show_id), "shown in the 3D viewer")  # a draft: 422
-        source: Source = (body or PlaybackRequest()).source
+        req = body or PlaybackRequest()
+        source: Source = req.source
+        run: tuple[str, int] | None = None
+        if req.job_id is not None or req.run is not None:
+            if source != "simulated" or req.job_id is None or req.run is None:
+                raise ApiError(422, [{"loc": ["body", "run" if req.run is None else "job_id"], "path": "run",
+                                      "msg": "job_id and run go together, with source 'simulated'"}])
+            run = (req.job_id, req.run)
         # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).
-        record, plan, cached = await asyncio.to_thread(loader.load, show_id, source)
+        record, plan, cached = await asyncio.to_thread(loader.load, show_id, source, run)
         return PlaybackOut(
             show_id=record.id, revision=record.revision, name=record.name, source=source,
             drones=plan.drone_count, duration_s=plan.duration_s, viewer_url="/viser/", cached=cached,
