@@ -223,12 +223,6 @@ def test_skyc_lights_replay_the_plan_colours(show, plan):
         assert np.abs(got - ref).max() <= 1.0 + 2 * max_rate
 
 
-def test_skyc_warns_above_the_viewer_limit(show, plan, monkeypatch):
-    monkeypatch.setattr(skyc_module, "SKYBRUSH_VIEWER_MAX_DRONES", 10)
-    result = export_show(show, "skyc", plan=plan)
-    assert any("Skybrush Viewer" in w for w in result.warnings)
-
-
 def _hermite_error_dense(c: np.ndarray, duration_s: float, parts: int) -> float:
     """Largest distance between one piece (3, 6) and its cubic Hermite parts, sampled densely (independent)."""
     t = np.linspace(0.0, duration_s, 4001)
@@ -304,7 +298,7 @@ def test_skyc_follows_each_drones_own_pieces(show, staggered):
     cubic_legs = 0
     for i, d in enumerate(doc["swarm"]["drones"]):
         points = d["settings"]["trajectory"]["points"]
-        assert points[-1][0] == pytest.approx(plan.duration_s, abs=1e-6)
+        assert points[-1][0] == pytest.approx(plan.duration_s, abs=5e-4)
         got = eval_skyc(points, t)
         ref = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
         err = np.linalg.norm(got - ref, axis=1).max()
@@ -319,7 +313,11 @@ def test_skyc_follows_each_drones_own_pieces(show, staggered):
             if legs.cubic[k][i]:
                 dep, arr = legs.depart_s[k][i], legs.depart_s[k][i] + legs.duration_s[k][i]
                 j = int(np.argmin(np.abs(times - arr)))
-                assert times[j] == pytest.approx(arr, abs=1e-6) and times[j - 1] == pytest.approx(dep, abs=1e-6)
+                # Times are whole milliseconds; a duration the Skybrush server would cut by a
+                # millisecond is written as two Béziers (the same cubic, split).
+                whole = round(arr * 1000) - round(dep * 1000)
+                back = 2 if skyc_module._server_truncates(whole) else 1
+                assert times[j] == pytest.approx(arr, abs=5e-4) and times[j - back] == pytest.approx(dep, abs=5e-4)
                 assert len(points[j][2]) == 2
                 cubic_legs += 1
     assert cubic_legs > 0
