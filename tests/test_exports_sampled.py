@@ -75,9 +75,10 @@ def test_skybrush_csv_rows_are_the_plan(show, plan):
         assert sorted(z.namelist()) == sorted(files)
         assert all(SAFE_NAME.fullmatch(n) for n in z.namelist())
         manifest = json.loads(z.comment)
-        assert manifest["format"] == "skybrush-csv" and manifest["fps"] == 4.0 and manifest["drones"] == 16
-    # Every 250 ms from 0, plus the end of the show if it is not on that grid.
-    expected_rows = int(np.floor(plan.duration_s * 4 + 1e-9)) + 1 + (plan.duration_s * 4 % 1 > 1e-9)
+        assert manifest["format"] == "skybrush-csv" and manifest["fps"] == 24.0 and manifest["drones"] == 16
+    # Every 1/24 s (whole ms) from 0, plus the end of the show if it is not on that grid, plus
+    # one row a frame later holding the end (Studio's importer drops the last row).
+    expected_rows = int(np.floor(plan.duration_s * 24 + 1e-9)) + 1 + (plan.duration_s * 24 % 1 > 1e-9) + 1
     for i in range(16):
         rows = files[f"drone_{i + 1:03d}.csv"]
         assert rows[0] == ["Time [msec]", "x [m]", "y [m]", "z [m]", "Red", "Green", "Blue"]
@@ -89,8 +90,9 @@ def test_skybrush_csv_rows_are_the_plan(show, plan):
         data = np.array(body, dtype=float)
         t_ms = data[:, 0]
         assert t_ms[0] == 0 and np.all(np.diff(t_ms) > 0)
-        assert t_ms[-1] == round(plan.duration_s * 1000)
-        ref = plan.evaluate(t_ms / 1000.0, drones=np.array([i]))
+        assert t_ms[-2] == round(plan.duration_s * 1000) and t_ms[-1] == t_ms[-2] + 42
+        np.testing.assert_array_equal(data[-1, 1:], data[-2, 1:])
+        ref = plan.evaluate(np.minimum(t_ms / 1000.0, plan.duration_s), drones=np.array([i]))
         assert np.abs(data[:, 1:4] - ref.positions_m[:, 0]).max() <= 0.0005 + 1e-9
         assert np.linalg.norm(data[:, 1:4] - ref.positions_m[:, 0], axis=1).max() <= 0.001
         assert np.all((data[:, 4:] >= 0) & (data[:, 4:] <= 255))
