@@ -34,6 +34,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="bearing of the show's +y axis, degrees clockwise from true north (default 0)")
     p.add_argument("--source", choices=("planned", "simulated"), default="planned",
                    help="planned trajectory (default) or the simulated flight (sampled formats)")
+    p.add_argument("--scale", type=float, default=1.0, metavar="FACTOR",
+                   help="scale positions by FACTOR (crazyswarm: an outdoor show indoors, e.g. 0.02; default 1)")
+    p.add_argument("--offset", default=None, metavar="X,Y,Z",
+                   help="add X,Y,Z metres after scaling (crazyswarm: the show origin in the mocap frame)")
     p.set_defaults(func=_export)
 
 
@@ -47,6 +51,16 @@ def parse_origin(text: str) -> tuple[float, float, float]:
     except ValueError as exc:
         raise CliError(f"--origin must be three numbers LAT,LON,ALT, got {text!r}") from exc
     return lat, lon, alt
+
+
+def parse_offset(text: str) -> tuple[float, float, float]:
+    """``"X,Y,Z"`` -> floats; a malformed value is a :class:`CliError`."""
+    parts = text.split(",")
+    try:
+        x, y, z = (float(v) for v in parts)
+    except ValueError as exc:
+        raise CliError(f"--offset must be three numbers X,Y,Z (metres), got {text!r}") from exc
+    return x, y, z
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -67,6 +81,8 @@ def _export(args: argparse.Namespace) -> int:
                 heading_deg=args.heading,
                 source=args.source,
                 progress=update,
+                scale=args.scale,
+                offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
             )
     except ExportError as exc:
         msg = str(exc)

@@ -55,6 +55,8 @@ def export_show(
     flight: Any = None,
     drone_names: list[str] | None = None,
     progress: ProgressFn | None = None,
+    scale: float = 1.0,
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> ExportResult:
     """Export a show in one of :data:`EXPORT_FORMATS`.
 
@@ -69,6 +71,8 @@ def export_show(
         flight: the simulated flight if already computed (else flown here when needed).
         drone_names: optional per-drone names (sanitised for use as file names).
         progress: optional callback receiving the fraction done in [0, 1].
+        scale: factor applied to positions (``crazyswarm``, indoor shows).
+        offset_m: (x, y, z) metres added after scaling (``crazyswarm``).
 
     Returns:
         The exported file.
@@ -76,7 +80,8 @@ def export_show(
     Raises:
         ExportError: unknown format, bad option, or a show that cannot be planned.
     """
-    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source)
+    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source, scale=scale,
+                            offset_m=offset_m)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
     )
