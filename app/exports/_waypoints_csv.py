@@ -1,7 +1,8 @@
 """``waypoints-csv``: a zip with one ``t,x,y,z,r,g,b`` CSV per drone, sampled at ``--fps``.
 
 ``t`` in seconds (3 decimals: the sample times are whole milliseconds), x, y, z
-local ENU metres (3 decimals), r, g, b LED channels 0-255. Samples come from
+local metres (3 decimals; the frame of :mod:`app.exports._frames`: +y at the
+heading), r, g, b LED channels 0-255. Samples come from
 the plan (``--source planned``, exact at each row) or from the simulated
 flight (``--source simulated``, the flown positions linearly interpolated
 from the 1 kHz simulation).
@@ -20,9 +21,10 @@ DEFAULT_FPS = 10.0
 _README = """\
 Per-drone waypoints (one CSV per drone) made by swarmshow.
 
-Columns: t (seconds from the start of the show), x, y, z (local ENU metres:
-x east, y north, z up), r, g, b (LED colour, 0-255). {fps:g} samples per
-second plus the final instant, from the {source} trajectory.
+Columns: t (seconds from the start of the show), x, y, z (local metres from
+the show origin, z up; +y at bearing {heading:g} degrees from true north, so x
+east and y north when it is 0), r, g, b (LED colour, 0-255). {fps:g} samples
+per second plus the final instant, from the {source} trajectory.
 """
 
 
@@ -55,7 +57,7 @@ def export_waypoints_csv(ctx: ExportContext) -> ExportResult:
         base_manifest(
             ctx, fmt="waypoints-csv", fps=fps, source=ctx.options.source, columns=HEADER.strip().split(","), **extra
         ),
-        _README.format(fps=fps, source=ctx.options.source),
+        _README.format(fps=fps, source=ctx.options.source, heading=ctx.options.heading_deg),
     )
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}-waypoints.zip",
