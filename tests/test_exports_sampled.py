@@ -278,3 +278,23 @@ def test_sampled_rows_follow_each_drones_own_timing(show, staggered, fmt):
         assert np.abs(data[:, 1:4] - ref.positions_m[:, 0]).max() <= 0.0005 + 1e-9
         assert np.abs(data[:, 1:4] - legs.positions(t)[:, i]).max() <= 0.0005 + 1e-9
         assert np.abs(data[:, 4:] - ref.colors_rgb[:, 0] * 255).max() <= 0.5 + 1e-9
+
+
+@pytest.mark.parametrize("fmt, default", [("skybrush-csv", 24.0), ("waypoints-csv", 10.0)])
+def test_default_rate_fits_the_sample_budget_with_a_warning(show, plan, monkeypatch, fmt, default):
+    from app.exports import _sampling
+
+    # A budget that 16 drones at the default rate exceed: the default drops to the highest whole
+    # rate that fits, and the export says what that costs; an explicit rate is still refused.
+    budget = int(16 * plan.duration_s * 3.5)
+    monkeypatch.setattr(_sampling, "MAX_SAMPLES", budget)
+    result = export_show(show, fmt, plan=plan)
+    files = read_zip_csvs(result.content)
+    rows = len(files["drone_001.csv"]) - 1
+    assert rows * 16 <= budget
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        manifest = json.loads(z.comment if fmt == "skybrush-csv" else z.read("manifest.json"))
+    assert manifest["fps"] == 3.0 < default
+    assert any("sample limit" in w and "3 fps" in w for w in result.warnings)
+    with pytest.raises(ExportError, match="exceeds the limit"):
+        export_show(show, fmt, plan=plan, fps=default)

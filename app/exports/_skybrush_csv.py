@@ -30,13 +30,11 @@ Skybrush Studio for Blender's own CSV exporter (``export_to_csv.py``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from app.exports._archive import ZipBuilder, base_manifest, safe_stem
-from app.exports._core import MAX_SAMPLES, ExportContext, ExportResult
-from app.exports._sampling import check_sample_count, frame_count, sample_times_ms, write_sample_csvs
+from app.exports._core import ExportContext, ExportResult
+from app.exports._sampling import check_sample_count, default_fps, frame_count, sample_times_ms, write_sample_csvs
 from app.exports._text import column_bytes
 
 HEADER = "Time [msec],x [m],y [m],z [m],Red,Green,Blue\n"
@@ -44,25 +42,9 @@ HEADER = "Time [msec],x [m],y [m],z [m],Red,Green,Blue\n"
 DEFAULT_FPS = 24.0
 
 
-def default_fps(ctx: ExportContext) -> float:
-    """:data:`DEFAULT_FPS`, or the highest whole rate within :data:`MAX_SAMPLES` (warned) for huge shows."""
-    duration = ctx.plan.duration_s
-    if frame_count(duration, DEFAULT_FPS) * ctx.show.drones <= MAX_SAMPLES:
-        return DEFAULT_FPS
-    fps = float(max(1, math.floor((MAX_SAMPLES / ctx.show.drones - 3) / max(duration, 1e-9))))
-    dt = 1.0 / fps
-    chord_mm = ctx.show.settings.max_accel_mps2 * dt * dt / 8.0 * 1000.0
-    ctx.warn(
-        f"skybrush-csv: {ctx.show.drones} drones x {duration:.0f} s at {DEFAULT_FPS:g} fps exceed the "
-        f"{MAX_SAMPLES:,}-sample limit; wrote {fps:g} fps, so Studio draws straight lines between rows (up to "
-        f"~{chord_mm:.0f} mm from the plan) and colour fades step every {dt * 1000:.0f} ms; use .skyc for this show"
-    )
-    return fps
-
-
 def export_skybrush_csv(ctx: ExportContext) -> ExportResult:
     """Build the Skybrush CSV zip (see the module docstring)."""
-    fps = ctx.options.fps if ctx.options.fps is not None else default_fps(ctx)
+    fps = ctx.options.fps if ctx.options.fps is not None else default_fps(ctx, DEFAULT_FPS, extra_rows=1)
     duration = ctx.plan.duration_s
     check_sample_count(ctx, frame_count(duration, fps) + 1)  # before any array is built
     times_ms = sample_times_ms(duration, fps)

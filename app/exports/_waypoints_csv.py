@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from app.exports._archive import ZipBuilder, base_manifest, safe_stem
 from app.exports._core import ExportContext, ExportResult
-from app.exports._sampling import check_sample_count, frame_count, sample_times_ms, write_sample_csvs
+from app.exports._sampling import check_sample_count, default_fps, frame_count, sample_times_ms, write_sample_csvs
 from app.exports._text import column_bytes
 
 HEADER = "t,x,y,z,r,g,b\n"
@@ -30,7 +30,7 @@ per second plus the final instant, from the {source} trajectory.
 
 def export_waypoints_csv(ctx: ExportContext) -> ExportResult:
     """Build the sampled waypoint zip (see the module docstring)."""
-    fps = ctx.options.fps_or(DEFAULT_FPS)
+    fps = ctx.options.fps if ctx.options.fps is not None else default_fps(ctx, DEFAULT_FPS)
     check_sample_count(ctx, frame_count(ctx.plan.duration_s, fps))  # before flying or building any array
     if ctx.options.source == "simulated":
         _ = ctx.flight  # fly first, so progress and errors come before any writing

@@ -155,19 +155,30 @@ class Mission:
     plan_arrive_s: np.ndarray
     wpnav: Wpnav
 
+    def __post_init__(self) -> None:
+        # Every leg's S-curve once (W, N each): a replay frame is then a gather and a polynomial.
+        d = np.diff(self.points_m, axis=0)
+        length, vmax, amax = _leg_limits(d, self.speeds_mps, self.wpnav)
+        self._length = length
+        self._phases = scurve_phases(length, vmax, amax, self.wpnav.jerk_mps3)
+        self._unit = d / np.where(length > 0, length, 1.0)[..., None]
+
     def positions(self, t_s: float) -> np.ndarray:
         """(N, 3) replayed positions at time ``t_s`` (seconds from the mission start)."""
         n = self.points_m.shape[1]
         # The current leg: the last one departed at or before t.
         k = np.clip((self.depart_s <= t_s).sum(axis=0) - 1, 0, self.depart_s.shape[0] - 1)
         idx = np.arange(n)
-        a, b = self.points_m[k, idx], self.points_m[k + 1, idx]
-        d = b - a
-        length, vmax, amax = _leg_limits(d, self.speeds_mps[k, idx], self.wpnav)
-        s = scurve_distance(t_s - self.depart_s[k, idx], length, vmax, amax, self.wpnav.jerk_mps3)
-        frac = np.where(length > 0, s / np.where(length > 0, length, 1.0), 1.0)
-        before = t_s < self.depart_s[0]
-        return np.where(before[:, None], self.points_m[0], a + frac[:, None] * d)
+        tj, ta, tv, vp = (x[k, idx] for x in self._phases)
+        length = self._length[k, idx]
+        half = 2.0 * tj + ta
+        total = 2.0 * half + tv
+        u = np.clip(t_s - self.depart_s[k, idx], 0.0, total)
+        J = self.wpnav.jerk_mps3
+        s = np.where(u <= half + tv, _accel_distance(u, tj, ta, tv, vp, J),
+                     length - _accel_distance(total - u, tj, ta, tv, vp, J))
+        pos = self.points_m[k, idx] + s[:, None] * self._unit[k, idx]
+        return np.where((t_s < self.depart_s[0])[:, None], self.points_m[0], pos)
 
 
 def time_mission(points_m: np.ndarray, plan_depart_s: np.ndarray, plan_arrive_s: np.ndarray,
@@ -228,17 +239,28 @@ def close_pairs(mission: Mission, plan, min_distance_m: float, *, max_samples: i
     n = mission.points_m.shape[1]
     end = float(mission.arrive_s[-1].max())
     dt = max(dt_s, end * n / max_samples)
-    worst: dict[tuple[int, int], tuple[float, float]] = {}
+    keys, dists, times = [], [], []
     for t in np.arange(float(mission.depart_s[0].min()), end + dt / 2, dt):
         pos = mission.positions(float(t))
         pairs = cKDTree(pos).query_pairs(min_distance_m, output_type="ndarray")
         if not len(pairs):
             continue
         dist = np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1)
-        ref = plan.evaluate(np.array([min(float(t), plan.duration_s)])).positions_m[0]
+        # The plan at the same time, for the drones in close pairs only.
+        used = np.unique(pairs)
+        ref = np.empty((n, 3))
+        ref[used] = plan.evaluate(np.array([min(float(t), plan.duration_s)]), drones=used).positions_m[0]
         plan_dist = np.linalg.norm(ref[pairs[:, 0]] - ref[pairs[:, 1]], axis=1)
-        for (i, j), dd, pd in zip(pairs.tolist(), dist.tolist(), plan_dist.tolist(), strict=True):
-            if pd >= min_distance_m - 1e-6 and dd < worst.get((i, j), (np.inf, 0.0))[0]:
-                worst[(i, j)] = (dd, float(t))
-    out = sorted(((i, j, d, t) for (i, j), (d, t) in worst.items()), key=lambda r: r[2])
+        lost = plan_dist >= min_distance_m - 1e-6
+        keys.append(pairs[lost, 0].astype(np.int64) * n + pairs[lost, 1])
+        dists.append(dist[lost])
+        times.append(np.full(int(lost.sum()), float(t)))
+    if not keys:
+        return [], dt
+    key, dist, when = np.concatenate(keys), np.concatenate(dists), np.concatenate(times)
+    # Each pair's closest sample: sort by pair then distance, keep the first of each pair.
+    order = np.lexsort((dist, key))
+    first = order[np.r_[True, key[order][1:] != key[order][:-1]]]
+    first = first[np.argsort(dist[first], kind="stable")]
+    out = [(int(key[f] // n), int(key[f] % n), float(dist[f]), float(when[f])) for f in first]
     return out, dt
