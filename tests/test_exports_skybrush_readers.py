@@ -62,13 +62,31 @@ def big_doc(big):
         return json.loads(z.read("show.json"))
 
 
+@pytest.fixture(scope="module")
+def big_quintic():
+    """The same show under the paper's quintic time law: degree-5 legs, so the Bézier fit is at work."""
+    show = _big_show()
+    show = show.model_copy(update={"settings": show.settings.model_copy(update={"time_law": "quintic"})})
+    plan = plan_show(show)
+    with zipfile.ZipFile(io.BytesIO(export_show(show, "skyc", plan=plan).content)) as z:
+        return show, plan, json.loads(z.read("show.json"))
+
+
+@pytest.fixture(params=["min_time", "quintic"])
+def skyc_case(request):
+    if request.param == "quintic":
+        return request.getfixturevalue("big_quintic")
+    show, plan = request.getfixturevalue("big")
+    return show, plan, request.getfixturevalue("big_doc")
+
+
 def _sample_times(plan, n: int = 6000) -> np.ndarray:
     rng = np.random.default_rng(1)
     return np.sort(np.r_[np.linspace(0.0, plan.duration_s, n), rng.uniform(0, plan.duration_s, n)])
 
 
-def test_skyc_through_server_and_libskybrush_within_7_mm(big, big_doc):
-    show, plan = big
+def test_skyc_through_server_and_libskybrush_within_7_mm(skyc_case):
+    show, plan, big_doc = skyc_case
     t = _sample_times(plan)
     ref = plan.evaluate(t).positions_m  # (T, N, 3)
     worst, scales = 0.0, set()
@@ -85,8 +103,8 @@ def test_skyc_through_server_and_libskybrush_within_7_mm(big, big_doc):
     assert worst <= 0.007, f"{worst * 1000:.2f} mm"
 
 
-def test_skyc_through_show_format_loader_within_2_mm(big, big_doc):
-    show, plan = big
+def test_skyc_through_show_format_loader_within_2_mm(skyc_case):
+    show, plan, big_doc = skyc_case
     t = _sample_times(plan)
     ref = plan.evaluate(t).positions_m
     worst = 0.0
@@ -96,8 +114,8 @@ def test_skyc_through_show_format_loader_within_2_mm(big, big_doc):
     assert worst <= 0.002, f"{worst * 1000:.2f} mm"
 
 
-def test_skyc_times_are_whole_milliseconds_the_server_keeps(big_doc):
-    for d in big_doc["swarm"]["drones"]:
+def test_skyc_times_are_whole_milliseconds_the_server_keeps(skyc_case):
+    for d in skyc_case[2]["swarm"]["drones"]:
         times = [p[0] for p in d["settings"]["trajectory"]["points"]]
         ms = [round(t * 1000) for t in times]
         assert all(abs(t * 1000 - m) < 1e-9 for t, m in zip(times, ms, strict=True))

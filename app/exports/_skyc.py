@@ -68,9 +68,10 @@ from sim.plan import horner
 
 #: Largest deviation of the Bézier curves from the plan, metres. The drone's budget is 7 mm
 #: (libskybrush after the server's conversion), of which the binary format's int16
-#: coordinates take up to ~3.5 mm at scale 2 (1 unit per axis, truncated); the show-format
-#: loader's budget is 2 mm, of which the written decimals take 0.09 mm.
-TOLERANCE_M = 0.001
+#: coordinates take up to ~3.5 mm at scale 2 and ~5.2 mm at scale 3 (1 unit per axis,
+#: truncated); the show-format loader's budget is 2 mm, of which the written decimals
+#: take 0.09 mm. Parts grow like tolerance^(-1/4): 1.5 mm costs 8 % more points than 2 mm.
+TOLERANCE_M = 0.0015
 #: Most drones a .skyc may hold: Skybrush Live and Skybrush Viewer refuse larger shows.
 SKYBRUSH_MAX_DRONES = 5000
 #: Longest segment written, milliseconds: the server cuts longer ones (over 65 s) at fractional milliseconds.
@@ -251,6 +252,9 @@ def _drone_points(plan) -> tuple[list[np.ndarray], list[np.ndarray], list[np.nda
     has = degree[row] >= 2
     d = drone[row]
     cuts = np.cumsum(np.bincount(d, minlength=n))[:-1]
+    # Rounded to the written decimals once for every drone (+ 0.0: no "-0.0").
+    p1 = np.round(p1, _POS_DECIMALS) + 0.0
+    controls = np.round(controls, _POS_DECIMALS) + 0.0
     return np.split(e_ms, cuts), np.split(p1, cuts), np.split(controls, cuts), np.split(has, cuts)
 
 
@@ -330,8 +334,8 @@ def build_show_json(ctx: ExportContext) -> dict:
     drones = []
     for i in range(plan.drone_count):
         t = (times[i] / 1000.0).tolist()  # whole ms: the shortest repr is exact to 3 decimals
-        p = (np.round(positions[i], _POS_DECIMALS) + 0.0).tolist()
-        c = (np.round(controls[i], _POS_DECIMALS) + 0.0).tolist()
+        p = positions[i].tolist()  # rounded to _POS_DECIMALS by _drone_points
+        c = controls[i].tolist()
         h = has[i].tolist()
         points = [[0.0, home[i].tolist(), []]]
         points += [[tj, pj, cj if hj else []] for tj, pj, cj, hj in zip(t, p, c, h, strict=True)]
