@@ -347,3 +347,26 @@ def test_hermite_error_bound_holds_for_any_quintic(seed, parts):
     duration = float(rng.uniform(0.1, 20.0))
     bound = skyc_module.hermite_error_bound(c[None], np.array([duration]), np.array([parts]))[0]
     assert _hermite_error_dense(c, duration, parts) <= bound * (1 + 1e-9) + 1e-12
+
+
+def test_skyc_leaves_the_garbage_collector_as_it_found_it(show, plan, monkeypatch):
+    import gc
+
+    assert gc.isenabled()
+    export_show(show, "skyc", plan=plan)
+    assert gc.isenabled()
+
+    def boom(ctx):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(skyc_module, "build_show_json", boom)
+    with pytest.raises(RuntimeError):
+        export_show(show, "skyc", plan=plan)
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        monkeypatch.undo()
+        export_show(show, "skyc", plan=plan)
+        assert not gc.isenabled()  # not switched on behind the caller's back
+    finally:
+        gc.enable()
