@@ -242,7 +242,9 @@ def close_pairs(mission: Mission, plan, min_distance_m: float, *, max_samples: i
     keys, dists, times = [], [], []
     for t in np.arange(float(mission.depart_s[0].min()), end + dt / 2, dt):
         pos = mission.positions(float(t))
-        pairs = cKDTree(pos).query_pairs(min_distance_m, output_type="ndarray")
+        # A tree per frame: an unbalanced, uncompacted build is the cheaper one for a single query.
+        tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
+        pairs = tree.query_pairs(min_distance_m, output_type="ndarray")
         if not len(pairs):
             continue
         dist = np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1)
