@@ -328,3 +328,24 @@ def test_wpl_names_the_pairs_when_the_replay_loses_min_distance(show, plan, tmp_
     assert len(found & named) >= 0.8 * max(len(found), len(named))
     first = manifest["replay"]["close_pairs"][0]["drones"]
     assert first[0] in warning and first[1] in warning and "WARNING" in readme and first[0] in readme
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.05, 300.0), st.floats(0.3, 15.0), st.floats(0.3, 5.0), st.floats(0.2, 5.0))
+def test_scurve_closed_form_respects_its_limits(length, vmax, amax, jerk):
+    """The exporter's closed-form S-curve: reaches the end, never exceeds speed, acceleration or jerk
+    (finite differences of dense samples), and takes as long as the numeric replay's."""
+    from app.exports._wpnav import scurve_distance, scurve_duration
+    from tests.wpnav_replay import STEP_S, leg_profile
+
+    total = float(scurve_duration(length, vmax, amax, jerk))
+    t = np.linspace(0.0, total, 4001)
+    s = scurve_distance(t, length, vmax, amax, jerk)
+    assert s[0] == pytest.approx(0.0, abs=1e-9) and s[-1] == pytest.approx(length, rel=1e-9, abs=1e-9)
+    dt = t[1] - t[0]
+    v = np.diff(s) / dt
+    assert v.min() >= -1e-9 and v.max() <= vmax * (1 + 1e-6) + 1e-9
+    a = np.diff(v) / dt
+    assert np.abs(a).max() <= amax * 1.02 + jerk * dt * 2
+    numeric = (len(leg_profile(length, vmax, amax, jerk)) - 1) * STEP_S
+    assert numeric == pytest.approx(total, abs=0.01)
