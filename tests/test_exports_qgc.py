@@ -278,7 +278,7 @@ def test_wpl_replay_keeps_the_plans_timing(show, plan, tmp_path):
             dep = np.array(rep.departures_s[2:])
             arr = np.array(rep.arrivals_s[1:-1])
             ok = arr <= departs - 0.5
-            assert np.abs(dep - departs)[ok].max(initial=0.0) <= 0.5 + 1e-6
+            assert np.abs(dep - departs)[ok].max(initial=0.0) <= 0.5 + 0.01  # + the replays' ms apart
     # Without the speed commands (ArduCopter's default 10 m/s and truncated holds) the timing is lost.
     _, plain = _replay_all(result.content, plan, tmp_path, use_speed_commands=False)
     plain_err = max(np.abs(np.array(r.arrivals_s[2:-1]) - want).max() for r in plain)
@@ -348,5 +348,5 @@ def test_scurve_closed_form_respects_its_limits(length, vmax, amax, jerk):
     a = np.diff(v) / dt
     assert np.abs(a).max() <= amax * 1.02 + jerk * dt * 2
     numeric = (len(leg_profile(length, vmax, amax, jerk)) - 1) * STEP_S
-    # The numeric profile rounds each of its seven phases to its 1 ms step: a few ms apart at most.
-    assert numeric == pytest.approx(total, abs=0.02)
+    # The numeric profile rounds its phases to its 1 ms step: a few ms apart at most.
+    assert numeric == pytest.approx(total, abs=0.005)

@@ -30,13 +30,18 @@ class Limits:
 def _half(vp: float, a_max: float, jerk: float) -> np.ndarray:
     """Distances (every STEP_S) of the jerk-limited rise from rest to speed vp."""
     a_peak = min(a_max, np.sqrt(vp * jerk))
-    tj = a_peak / jerk
-    ta = max(vp / a_peak - tj, 0.0)
-    n1, n2 = round(tj / STEP_S), round(ta / STEP_S)
+    n1 = max(round(a_peak / jerk / STEP_S), 1)
+    # The jerk phase is a whole number of steps: its jerk is adjusted (by under half a step's worth)
+    # so that it reaches exactly a_peak, and the constant phase then reaches vp.
+    jerk = a_peak / (n1 * STEP_S)
+    n2 = max(round((vp / a_peak - n1 * STEP_S) / STEP_S), 0)
     j = np.r_[np.full(n1, jerk), np.zeros(n2), np.full(n1, -jerk)]
-    a = np.cumsum(j) * STEP_S
-    v = np.cumsum(a) * STEP_S
-    return np.r_[0.0, np.cumsum(v) * STEP_S]
+    h = STEP_S
+    # Exact integration of a piecewise-constant jerk, step by step (a at the step's start, a0, v0):
+    # a1 = a0 + j·h, v1 = v0 + a0·h + j·h²/2, s1 = s0 + v0·h + a0·h²/2 + j·h³/6.
+    a = np.r_[0.0, np.cumsum(j * h)]
+    v = np.r_[0.0, np.cumsum(a[:-1] * h + j * h * h / 2)]
+    return np.r_[0.0, np.cumsum(v[:-1] * h + a[:-1] * h * h / 2 + j * h**3 / 6)]
 
 
 def leg_profile(length: float, vmax: float, amax: float, jerk: float) -> np.ndarray:
