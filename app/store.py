@@ -87,6 +87,12 @@ MIGRATIONS: tuple[str, ...] = (
     CREATE INDEX jobs_by_updated ON jobs (updated_at);
     CREATE INDEX jobs_by_state ON jobs (state);
     """,
+    # 5: drafts. A show (and a revision) may be stored half-finished: ``problems`` holds the JSON list
+    #    of what is wrong with it (NULL: a valid show). Adding nullable columns keeps every stored row.
+    """
+    ALTER TABLE shows ADD COLUMN problems TEXT;
+    ALTER TABLE revisions ADD COLUMN problems TEXT
+    """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -118,7 +124,11 @@ class RevisionConflict(StoreError):
 
 @dataclass(frozen=True)
 class ShowRecord:
-    """One stored show. ``json`` is the show file text (None in list results)."""
+    """One stored show. ``json`` is the show file text (None in list results).
+
+    ``problems`` is None for a valid show; for a draft, the JSON text of its problem list
+    (``[{"loc", "path", "msg"}, ...]``, paths relative to the show).
+    """
 
     id: str
     name: str
@@ -128,7 +138,13 @@ class ShowRecord:
     formations: int
     created_at: str
     updated_at: str
+    problems: str | None = None
     json: str | None = None
+
+    @property
+    def draft(self) -> bool:
+        """True when the stored show is a draft (it has problems)."""
+        return self.problems is not None
 
 
 @dataclass(frozen=True)
@@ -144,22 +160,25 @@ class RevisionRecord:
     created_at: str
     has_json: bool = True
     json: str | None = None
+    draft: bool = False
 
 
-_REV_COLUMNS = "show_id, revision, name, content_hash, drones, formations, created_at"
+_REV_COLUMNS = "show_id, revision, name, content_hash, drones, formations, created_at, problems IS NOT NULL"
 
 
 def _revision_record(row: Any, has_json: bool, json: str | None = None) -> RevisionRecord:
     """A :class:`RevisionRecord` from a row starting with the :data:`_REV_COLUMNS`."""
-    show_id, revision, name, content_hash, drones, formations, created_at = row[:7]
-    return RevisionRecord(show_id, revision, name, content_hash, drones, formations, created_at, has_json, json)
+    show_id, revision, name, content_hash, drones, formations, created_at, draft = row[:8]
+    return RevisionRecord(show_id, revision, name, content_hash, drones, formations, created_at, has_json, json,
+                          bool(draft))
 
 
 @dataclass(frozen=True)
 class ShowData:
-    """What the store keeps of a validated show: its JSON text and the listed fields.
+    """What the store keeps of a validated show (or a draft): its JSON text and the listed fields.
 
-    Lets a show validated in another process be stored without parsing it again.
+    Lets a show validated in another process be stored without parsing it again. ``problems`` is
+    None for a valid show, the list of what is wrong for a draft (see :meth:`draft`).
     """
 
     text: str
@@ -167,6 +186,38 @@ class ShowData:
     name: str
     drones: int
     formations: int
+    problems: list[dict[str, Any]] | None = None
+
+    @classmethod
+    def draft(cls, doc: dict[str, Any], problems: list[dict[str, Any]]) -> ShowData:
+        """A half-finished show kept as it is, with its problems (``ShowValidationError.errors``).
+
+        Its listed fields are read leniently (a draft may lack any of them). Its content hash is
+        taken over sorted-key JSON with a ``draft`` prefix, so a draft never shares a hash (and
+        thus a cached check or flight) with a valid show.
+        """
+        import hashlib
+        import json
+
+        name = doc.get("name")
+        drones = doc.get("drones")
+        formations = doc.get("formations")
+        canonical = json.dumps(doc, sort_keys=True, separators=(",", ":"))
+        return cls(
+            text=json.dumps(doc, separators=(",", ":")),
+            content_hash=hashlib.sha256(b"draft\n" + canonical.encode()).hexdigest(),
+            name=name.strip()[:200] if isinstance(name, str) and name.strip() else "Untitled draft",
+            drones=drones if isinstance(drones, int) and not isinstance(drones, bool) and drones >= 0 else 0,
+            formations=len(formations) if isinstance(formations, list) else 0,
+            problems=_draft_problems(doc, problems),
+        )
+
+    @property
+    def problems_text(self) -> str | None:
+        """The problems as stored (JSON text), None for a valid show."""
+        import json
+
+        return None if self.problems is None else json.dumps(self.problems)
 
     @classmethod
     def of(cls, show: ShowFile | ShowData) -> ShowData:
@@ -179,6 +230,24 @@ class ShowData:
                    drones=show.drones, formations=len(show.formations))
 
 
+#: Problems a draft keeps (a 20 MB file of bad numbers has a million): the rest are counted.
+MAX_DRAFT_PROBLEMS = 50
+
+
+def _draft_problems(doc: dict[str, Any], problems: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The first :data:`MAX_DRAFT_PROBLEMS` problems, each also saying where in plain words (named
+    formations), and a last line counting the others."""
+    from formations import plain_path
+
+    out = [{"loc": list(p.get("loc", ())), "path": p.get("path", ""), "msg": p["msg"],
+            "where": plain_path(p.get("path", ""), doc)} for p in problems[:MAX_DRAFT_PROBLEMS]]
+    if len(problems) > MAX_DRAFT_PROBLEMS:
+        more = len(problems) - MAX_DRAFT_PROBLEMS
+        out.append({"loc": [], "path": "", "msg": f"and {more} more problem{'s' if more > 1 else ''}",
+                    "where": "the show"})
+    return out or [{"loc": [], "path": "", "msg": "invalid show", "where": "the show"}]
+
+
 def _now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
@@ -188,7 +257,7 @@ def new_show_id() -> str:
     return secrets.token_hex(8)
 
 
-_COLUMNS = "id, name, revision, content_hash, drones, formations, created_at, updated_at"
+_COLUMNS = "id, name, revision, content_hash, drones, formations, created_at, updated_at, problems"
 
 
 class ShowStore:
@@ -284,25 +353,29 @@ class ShowStore:
     # -- shows ------------------------------------------------------------------------------
 
     def create(self, show: ShowFile | ShowData, *, show_id: str | None = None) -> ShowRecord:
-        """Store a validated show as revision 1 and return its record (with JSON)."""
+        """Store a validated show (or a draft) as revision 1 and return its record (with JSON)."""
         data, now = ShowData.of(show), _now()
         text = data.text
         record = ShowRecord(
             id=show_id or new_show_id(), name=data.name, revision=1, content_hash=data.content_hash,
-            drones=data.drones, formations=data.formations, created_at=now, updated_at=now, json=text,
+            drones=data.drones, formations=data.formations, created_at=now, updated_at=now,
+            problems=data.problems_text, json=text,
         )
         with self._tx() as db:
             db.execute(
-                f"INSERT INTO shows ({_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (record.id, record.name, 1, record.content_hash, record.drones, record.formations, now, now, text),
+                f"INSERT INTO shows ({_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (record.id, record.name, 1, record.content_hash, record.drones, record.formations, now, now,
+                 record.problems, text),
             )
             self._add_revision(db, record.id, 1, data, now)
         return record
 
     def _add_revision(self, db: sqlite3.Connection, show_id: str, revision: int, data: ShowData, now: str) -> None:
         db.execute(
-            f"INSERT INTO revisions ({_REV_COLUMNS}, json) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            (show_id, revision, data.name, data.content_hash, data.drones, data.formations, now, data.text),
+            "INSERT INTO revisions (show_id, revision, name, content_hash, drones, formations, created_at, json, "
+            "problems) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (show_id, revision, data.name, data.content_hash, data.drones, data.formations, now, data.text,
+             data.problems_text),
         )
         if revision > self.keep_revisions:
             db.execute("UPDATE revisions SET json = NULL WHERE show_id = ? AND revision = ?",
@@ -367,9 +440,9 @@ class ShowStore:
                 now = _now()
                 db.execute(
                     "UPDATE shows SET name = ?, revision = ?, json = ?, content_hash = ?, drones = ?, "
-                    "formations = ?, updated_at = ? WHERE id = ? AND revision = ?",
+                    "formations = ?, updated_at = ?, problems = ? WHERE id = ? AND revision = ?",
                     (data.name, current + 1, text, content_hash, data.drones, data.formations, now,
-                     show_id, current),
+                     data.problems_text, show_id, current),
                 )
                 self._add_revision(db, show_id, current + 1, data, now)
             row = db.execute(f"SELECT {_COLUMNS}, json FROM shows WHERE id = ?", (show_id,)).fetchone()
@@ -408,7 +481,7 @@ class ShowStore:
                 total = int(db.execute("SELECT COUNT(*) FROM revisions WHERE show_id = ?", (show_id,)).fetchone()[0])
             finally:
                 db.execute("COMMIT")
-        return [_revision_record(r, bool(r[7])) for r in rows], total
+        return [_revision_record(r, bool(r[8])) for r in rows], total
 
     def get_revision(self, show_id: str, revision: int) -> RevisionRecord:
         """One revision with its text (None once pruned). Raises :class:`ShowNotFound`."""
@@ -419,7 +492,7 @@ class ShowStore:
             ).fetchone()
         if row is None:
             raise ShowNotFound(f"{show_id}@{revision}")
-        return _revision_record(row, bool(row[7]), row[8])
+        return _revision_record(row, bool(row[8]), row[9])
 
     # -- cached results ---------------------------------------------------------------------
 

@@ -16,11 +16,15 @@ their client has gone.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from app.store import ShowData
 
 #: Fraction of a simulation job spent planning (the flight is the rest).
 PLAN_SHARE = 0.05
@@ -238,25 +242,44 @@ def _show(show_text: str):
     return parse_show(show_text)
 
 
-def validate_task(data: bytes | dict[str, Any]) -> dict[str, Any]:
+def validate_task(data: bytes | dict[str, Any], draft: bool = False) -> dict[str, Any]:
     """Validate a show file; returns the fields of :class:`app.store.ShowData`.
 
     Large show files are validated here, in a worker, so that seconds of parsing
-    never hold the server's GIL.
+    never hold the server's GIL. With ``draft``, a show that is a JSON object but
+    breaks the rules is returned as a draft (``problems`` lists what is wrong)
+    instead of refused.
 
     Raises:
         TaskFailure: 422 with ``ShowValidationError.errors``.
     """
+
+    d = validate_show_data(data, draft=draft)
+    return {"text": d.text, "content_hash": d.content_hash, "name": d.name, "drones": d.drones,
+            "formations": d.formations, "problems": d.problems}
+
+
+def validate_show_data(data: bytes | dict[str, Any], *, draft: bool = False) -> ShowData:
+    """:func:`validate_task`'s work, as :class:`app.store.ShowData` (also called in a thread)."""
     from app.store import ShowData
     from formations import ShowValidationError, parse_show
 
     try:
-        show = parse_show(data)
+        return ShowData.of(parse_show(data))
     except ShowValidationError as exc:
-        raise TaskFailure(FailureKind.INVALID, exc.errors) from None
-    d = ShowData.of(show)
-    return {"text": d.text, "content_hash": d.content_hash, "name": d.name, "drones": d.drones,
-            "formations": d.formations}
+        if not draft:
+            raise TaskFailure(FailureKind.INVALID, exc.errors) from None
+        doc = data
+        if isinstance(data, bytes | bytearray):
+            try:
+                doc = json.loads(bytes(data).decode("utf-8"))
+            except (UnicodeDecodeError, ValueError, RecursionError):
+                # Not even JSON text: nothing a draft could keep.
+                raise TaskFailure(FailureKind.INVALID, exc.errors) from None
+        if not isinstance(doc, dict):
+            raise TaskFailure(FailureKind.INVALID, [{"loc": [], "path": "", "msg": "a draft must be a JSON "
+                                                     "object (a show file, however unfinished)"}]) from None
+        return ShowData.draft(doc, exc.errors)
 
 
 def _plan_failure(exc: Exception) -> TaskFailure:

@@ -139,6 +139,10 @@ class GeoPlacement(BaseModel):
     heading_deg: float = Field(0.0, ge=0, lt=360, description="Compass heading of +y, degrees clockwise from north.")
 
 
+#: Vertical over horizontal semi-axis of the default downwash ellipsoid (Preiss et al. 2017: 0.3 / 0.12 m).
+DOWNWASH_HEIGHT_RATIO = 2.5
+
+
 class Settings(BaseModel):
     """Show-wide limits (defaults: Skybrush's, a de facto standard)."""
 
@@ -175,6 +179,28 @@ class Settings(BaseModel):
         description=f"Half-width of the show area, metres: every x and y (home and formations) lies within "
         f"+-this of the origin (default {DEFAULT_HORIZONTAL_EXTENT_M:g}).",
     )
+
+    # Downwash (issue 15): below a drone its rotor wash reaches further than sideways. Modelled as the
+    # axis-aligned ellipsoid of Preiss, Hönig, Ayanian & Sukhatme, "Downwash-aware trajectory planning
+    # for large quadrotor teams", IROS 2017: drone j is in i's downwash when
+    # (dx² + dy²)/r² + dz²/c² < 1. Their Crazyflie values are r = 0.12 m, c = 0.3 m (c = 2.5 r);
+    # the defaults keep that ratio at r = min_distance_m. Checked exactly during takeoff and landing.
+    downwash_radius_m: float | None = Field(
+        None, ge=MIN_LIMIT, le=100,
+        description="Horizontal radius of the downwash ellipsoid, metres (default: min_distance_m).",
+    )
+    downwash_height_m: float | None = Field(
+        None, ge=MIN_LIMIT, le=1000,
+        description="Vertical half-height of the downwash ellipsoid, metres (default: 2.5 x its radius, "
+        "Preiss et al. 2017).",
+    )
+
+    @property
+    def downwash_axes_m(self) -> tuple[float, float]:
+        """(horizontal radius, vertical half-height) of the downwash ellipsoid, metres, defaults applied."""
+        r = self.downwash_radius_m if self.downwash_radius_m is not None else self.min_distance_m
+        c = self.downwash_height_m if self.downwash_height_m is not None else DOWNWASH_HEIGHT_RATIO * r
+        return float(r), float(c)
 
     # Issue 17: an altitude floor, a geofence and the show's place on Earth (all checked or used by name).
     min_altitude_m: float = Field(
@@ -592,3 +618,42 @@ def dump_show(show: ShowFile, *, indent: int | None = 2) -> str:
 def show_json_schema() -> dict[str, Any]:
     """JSON Schema of the show file format."""
     return ShowFile.model_json_schema()
+
+
+_AXES = {0: "x", 1: "y", 2: "z"}
+_NAMED_LISTS = {"formations": "formation", "points": "point", "colors": "colour", "lights": "light",
+                "home": "home position"}
+
+
+def plain_path(path: str, show: Any = None) -> str:
+    """A show file path in plain words: 'formations[1].points[5][2]' -> 'formation 2 "Heart", point 6, z'.
+
+    Indices count from 1 as people do; a formation is named when ``show`` (the document) has its name.
+    """
+    words: list[str] = []
+    last = ""
+    pending = ""  # a list's name, said only if no index follows ("points" alone stays "points")
+    node = show
+    for key, index in re.findall(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]", path):
+        if key:
+            if pending:
+                words.append(pending)
+            last = key
+            node = node.get(key) if isinstance(node, dict) else None
+            pending = key.replace("_", " ") if key in _NAMED_LISTS else ""
+            if key not in _NAMED_LISTS:
+                words.append(key.replace("_", " "))
+            continue
+        pending = ""
+        i = int(index)
+        node = node[i] if isinstance(node, list) and i < len(node) else None
+        if last == "points" and words and words[-1].startswith("point "):
+            words.append(_AXES.get(i, f"coordinate {i + 1}"))
+            continue
+        label = f"{_NAMED_LISTS.get(last, last.replace('_', ' '))} {i + 1}"
+        if last == "formations" and isinstance(node, dict) and isinstance(node.get("name"), str):
+            label += f' "{node["name"]}"'
+        words.append(label)
+    if pending:
+        words.append(pending)
+    return ", ".join(words) or "the show"

@@ -64,3 +64,11 @@ def test_cli_bench_plan_dense_small(capsys) -> None:
     assert show["sampled_min_distance_m"] >= 3.0 * (1 - 1e-9)
     assert show["ratio_to_bound"] == pytest.approx(show["show_duration_s"] / show["lower_bound_s"])
     assert show["ratio_to_bound"] >= 1.0
+    assert show["kdtree_same_result"] is True  # the reference candidate search agrees on the same plan
+    assert len(show["transitions"]) == 7  # six formations and the landing approach
+
+
+def test_cli_bench_plan_dense_table(capsys) -> None:
+    assert cli_main(["bench", "plan", "--dense", "--drones", "20"]) == 0
+    text = capsys.readouterr().out
+    assert "kdtree x" in text and "per transition" in text

@@ -272,11 +272,12 @@ def test_api_errors_appear_next_to_what_they_concern(ui: Page):
     page.fill("#set-alt", "12")
     page.dispatch_event("#set-alt", "change")
     page.keyboard.press("Control+s")
-    # The formation is above the new ceiling: its timeline card says so; nothing was saved.
+    # The formation is above the new ceiling: its timeline card says so; the work is kept as a draft.
     err = page.locator(".tl-card .field-error").first
     sync_api.expect(err).to_contain_text("above max_altitude_m")
-    sync_api.expect(page.locator("#save-status")).to_contain_text("Not saved")
-    assert ui.state("s.dirty")
+    sync_api.expect(page.locator("#save-status")).to_contain_text("Saved as a draft")
+    sync_api.expect(page.locator("#draft-badge")).to_be_visible()
+    assert not ui.state("s.dirty")
     page.get_by_role("button", name="Undo Change maximum altitude, metres").click()
     assert ui.state("s.show.settings.max_altitude_m") == 150
     # A shape that cannot fit says how many points would.

@@ -142,11 +142,13 @@ def test_bug3_points_below_the_floor_are_flagged_and_the_save_error_goes_away(ui
     expect(bar).not_to_contain_text("✓")
     page.keyboard.press("Control+s")
     status = page.locator("#save-status")
-    expect(status).to_contain_text("Not saved")
+    # Kept as a draft (issue 17's drafts): the status says what is wrong, and goes once it is undone.
+    expect(status).to_contain_text("Saved as a draft")
     below = sum(p[2] < 0 for p in ui.state("s.formation.points"))
     expect(status).to_contain_text(f"{below} points below 0 m")
     page.keyboard.press("Control+z")
-    expect(status).not_to_contain_text("Not saved")
+    expect(status).not_to_contain_text("Saved as a draft")
+    expect(status).not_to_contain_text("below 0 m")
     expect(bar).to_contain_text("✓")
 
 
@@ -371,6 +373,17 @@ def test_bug2_fit_makes_text_again_and_refuses_a_drawing_that_cannot_fit(ui: Pag
     most = int(text.split("at most ")[1].split()[0])
     assert 0 < most < 300 and "scale it by" in text
     assert ui.state("s.formation.points") == before
+    # It says the size that fits: scaled by that much (to that width) the drawing takes all 300.
+    pct = int(text.split("scale it by ")[1].split("%")[0])
+    width_m = float(text.split("to about ")[1].split(" m wide")[0])
+    page.fill("#scale-input", str(pct))
+    page.get_by_role("button", name="Scale the selection").click()
+    xs = [p[0] for p in ui.state("s.formation.points")]
+    assert max(xs) - min(xs) == pytest.approx(width_m, abs=0.15)
+    page.get_by_role("button", name="Fit the formation to the drone count").click()
+    page.wait_for_function("() => window.swarmshow.state.formation.points.length === 300", timeout=30_000)
+    expect(err).to_be_empty()
+    expect(page.locator("#st-spacing")).not_to_contain_text("closer than")
 
 
 def test_filled_presets_in_the_shape_menu(ui: Page):

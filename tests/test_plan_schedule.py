@@ -294,3 +294,47 @@ def test_random_dense_shows_are_safe(seed: int, n: int, forms: int) -> None:
     sampled, _, smp = sampled_min_distance(plan)
     assert sampled >= 3.0 * (1 - 1e-9)
     check_limits_and_holds(plan, smp)
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 80), r=st.floats(0.5, 6.0), seed=st.integers(0, 2**31 - 1))
+def test_dsatur_colouring_is_proper_against_all_pairs(n: int, r: float, seed: int) -> None:
+    from sim.plan._schedule import _greedy_colours
+
+    pts = np.random.default_rng(seed).uniform(-10, 10, (n, 3))
+    colour = _greedy_colours(pts, r)
+    i, j = np.triu_indices(n, 1)
+    close = np.linalg.norm(pts[i] - pts[j], axis=1) <= r
+    assert np.all(colour[i[close]] != colour[j[close]])  # brute force over every pair
+    degree = np.bincount(np.r_[i[close], j[close]], minlength=n)
+    assert colour.max(initial=0) <= degree.max(initial=0)  # at most max degree + 1 colours
+
+
+def test_dsatur_three_colours_a_hexagonal_lattice_and_two_a_square_one() -> None:
+    """The triangular lattice's chromatic number is 3 (plain greedy used 4); a square lattice without its
+    diagonals (exactly √2·Δ apart, allowed to share a layer) is bipartite."""
+    from sim.plan._schedule import _greedy_colours
+
+    delta = 3.0
+    jj, ii = np.meshgrid(np.arange(12), np.arange(12), indexing="ij")
+    hexa = np.c_[((ii + 0.5 * (jj % 2)) * delta).ravel(), (jj * delta * np.sqrt(3) / 2).ravel(), np.zeros(ii.size)]
+    assert _greedy_colours(hexa, np.sqrt(2) * delta * (1 - 1e-9)).max() + 1 == 3
+    sq = np.c_[ii.ravel() * delta, jj.ravel() * delta, np.zeros(ii.size)]
+    assert _greedy_colours(sq, np.sqrt(2) * delta * (1 - 1e-9)).max() + 1 == 2
+
+
+@pytest.mark.parametrize("bottom, floor", [(20.0, 2.5), (3.0, 2.5), (1.0, 2.5)])
+def test_spread_of_a_3d_set_is_a_similarity_about_the_centroid_above_the_floor(bottom: float, floor: float) -> None:
+    delta, k = 3.0, float(np.sqrt(2))
+    g = np.stack(np.meshgrid(*[np.arange(4)] * 3), -1).reshape(-1, 3) * delta
+    pts = g + np.array([0, 0, bottom])
+    out = spread(pts, k, delta, 1000.0, floor_m=floor)
+    assert out is not None
+    i, j = np.triu_indices(len(pts), 1)
+    np.testing.assert_allclose(np.linalg.norm(out[i] - out[j], axis=1),
+                               k * np.linalg.norm(pts[i] - pts[j], axis=1), rtol=1e-12)  # distances x k
+    assert out[:, 2].min() >= min(floor, bottom) - 1e-9  # never below the floor (or below where it was)
+    centre = pts[:, 2].mean()
+    if bottom - (k - 1) * (centre - bottom) >= floor:  # room below: the centroid stays, least vertical motion
+        assert out[:, 2].mean() == pytest.approx(centre)
+        assert np.abs(out[:, 2] - pts[:, 2]).max() == pytest.approx((k - 1) * (pts[:, 2].max() - centre))

@@ -10,10 +10,11 @@ client gets ``{"detail": "internal error", "request_id": ...}``, never its text.
 
 from __future__ import annotations
 
+import json
 import logging
 import secrets
 import sqlite3
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -23,6 +24,10 @@ from app.api.models import error_responses as error_responses  # documented next
 from app.jobs import ErrorKind, JobFinished, JobNotFound, JobsBusy, TaskError
 from app.store import RevisionConflict, ShowNotFound, StoreError
 from app.tasks import FailureKind, TaskFailure
+from formations import plain_path
+
+if TYPE_CHECKING:
+    from app.store import ShowRecord
 
 #: HTTP status of each job / task error kind (499: the client closed the request, nginx's code).
 STATUS_OF_KIND: dict[str, int] = {
@@ -90,6 +95,31 @@ def show_problems(errors: list[dict[str, Any]], *, prefix: tuple[str | int, ...]
         path = ".".join(p for p in (loc_path(prefix), err.get("path") or "") if p)
         out.append({"loc": ["body", *prefix, *err.get("loc", ())], "path": path, "msg": err["msg"]})
     return out
+
+
+def draft_problems(record: ShowRecord) -> list[dict[str, Any]] | None:
+    """A stored draft's problems, each with ``where`` (its path in plain words); None for a valid show."""
+    if record.problems is None:
+        return None
+    problems: list[dict[str, Any]] = json.loads(record.problems)
+    return [{**p, "where": p.get("where") or plain_path(p.get("path", ""))} for p in problems]
+
+
+def require_valid(record: ShowRecord, action: str) -> ShowRecord:
+    """The record if its show is valid; a draft is refused with 422 naming what is wrong in plain words.
+
+    Check, simulate, export and playback need a valid show: a draft is the user's unfinished work.
+    """
+    problems = draft_problems(record)
+    if problems is None:
+        return record
+    first = problems[0]
+    more = len(problems) - 1
+    message = (f"show {record.name!r} is a draft and cannot be {action}: {first['where']}: {first['msg']}"
+               + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")
+               + "; fix it and save it, then try again")
+    detail = [{**p, "loc": ["show", *p.get("loc", [])]} for p in problems]
+    raise ApiError(422, detail, draft=True, message=message)
 
 
 def _validation_problems(exc: RequestValidationError) -> list[dict[str, Any]]:

@@ -98,12 +98,17 @@ class ShowSummary(BaseModel):
     content_hash: str = Field(description="SHA-256 of the canonical show JSON (equal content, equal hash).")
     created_at: str = Field(examples=["2026-11-24T13:21:57.123456Z"])
     updated_at: str
+    draft: bool = Field(False, description="Saved half-finished (``?draft=true``): check, simulate, export and "
+                        "playback refuse it until it is saved valid.")
+    problems: list[Problem] = Field(default_factory=list, description="What is wrong with a draft; each "
+                                    "problem also says ``where`` in plain words (e.g. 'formation 2, point 6').")
 
 
 class ShowOut(ShowSummary):
-    """A stored show with its show file."""
+    """A stored show with its show file (for a draft: the document as saved, not validated)."""
 
-    show: ShowFile
+    show: ShowFile | dict[str, Any] = Field(description="The show file; for a draft (``draft: true``) the "
+                                            "JSON object as it was saved, which may break the show file's rules.")
 
 
 class ShowList(BaseModel):
@@ -125,6 +130,7 @@ class RevisionOut(BaseModel):
     formations: int
     created_at: str
     has_show: bool = Field(description="False once the text was pruned (only the newest revisions keep it).")
+    draft: bool = Field(False, description="This revision was saved as a draft (it has problems).")
 
 
 class RevisionList(BaseModel):

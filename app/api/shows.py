@@ -13,7 +13,7 @@ from fastapi.responses import JSONResponse
 
 from app import tasks
 from app.api import deps
-from app.api.errors import ApiError, job_body, show_problems
+from app.api.errors import ApiError, draft_problems, job_body, require_valid, show_problems
 from app.api.models import (
     CheckOut,
     JobOut,
@@ -30,6 +30,10 @@ from app.web import BodyTooLarge
 
 router = APIRouter(tags=["shows"])
 
+_DRAFT_QUERY = Query(False, description="Keep a show that breaks the rules as a draft (with its problems "
+                     "listed) instead of refusing it with 422. Check, simulate, export and playback refuse a "
+                     "draft until it is saved valid.")
+
 _UPLOAD_CONTENT = {
     "application/json": {"schema": {"$ref": "#/components/schemas/ShowFile"}},
     "multipart/form-data": {
@@ -45,7 +49,9 @@ _UPDATE_CONTENT = {"application/json": {"schema": {"$ref": "#/components/schemas
 
 
 def _summary(record: ShowRecord) -> dict[str, Any]:
-    return ShowSummary(**{k: getattr(record, k) for k in ShowSummary.model_fields}).model_dump()
+    fields = {k: getattr(record, k) for k in ShowSummary.model_fields if k not in ("draft", "problems")}
+    problems = draft_problems(record)
+    return ShowSummary(**fields, draft=problems is not None, problems=problems or []).model_dump()
 
 
 def _show_response(record: ShowRecord, *, status: int = 200, headers: dict[str, str] | None = None) -> Response:
@@ -68,17 +74,16 @@ INLINE_PARSE_BYTES = 256 * 1024
 
 
 async def _parse_show(request: Request, data: bytes | dict[str, Any], *, size: int,
-                      prefix: tuple[str | int, ...] = ()) -> ShowData:
-    """Validate a show file (``size`` bytes of JSON); 422 lists every problem with its path."""
-    from formations import ShowValidationError, parse_show
+                      prefix: tuple[str | int, ...] = (), draft: bool = False) -> ShowData:
+    """Validate a show file (``size`` bytes of JSON); 422 lists every problem with its path.
 
+    With ``draft``, a JSON object that breaks the rules comes back as a draft (its problems listed).
+    """
     try:
         if size > INLINE_PARSE_BYTES:
-            return ShowData(**await deps.run(request, tasks.validate_task, data))
+            return ShowData(**await deps.run(request, tasks.validate_task, data, draft))
         # Validation, canonical JSON and its hash all in the thread: none of it on the event loop.
-        return await asyncio.to_thread(lambda: ShowData.of(parse_show(data)))
-    except ShowValidationError as exc:
-        raise ApiError(422, show_problems(exc.errors, prefix=prefix)) from None
+        return await asyncio.to_thread(tasks.validate_show_data, data, draft=draft)
     except tasks.TaskFailure as exc:
         if exc.kind != tasks.FailureKind.INVALID:
             raise
@@ -116,16 +121,18 @@ async def _read_upload(request: Request, *, max_bytes: int) -> bytes:
     responses=error_responses(413, 422),
     openapi_extra={"requestBody": {"required": True, "content": _UPLOAD_CONTENT}},
 )
-async def create_show(request: Request) -> Response:
+async def create_show(request: Request, draft: bool = _DRAFT_QUERY) -> Response:
     """Store a new show at revision 1.
 
     The body is a show file: as JSON, as raw bytes, or as the ``file`` part of a
     multipart upload (import). The show is validated completely before anything
-    is stored; 422 lists every problem with its JSON path.
+    is stored; 422 lists every problem with its JSON path. With ``?draft=true`` a
+    show that breaks the rules is stored anyway as a draft (``draft: true`` and its
+    ``problems`` in the answer).
     """
     s = deps.settings(request)
     data = await _read_upload(request, max_bytes=s.max_show_bytes)
-    show = await _parse_show(request, data, size=len(data))
+    show = await _parse_show(request, data, size=len(data), draft=draft)
     record = await deps.write(request, deps.store(request).create, show)
     return _show_response(record, status=201, headers={"Location": f"/api/shows/{record.id}"})
 
@@ -158,7 +165,8 @@ async def list_revisions(
     """Every acknowledged change of the show, newest first: revision, name, content hash, time."""
     records, total = deps.store(request).revisions(show_id, limit=limit, offset=offset)
     items = [RevisionOut(revision=r.revision, name=r.name, content_hash=r.content_hash, drones=r.drones,
-                         formations=r.formations, created_at=r.created_at, has_show=r.has_json) for r in records]
+                         formations=r.formations, created_at=r.created_at, has_show=r.has_json,
+                         draft=r.draft) for r in records]
     return RevisionList(show_id=show_id, items=items, total=total, limit=limit, offset=offset)
 
 
@@ -222,12 +230,14 @@ def _revision_from(body_value: Any, if_match: str | None) -> int:
     responses=error_responses(404, 409, 413, 422),
     openapi_extra={"requestBody": {"required": True, "content": _UPDATE_CONTENT}},
 )
-async def update_show(request: Request, show_id: str) -> Response:
+async def update_show(request: Request, show_id: str, draft: bool = _DRAFT_QUERY) -> Response:
     """Replace the show if it is still at ``revision``; the answer carries the new revision.
 
     Body: ``{"revision": r, "show": {...}}``, or the bare show file with the revision
     in an ``If-Match: "r"`` header. A stale revision gets 409 with
     ``current_revision``; nothing is overwritten. Saving identical content keeps the revision.
+    With ``?draft=true`` a show that breaks the rules is saved as a draft; saving it valid
+    later (with or without the flag) makes it a show again.
     """
     raw = await request.body()
     if not raw.strip():
@@ -254,7 +264,7 @@ async def update_show(request: Request, show_id: str) -> Response:
     if current != revision:
         # Stale before any work: no validating megabytes only to refuse them (the write re-checks atomically).
         raise RevisionConflict(show_id, expected=revision, current=current)
-    show = await _parse_show(request, show_data, size=len(raw), prefix=prefix)
+    show = await _parse_show(request, show_data, size=len(raw), prefix=prefix, draft=draft)
     record = await deps.write(request, store.update, show_id, show, expected_revision=revision)
     return _show_response(record)
 
@@ -284,8 +294,9 @@ async def check_show(request: Request, show_id: str) -> JSONResponse:
 
     Runs in a worker process; an unchanged show is answered from the cache (``cached``).
     A transition forced shorter than the limits allow is reported as a violation, not an error.
+    A draft is refused with 422 (``draft: true``, a plain-words ``message`` and every problem).
     """
-    record = deps.store(request).get(show_id)
+    record = require_valid(deps.store(request).get(show_id), "checked")
     result, cached = await deps.jobs(request).run_cached(
         "check", record.content_hash, {}, tasks.check_task, record.json, gone=request.is_disconnected
     )
@@ -310,9 +321,10 @@ async def simulate_show(
     Follow it with ``GET /api/jobs/{id}`` or the server-sent events of
     ``GET /api/jobs/{id}/events``; cancel it with ``DELETE /api/jobs/{id}``. An
     unchanged show simulated before with the same options gives a job that is
-    already done (``cached``); the same simulation already running is shared.
+    already done (``cached``); the same simulation already running is shared. A draft
+    is refused with 422 saying what is wrong.
     """
-    record = deps.store(request).get(show_id)
+    record = require_valid(deps.store(request).get(show_id), "simulated")
     assert record.json is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
     opts = (options or SimulateOptions()).model_dump()
     manager = deps.jobs(request)
@@ -382,11 +394,16 @@ async def export_show(
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
-    ``qgc-wpl``, ``waypoints-csv``, ``viser-html``). Warnings go in ``X-Swarmshow-Warnings`` (JSON list)."""
+    ``qgc-wpl``, ``waypoints-csv``, ``viser-html``). Warnings go in ``X-Swarmshow-Warnings`` (JSON list).
+    A draft downloads only as ``show``; every other format refuses it with 422 saying what is wrong."""
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
     record = deps.store(request).get(show_id)
+    if fmt != "show":
+        # The show file itself downloads as it is (a draft too: it is the user's work); every other
+        # format needs a plan.
+        require_valid(record, "exported")
     if fmt == "show":
         show_text = record.json
         assert show_text is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)

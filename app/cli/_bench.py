@@ -134,16 +134,22 @@ def _format_plan(r: dict) -> str:
     if r["kind"] == "plan-dense":
         lines = [
             "bench plan --dense: 6 formations drawn at exactly min_distance_m (disc, star, ball, text, image, wall)",
+            "  (times: wall clock, CPU in brackets; kdtree x: the reference k-d-tree check's CPU over ours, same plan)",
             f"  {'drones':>6} {'violations':>10} {'unresolved':>10} {'show s':>8} {'bound s':>8} {'ratio':>6} "
-            f"{'plan s':>7} {'check s':>7} {'peak MB':>8} {'sampled min m':>13}",
+            f"{'plan s':>14} {'check s':>14} {'kdtree x':>8} {'peak MB':>8} {'sampled min m':>13}",
         ]
         for f in r["shows"]:
+            kd = f"{f['kdtree_over_sweep_cpu']:>8.2f}" if "kdtree_over_sweep_cpu" in f else f"{'-':>8}"
             lines.append(
                 f"  {f['drones']:>6} {f['violations']:>10} {f['unresolved']:>10} {f['show_duration_s']:>8.1f} "
-                f"{f['lower_bound_s']:>8.1f} {f['ratio_to_bound']:>6.3f} {f['plan_s']:>7.2f} {f['check_s']:>7.2f} "
-                f"{f['peak_traced_memory_mb']:>8.0f} "
+                f"{f['lower_bound_s']:>8.1f} {f['ratio_to_bound']:>6.3f} "
+                f"{f['plan_s']:>6.2f} ({f['plan_cpu_s']:>5.2f}) {f['check_s']:>6.2f} ({f['check_cpu_s']:>5.2f}) "
+                f"{kd} {f['peak_rss_mb']:>8.0f} "
                 + (f"{f['sampled_min_distance_m']:>13.6f}" if "sampled_min_distance_m" in f else f"{'-':>13}")
             )
+        for f in r["shows"]:
+            lines.append(f"  {f['drones']} drones, per transition (planned / lower bound, s): " + ", ".join(
+                f"{t['to']} {t['duration_s']:.1f}/{t['bound_s']:.1f} {t['resolution']}" for t in f["transitions"]))
         return "\n".join(lines)
     lines = [
         f"bench plan: one ground-grid -> sphere CAPT transition, {r['drones']} drones",

@@ -98,9 +98,10 @@ class _Loader:
         return record, plan, cached
 
     def catalog(self) -> dict[str, str]:
-        """``{show id: label}`` of the stored shows (the selector's list)."""
+        """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
+        they are left out."""
         records, _ = self.app.state.store.list(limit=200)
-        return {r.id: _label(r) for r in records}
+        return {r.id: _label(r) for r in records if not r.draft}
 
 
 def playback_router() -> APIRouter:
@@ -120,11 +121,12 @@ def playback_router() -> APIRouter:
     ) -> PlaybackOut:
         """Plan the stored show (and for ``simulated`` fly it) off the event loop and load it into the
         3D viewer at ``/viser/``; every connected browser sees it. Progress shows in the viewer."""
-        from app.api.errors import ApiError
+        from app.api.errors import ApiError, require_valid
 
         loader: _Loader | None = getattr(request.app.state, "viewer_loader", None)
         if loader is None:
             raise ApiError(503, "the 3D viewer is not running")
+        require_valid(request.app.state.store.get(show_id), "shown in the 3D viewer")  # a draft: 422
         source: Source = (body or PlaybackRequest()).source
         # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).
         record, plan, cached = await asyncio.to_thread(loader.load, show_id, source)

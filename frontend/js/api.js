@@ -138,7 +138,9 @@ export async function request(method, url, opts = {}, retried = false) {
       parsed = null;
     }
     const problems = problemsOf(parsed);
-    throw new ApiError(res.status, messageFor(res.status, problems, res.statusText), problems, parsed);
+    // A refused draft says in plain words what is wrong with it (its `message`); else the first problem.
+    const message = parsed && typeof parsed.message === "string" && parsed.draft ? parsed.message : messageFor(res.status, problems, res.statusText);
+    throw new ApiError(res.status, message, problems, parsed);
   }
   if (opts.raw) return res;
   if (res.status === 204) return null;
@@ -150,7 +152,7 @@ export async function request(method, url, opts = {}, retried = false) {
  * A stored show as the editor uses it: id, name, revision and the show document.
  * Accepts the record shapes `{id, revision, show}` and `{id, revision, ...showFields}`.
  * @param {any} r
- * @returns {{id: string, name: string, revision: number, show: any, updated_at?: string}}
+ * @returns {{id: string, name: string, revision: number, show: any, updated_at?: string, draft: boolean, problems: any[]}}
  */
 export function normalizeRecord(r) {
   let show = r.show ?? r.data ?? r.document ?? null;
@@ -159,7 +161,8 @@ export function normalizeRecord(r) {
     const { id: _id, revision: _rev, created_at: _c, updated_at: _u, content_hash: _h, ...rest } = r;
     show = rest;
   }
-  return { id: r.id, name: r.name ?? show?.name ?? "", revision: r.revision, show, updated_at: r.updated_at };
+  const problems = Array.isArray(r.problems) ? r.problems : [];
+  return { id: r.id, name: r.name ?? show?.name ?? "", revision: r.revision, show, updated_at: r.updated_at, draft: !!r.draft, problems };
 }
 
 /** @returns {Promise<any[]>} stored show summaries (id, name, drones, formations, updated_at, revision). */
@@ -181,21 +184,28 @@ export async function getShow(id) {
   return normalizeRecord(await request("GET", `/api/shows/${encodeURIComponent(id)}`));
 }
 
-/** @param {any} show a swarmshow/1 document @returns {Promise<ReturnType<typeof normalizeRecord>>} */
-export async function createShow(show) {
-  const rec = normalizeRecord(await request("POST", "/api/shows", { json: show }));
+/**
+ * Store a new show (with `draft`, one that breaks the rules is kept as a draft instead of refused).
+ * @param {any} show a swarmshow/1 document
+ * @param {{draft?: boolean}} [opts]
+ * @returns {Promise<ReturnType<typeof normalizeRecord>>}
+ */
+export async function createShow(show, opts = {}) {
+  const rec = normalizeRecord(await request("POST", `/api/shows${opts.draft ? "?draft=true" : ""}`, { json: show }));
   return rec.show ? rec : { ...rec, show };
 }
 
 /**
- * Replace a show; `revision` is the one the edit is based on (a stale one gets 409).
+ * Replace a show; `revision` is the one the edit is based on (a stale one gets 409). With `draft`,
+ * a show that breaks the rules is stored as a draft (the answer lists its `problems`) instead of refused.
  * @param {string} id
  * @param {any} show
  * @param {number} revision
+ * @param {{draft?: boolean}} [opts]
  * @returns {Promise<ReturnType<typeof normalizeRecord>>}
  */
-export async function updateShow(id, show, revision) {
-  const res = await request("PUT", `/api/shows/${encodeURIComponent(id)}`, {
+export async function updateShow(id, show, revision, opts = {}) {
+  const res = await request("PUT", `/api/shows/${encodeURIComponent(id)}${opts.draft ? "?draft=true" : ""}`, {
     json: { revision, show },
     headers: { "If-Match": `"${revision}"` },
   });

@@ -82,7 +82,7 @@ export class HistoryPanel {
     for (const r of list.items) {
       const li = document.createElement("li");
       const head = document.createElement("span");
-      head.textContent = `r${r.revision} · ${new Date(r.created_at).toLocaleString()} · ${r.drones} drones, ${r.formations} formations${r.revision === st.meta.revision ? " (open)" : ""}`;
+      head.textContent = `r${r.revision} · ${new Date(r.created_at).toLocaleString()} · ${r.drones} drones, ${r.formations} formations${r.draft ? " · draft" : ""}${r.revision === st.meta.revision ? " (open)" : ""}`;
       li.append(head);
       if (r.has_show) {
         const diff = document.createElement("button");

@@ -5,7 +5,7 @@ import * as api from "./api.js";
 import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
-import { clearShowErrors, formationProblems, setError } from "./errors.js";
+import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
 import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
@@ -74,6 +74,11 @@ new HistoryPanel($("history-body"), state);
 
 function opened(rec) {
   clearShowErrors();
+  // A stored draft: mark what is wrong on the cards and fields, as a refused save would.
+  if (state.meta && state.meta.draft) {
+    showShowErrors(state.meta.problems || [], () => {});
+    timeline.render();
+  }
   history.replaceState(null, "", rec ? `?show=${encodeURIComponent(rec.id)}` : location.pathname);
   refreshChrome();
   requestAnimationFrame(() => view.fit());
@@ -81,6 +86,7 @@ function opened(rec) {
   else status("");
   if (preview.isOpen && rec) preview.load();
 }
+persist.addEventListener("draft", () => refreshChrome());
 persist.addEventListener("opened", (/** @type {any} */ e) => {
   history.replaceState(null, "", `?show=${encodeURIComponent(e.detail.id)}`);
   refreshChrome();
@@ -105,8 +111,44 @@ function refreshChrome() {
   undo.setAttribute("aria-label", u ? `Undo ${u.label}` : "Undo");
   redo.setAttribute("aria-label", r ? `Redo ${r.label}` : "Redo");
   $("empty-hint").hidden = has;
+  renderDraft();
   updateStatusbar();
 }
+
+/** The draft badge and the list of what is wrong with the stored draft (hidden for a valid show). */
+let draftShown = "";
+function renderDraft() {
+  const meta = state.show ? state.meta : null;
+  const draft = !!(meta && meta.draft);
+  $("draft-badge").hidden = !draft;
+  $("draft-panel").hidden = !draft;
+  const problems = draft ? meta.problems || [] : [];
+  const key = JSON.stringify(problems);
+  if (key === draftShown) return;
+  draftShown = key;
+  const list = $("draft-problems");
+  list.replaceChildren();
+  for (const p of problems) {
+    const li = document.createElement("li");
+    const b = document.createElement("button");
+    b.type = "button";
+    b.textContent = `${p.where || p.path || "the show"}: ${p.msg}`;
+    const m = /^formations\[(\d+)\]/.exec(p.path || "");
+    if (m) {
+      // Take the user to the formation the problem is in.
+      b.addEventListener("click", () => state.setCurrent(Number(m[1])));
+    } else {
+      b.addEventListener("click", () => { /** @type {HTMLDetailsElement} */ ($("settings-panel")).open = true; });
+    }
+    li.append(b);
+    list.append(li);
+  }
+}
+$("draft-badge").addEventListener("click", () => {
+  $("draft-panel").scrollIntoView({ block: "nearest" });
+  const first = /** @type {HTMLElement|null} */ ($("draft-problems").querySelector("button"));
+  if (first) first.focus();
+});
 
 let spacingQueued = false;
 function updateSpacing() {

@@ -116,15 +116,27 @@ export class Persistence extends EventTarget {
     const doc = structuredClone(st.show);
     this.ui.status("Saving…");
     try {
-      const rec = await api.updateShow(st.meta.id, doc, revision);
+      // Half-finished work is kept as a draft (with its problems) rather than refused: check,
+      // simulate and export then say what is wrong until it is saved valid.
+      const rec = await api.updateShow(st.meta.id, doc, revision, { draft: true });
       clearShowErrors();
       st.meta.revision = rec.revision;
+      st.meta.draft = rec.draft;
+      st.meta.problems = rec.problems;
       if (st.version === version) {
         st.markSaved(rec.revision);
         this.dropDraft(st.meta.id);
       }
-      this.ui.status(`Saved · revision ${rec.revision}`);
+      if (rec.draft) {
+        showShowErrors(rec.problems, () => {});
+        const n = rec.problems.length;
+        const first = rec.problems[0];
+        this.ui.status(`Saved as a draft · revision ${rec.revision} · ${n} problem${n > 1 ? "s" : ""}: ${first ? `${first.where || first.path}: ${first.msg}` : ""}`, true);
+      } else {
+        this.ui.status(`Saved · revision ${rec.revision}`);
+      }
       this.ui.rendered();
+      this.dispatchEvent(new CustomEvent("draft", { detail: rec }));
       return st.version === version;
     } catch (err) {
       if (err instanceof api.ApiError && err.status === 409) {
@@ -201,9 +213,10 @@ export class Persistence extends EventTarget {
     const doc = structuredClone(st.show);
     if (!/\(copy\)$/.test(doc.name)) doc.name = `${doc.name} (copy)`.slice(0, 200);
     try {
-      const rec = await api.createShow(doc);
+      // The copy keeps the work as it is: a draft if it is half-finished.
+      const rec = await api.createShow(doc, { draft: true });
       const oldId = st.meta.id;
-      st.load(rec.show, { id: rec.id, revision: rec.revision }, { keepCurrent: true });
+      st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
       this.dropDraft(oldId);
       this.dispatchEvent(new CustomEvent("opened", { detail: rec }));
       this.ui.status(`Saved as a new show "${rec.name}"`);
@@ -222,7 +235,7 @@ export class Persistence extends EventTarget {
     try {
       const rec = await api.getShow(st.meta.id);
       this.dropDraft(rec.id);
-      st.load(rec.show, { id: rec.id, revision: rec.revision }, { keepCurrent: true });
+      st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
       clearShowErrors();
       this.dispatchEvent(new CustomEvent("opened", { detail: rec }));
       this.ui.status(`Reloaded revision ${rec.revision}`);

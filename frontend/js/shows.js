@@ -111,6 +111,13 @@ export class ShowsDialog {
     open.setAttribute("aria-label", `Open show ${s.name}`);
     open.addEventListener("click", () => this.openShow(s.id));
     name.append(open);
+    if (s.draft) {
+      const tag = document.createElement("span");
+      tag.className = "draft-tag";
+      tag.textContent = "draft";
+      tag.title = `Saved half-finished: ${(s.problems || []).length} problem(s)`;
+      name.append(" ", tag);
+    }
     const cells = [s.drones, s.formations, s.updated_at ? new Date(s.updated_at).toLocaleString() : ""].map((v) => {
       const td = document.createElement("td");
       td.textContent = String(v ?? "");
@@ -170,7 +177,7 @@ export class ShowsDialog {
       setError("shows-list", `Cannot open: ${err.message}`);
       return;
     }
-    this.state.load(rec.show, { id: rec.id, revision: rec.revision });
+    this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
     const draft = this.persist.draftFor(id);
     if (draft) {
       const { choice } = await choose({
@@ -206,7 +213,7 @@ export class ShowsDialog {
     if (!(await this._leaveCurrent())) return;
     try {
       const rec = await api.createShow(newShowDocument(p));
-      this.state.load(rec.show, { id: rec.id, revision: rec.revision });
+      this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
       localStorage.setItem("swarmshow.last", rec.id);
       this.dlg.close();
       this.onOpen(rec);
@@ -235,7 +242,7 @@ export class ShowsDialog {
       }
       const res = await api.request("POST", "/api/shows", { body: text, headers: { "Content-Type": "application/json" } });
       const rec = api.normalizeRecord(res);
-      this.state.load(rec.show, { id: rec.id, revision: rec.revision });
+      this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
       localStorage.setItem("swarmshow.last", rec.id);
       this.dlg.close();
       this.onOpen(rec);

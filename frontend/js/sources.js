@@ -374,7 +374,12 @@ export class Sources {
         if (closePairs(fitToCount(f.points, f.colors, mid).points, d).pairs.length) hi = mid;
         else lo = mid;
       }
-      return `${n} points do not fit this drawing ${d} m apart (at most ${lo} do): scale it by ${Math.ceil((100 * n) / lo)}% first, or use fewer drones.`;
+      const pct = this._scaleToFit(f.points, f.colors, n, d, n / lo);
+      const u = plane[0];
+      const xs = f.points.map((q) => q[u]);
+      const width = (Math.max(...xs) - Math.min(...xs)) * (pct / 100);
+      const where = pct ? `scale it by ${pct}% (to about ${width.toFixed(1)} m wide, "Scale" in Transform) first` : "draw it larger first";
+      return `${n} points do not fit this drawing ${d} m apart (at most ${lo} do): ${where}, or use fewer drones.`;
     }
     st.edit(`Fit "${f.name}" to ${n} drones`, () => {
       const g = st.show.formations[k];
@@ -384,6 +389,42 @@ export class Sources {
       if (k === st.current) st.selection = new Set();
     });
     return "";
+  }
+
+  /**
+   * The smallest whole percentage that makes a drawing hold `n` points `d` apart when resampled
+   * (bisection on the scale: a longer stroke spaces the same count further apart), 0 if none up to
+   * 64 times the guess.
+   * @param {number[][]} points
+   * @param {string[]} colors
+   * @param {number} n
+   * @param {number} d
+   * @param {number} guess a scale factor to start from (n over the count that fits now)
+   * @returns {number}
+   */
+  _scaleToFit(points, colors, n, d, guess) {
+    const all = points.map((_, i) => i);
+    const fits = (/** @type {number} */ factor) => {
+      const scaled = points.map((q) => q.slice());
+      scaleAbout(scaled, all, factor);
+      return !closePairs(fitToCount(scaled, colors, n).points, d).pairs.length;
+    };
+    let lo = 1;
+    let hi = Math.max(guess, 1.01);
+    while (!fits(hi)) {
+      lo = hi;
+      hi *= 2;
+      if (hi > 64 * guess) return 0;
+    }
+    for (let it = 0; it < 30 && hi - lo > 1e-4; it++) {
+      const mid = (lo + hi) / 2;
+      if (fits(mid)) hi = mid;
+      else lo = mid;
+    }
+    // Whole percent, rounded up, and checked: what the user types into Scale must work.
+    let pct = Math.ceil(100 * hi);
+    while (!fits(pct / 100) && pct < 6400 * guess) pct++;
+    return pct;
   }
 
   /** Push apart points closer than the minimum distance. */

@@ -77,7 +77,7 @@ export class EditorState extends EventTarget {
     super();
     /** @type {any|null} the swarmshow/1 document being edited */
     this.show = null;
-    /** @type {{id: string, revision: number}|null} where it is stored */
+    /** @type {{id: string, revision: number, draft?: boolean, problems?: any[]}|null} where it is stored (a draft: with what is wrong) */
     this.meta = null;
     this.current = 0;
     /** @type {Set<number>} selected point indices of the current formation */
@@ -107,7 +107,7 @@ export class EditorState extends EventTarget {
   /**
    * Open a show (drops the undo history).
    * @param {any} show
-   * @param {{id: string, revision: number}} meta
+   * @param {{id: string, revision: number, draft?: boolean, problems?: any[]}} meta
    * @param {{keepCurrent?: boolean}} [opts] keep the formation index (reloading the same show)
    */
   load(show, meta, opts = {}) {

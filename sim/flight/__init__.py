@@ -21,6 +21,9 @@ from sim.flight._dask import connect_scheduler as connect_scheduler
 from sim.flight._dask import fly_show_dask as fly_show_dask
 from sim.flight._disturbance import Disturbance as Disturbance
 from sim.flight._disturbance import make_disturbance as make_disturbance
+from sim.flight._errors import ERROR_PRESETS as ERROR_PRESETS
+from sim.flight._errors import ErrorModel as ErrorModel
+from sim.flight._errors import error_preset as error_preset
 from sim.flight._fly import fly_show as fly_show
 from sim.flight._options import CONTROLLERS as CONTROLLERS
 from sim.flight._options import DISTURBANCES as DISTURBANCES
@@ -55,6 +58,8 @@ __all__ = [
     "CONTROLLERS",
     "DISTURBANCES",
     "ENGINES",
+    "ERROR_PRESETS",
+    "ErrorModel",
     "FLOWN_DISTANCE_TOLERANCE_M",
     "ControllerName",
     "DisturbanceName",
@@ -73,6 +78,7 @@ __all__ = [
     "SimResult",
     "TrackingReference",
     "connect_scheduler",
+    "error_preset",
     "fly_show",
     "fly_show_dask",
     "hover_state",

@@ -323,7 +323,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         label = f"{from_name!r} -> {to_name!r}"
         duration = forced(start, goals[goal_index], forced_s, where, label)
         return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
-                               ceiling_m=s.max_altitude_m, duration_s=duration, label=label,
+                               ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed)
 
     def commit(tp: TransitionPlan, from_name: str, to_name: str,

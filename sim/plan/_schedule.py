@@ -502,27 +502,64 @@ EXPANSIONS = (1.28, float(np.sqrt(2.0)))
 
 
 def _greedy_colours(points: np.ndarray, radius_m: float) -> np.ndarray:
-    """(n,) colours such that points closer than ``radius_m`` differ (greedy in lexicographic order)."""
+    """(n,) colours such that points closer than ``radius_m`` differ (DSatur, :func:`_dsatur`)."""
     from scipy.spatial import cKDTree
 
     n = len(points)
-    pairs = cKDTree(points).query_pairs(radius_m, output_type="ndarray")
+    pairs = cKDTree(points).query_pairs(radius_m, output_type="ndarray").astype(np.int64)
     src = np.concatenate([pairs[:, 0], pairs[:, 1]])
     dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
     o = np.argsort(src, kind="stable")
-    nbrs, starts = dst[o], np.searchsorted(src[o], np.arange(n + 1))
+    nbrs, starts = dst[o].astype(np.int64), np.searchsorted(src[o], np.arange(n + 1)).astype(np.int64)
+    return np.asarray(_dsatur(starts, nbrs, n), dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _dsatur(starts: _I, nbrs: _I, n: int) -> _I:  # pragma: no cover - numba
+    """Brélaz's DSatur colouring (Brélaz 1979, "New methods to color the vertices of a graph", CACM 22(4)):
+    colour next the uncoloured vertex with the most distinct neighbour colours (ties: most neighbours,
+    then lowest index), with the smallest colour its neighbours do not use. Fewer colours than plain
+    greedy on lattices (3 instead of 4 on the hexagonal ones), so the layers of :func:`spread` are
+    thinner and the spread legs shorter. O(n² + E·C)."""
     colour = np.full(n, -1, dtype=np.int64)
-    for i in np.lexsort(points.T[::-1]):
-        used = {int(c) for c in colour[nbrs[starts[i]:starts[i + 1]]] if c >= 0}
+    sat = np.zeros(n, dtype=np.int64)
+    deg = starts[1:] - starts[:-1]
+    used = np.zeros(n + 1, dtype=np.bool_)
+    for _ in range(n):
+        best = -1
+        for v in range(n):
+            if colour[v] < 0 and (best < 0 or sat[v] > sat[best] or (sat[v] == sat[best] and deg[v] > deg[best])):
+                best = v
+        for q in range(starts[best], starts[best + 1]):
+            c = colour[nbrs[q]]
+            if c >= 0:
+                used[c] = True
         c = 0
-        while c in used:
+        while used[c]:
             c += 1
-        colour[i] = c
+        colour[best] = c
+        for q in range(starts[best], starts[best + 1]):
+            cu = colour[nbrs[q]]
+            if cu >= 0:
+                used[cu] = False
+        # Saturation of the uncoloured neighbours: count distinct colours around each.
+        for q in range(starts[best], starts[best + 1]):
+            u = nbrs[q]
+            if colour[u] >= 0:
+                continue
+            seen = False
+            for r in range(starts[u], starts[u + 1]):
+                w = nbrs[r]
+                if w != best and colour[w] == c:
+                    seen = True
+                    break
+            if not seen:
+                sat[u] += 1
     return colour
 
 
 def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float,
-           similar: bool = False) -> np.ndarray | None:
+           similar: bool = False, floor_m: float = 0.0) -> np.ndarray | None:
     """The points moved apart so that every pair ends >= k·(its spacing) and no pair ever comes closer.
 
     Three ways, by the shape of the set (each moves all points along straight lines with one
@@ -531,13 +568,18 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
     * **flat and horizontal** (e.g. the lifted home grid): scaled by k about the centroid within
       its plane (a similarity of the set: every distance grows by the factor 1 + s(k - 1));
     * **flat and tilted/vertical** (text, walls, discs drawn in x-z): split into *layers*
-      offset along the plane's normal n: points closer than k·Δ get different colours (greedy),
+      offset along the plane's normal n: points closer than k·Δ get different colours (DSatur,
+      few colours so thin layers: 3 on hexagonal lattices, 2 on square ones),
       colour c moves by (c - (C-1)/2)·λΔ·n with λ = √(k² - 1). Offsets are along n and every
       in-plane offset d is ⟂ n, so |d + s·Δo·n|² = |d|² + s²Δo² grows, and pairs in different
-      layers end >= Δ·√(1 + λ²) = kΔ apart while same-colour pairs already were >= kΔ apart;
-    * **3-D** (or ``similar``): scaled by k about (centroid x, centroid y, anchor z), the anchor
-      keeping the set within [0, ceiling] (None if it cannot). Scaling both sets of a transition
-      by the same k keeps CAPT's assignment optimal when every goal is used (Σ|kx - kg|² = k²Σ|x - g|²
+      layers end >= Δ·√(1 + λ²) = kΔ apart while same-colour pairs already were >= kΔ apart (up to
+      a relative 1e-9, so that lattice diagonals at exactly kΔ may share a layer; the middle leg is
+      checked exactly in any case);
+    * **3-D** (or ``similar``): scaled by k about (centroid x, centroid y, anchor z), the anchor as
+      near the centroid's z as keeps the set within [min(floor, its lowest point), ceiling] (None if
+      it cannot). About the centroid every point moves least vertically, which matters since the
+      vertical speed limit is the tight one (2 m/s against 10 m/s by default). Scaling both sets
+      of a transition by the same k keeps CAPT's assignment optimal when every goal is used (Σ|kx - kg|² = k²Σ|x - g|²
       up to a translation, which shifts every complete assignment's cost equally).
     """
     c = points.mean(axis=0)
@@ -553,24 +595,25 @@ def spread(points: np.ndarray, k: float, min_distance_m: float, ceiling_m: float
         return np.asarray(points + (k - 1.0) * proj, dtype=np.float64)
     if flat and not similar:
         lam = float(np.sqrt(max(k * k - 1.0, 0.0)))
-        colour = _greedy_colours(points, k * min_distance_m * (1.0 + 1e-9))
+        colour = _greedy_colours(points, k * min_distance_m * (1.0 - 1e-9))
         offset = (colour - 0.5 * colour.max()) * lam * min_distance_m
         out = points + offset[:, None] * normal[None, :]
         if out[:, 2].min() < 0 or out[:, 2].max() > ceiling_m:
             return None
         return np.asarray(out, dtype=np.float64)
     lo_z, hi_z = float(points[:, 2].min()), float(points[:, 2].max())
-    # anchor a keeps lo' = a + k(lo - a) >= 0 and hi' = a + k(hi - a) <= ceiling.
+    # anchor a keeps lo' = a + k(lo - a) >= min(floor, lo) (never below 0) and hi' = a + k(hi - a) <= ceiling.
+    bottom = max(min(floor_m, lo_z), 0.0)
     a_min = (k * hi_z - ceiling_m) / (k - 1.0)
-    a_max = k * lo_z / (k - 1.0)
+    a_max = (k * lo_z - bottom) / (k - 1.0)
     if a_min > a_max + 1e-9:
         return None
-    anchor = np.array([c[0], c[1], min(max(lo_z, a_min), a_max)])
+    anchor = np.array([c[0], c[1], min(max(float(c[2]), a_min), a_max)])
     return np.asarray(anchor + k * (points - anchor), dtype=np.float64)
 
 
 def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray, lim: Limits, *,
-                    min_distance_m: float, ceiling_m: float, duration_s: float | None = None,
+                    min_distance_m: float, ceiling_m: float, floor_m: float = 0.0, duration_s: float | None = None,
                     label: str = "", allow_layers: bool = True, fixed_assignment: bool = False) -> TransitionPlan:
     """Fly starts A (N, 3) to ``goals_m[goal_index]`` safely, or report what is unsafe.
 
@@ -587,6 +630,7 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
         lim: limits and time law.
         min_distance_m: Δ, metres.
         ceiling_m: highest altitude the spread formations may use, metres.
+        floor_m: lowest altitude they may use (a formation already lower is not pushed lower), metres.
         duration_s: forced synchronised duration (None: the minimum). A forced duration is
             flown as one leg (the designer asked for that transition time).
         label: transition name for messages.
@@ -622,8 +666,8 @@ def plan_transition(a_m: np.ndarray, goals_m: np.ndarray, goal_index: np.ndarray
     if fixed_assignment:
         tries = [t for t in tries if not t[2]]
     for k, similar, reassign in tries:
-        sa = spread(a_m, k, min_distance_m, ceiling_m, similar=similar)
-        sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar)
+        sa = spread(a_m, k, min_distance_m, ceiling_m, similar=similar, floor_m=floor_m)
+        sg = spread(goals_m, k, min_distance_m, ceiling_m, similar=similar, floor_m=floor_m)
         if sa is None or sg is None:
             continue
         mid = assign(sa, sg).goal_index if reassign else goal_index

@@ -9,6 +9,7 @@ from sim.verify._check import FixHint as FixHint
 from sim.verify._check import TransitionCheck as TransitionCheck
 from sim.verify._check import check_plan as check_plan
 from sim.verify._check import check_show as check_show
+from sim.verify._check import downwash_violations as downwash_violations
 from sim.verify._check import piece_extrema as piece_extrema
 from sim.verify._check import speed_bounds as speed_bounds
 from sim.verify._check import window_close_pairs as window_close_pairs

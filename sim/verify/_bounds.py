@@ -14,6 +14,8 @@ vectorised over drones and pieces (no sampling: a dip between two samples cannot
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from formations import Settings
@@ -74,14 +76,19 @@ def piece_extremes(plan_motion: Trajectories, start_s: np.ndarray, end_s: np.nda
     """
     b, c = plan_motion.breaks_s, plan_motion.coeffs_m  # (N, P+1), (N, P, 3, D+1)
     n, p, _, d1 = c.shape
-    flat = c.reshape(-1, d1)
-    t0 = np.repeat(b[:, :-1, None], 3, axis=2).reshape(-1)
-    lo_u = (np.repeat(start_s[..., None], 3, axis=2).reshape(-1)) - t0
-    hi_u = (np.repeat(end_s[..., None], 3, axis=2).reshape(-1)) - t0
-    valid = lo_u <= hi_u
+    t0_all = np.repeat(b[:, :-1, None], 3, axis=2).reshape(-1)
+    lo_all = (np.repeat(start_s[..., None], 3, axis=2).reshape(-1)) - t0_all
+    hi_all = (np.repeat(end_s[..., None], 3, axis=2).reshape(-1)) - t0_all
+    valid = lo_all <= hi_all
+    shape = (n, p, 3)
+    low_all, high_all = np.full(n * p * 3, np.nan), np.full(n * p * 3, np.nan)
+    low_t, high_t = np.full(n * p * 3, np.nan), np.full(n * p * 3, np.nan)
+    rows_v = np.flatnonzero(valid)  # only the pieces asked for (root finding is the costly part)
+    flat = c.reshape(-1, d1)[rows_v]
+    t0, lo_u, hi_u = t0_all[rows_v], lo_all[rows_v], hi_all[rows_v]
     # Roots in the piece's normalised time s = u / L in [0, 1], so that the degree cut-off
     # compares coefficients on one scale whatever the piece's length.
-    length = np.repeat(np.diff(b, axis=1)[..., None], 3, axis=2).reshape(-1)
+    length = np.repeat(np.diff(b, axis=1)[..., None], 3, axis=2).reshape(-1)[rows_v]
     length = np.where(length > 0, length, 1.0)
     scaled = flat * length[:, None] ** np.arange(d1, dtype=np.float64)
     roots_u = _critical_points(scaled) * length[:, None]
@@ -92,10 +99,26 @@ def piece_extremes(plan_motion: Trajectories, start_s: np.ndarray, end_s: np.nda
         val = val * cand + flat[:, k:k + 1]
     rows = np.arange(len(flat))
     imin, imax = np.argmin(val, axis=1), np.argmax(val, axis=1)
-    shape = (n, p, 3)
-    low = np.where(valid, val[rows, imin], np.nan).reshape(shape)
-    high = np.where(valid, val[rows, imax], np.nan).reshape(shape)
-    return low, (cand[rows, imin] + t0).reshape(shape), high, (cand[rows, imax] + t0).reshape(shape)
+    low_all[rows_v], high_all[rows_v] = val[rows, imin], val[rows, imax]
+    low_t[rows_v], high_t[rows_v] = cand[rows, imin] + t0, cand[rows, imax] + t0
+    return low_all.reshape(shape), low_t.reshape(shape), high_all.reshape(shape), high_t.reshape(shape)
+
+
+def hull_bounds(plan_motion: Trajectories) -> tuple[np.ndarray, np.ndarray]:
+    """(N, P, 3) lower and upper bounds of x, y, z on every piece: the smallest and largest
+    Bernstein coefficient of each coordinate on the piece (convex-hull property; Farouki &
+    Rajan 1987). Cheap, used to skip root finding on pieces that cannot break a bound."""
+    b, c = plan_motion.breaks_s, plan_motion.coeffs_m
+    n, p, _, d1 = c.shape
+    deg = d1 - 1
+    w = np.array([[math.comb(k, m) / math.comb(deg, m) if m <= k else 0.0 for m in range(d1)] for k in range(d1)])
+    lo, hi = np.empty((n, p, 3)), np.empty((n, p, 3))
+    for a in range(0, n, 512):
+        length = np.diff(b[a:a + 512], axis=1)[..., None, None]  # (n', P, 1, 1)
+        scaled = c[a:a + 512] * length ** np.arange(d1)
+        bern = scaled @ w.T  # (n', P, 3, D+1)
+        lo[a:a + 512], hi[a:a + 512] = bern.min(axis=-1), bern.max(axis=-1)
+    return lo, hi
 
 
 def _window_s(plan: ShowPlan) -> tuple[float, float]:
@@ -159,13 +182,20 @@ def check_bounds(plan: ShowPlan, settings: Settings) -> list[Violation]:
     end = np.minimum(b[:, 1:], w1)
     out: list[Violation] = []
     floor = float(settings.min_altitude_m)
+    fence = settings.geofence
+    if not ((floor > 0 and w0 <= w1) or fence is not None):
+        return out
+    hull_lo, hull_hi = hull_bounds(motion)
     if floor > 0 and w0 <= w1:
-        low, low_t, _, _ = piece_extremes(motion, start, end)
+        # Pieces whose hull stays above the floor cannot break it: no root finding there.
+        skip = hull_lo[..., 2] > floor + _TOL_M
+        low, low_t, _, _ = piece_extremes(motion, start, np.where(skip, start - 1.0, end))
         out += _grouped(plan, "min_altitude", floor - low[..., 2], low[..., 2], low_t[..., 2], floor,
                         "fly below the minimum altitude")
-    fence = settings.geofence
     if fence is not None:
-        low, low_t, high, high_t = piece_extremes(motion, b[:, :-1], b[:, 1:])
+        inside = ((hull_lo[..., 0] > fence.x_min_m + _TOL_M) & (hull_hi[..., 0] < fence.x_max_m - _TOL_M)
+                  & (hull_lo[..., 1] > fence.y_min_m + _TOL_M) & (hull_hi[..., 1] < fence.y_max_m - _TOL_M))
+        low, low_t, high, high_t = piece_extremes(motion, b[:, :-1], np.where(inside, b[:, :-1] - 1.0, b[:, 1:]))
         sides = (
             (0, "x_min_m", fence.x_min_m, fence.x_min_m - low[..., 0], low[..., 0], low_t[..., 0]),
             (0, "x_max_m", fence.x_max_m, high[..., 0] - fence.x_max_m, high[..., 0], high_t[..., 0]),

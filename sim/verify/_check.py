@@ -51,8 +51,9 @@ from scipy.spatial import cKDTree
 from formations import ShowFile
 from sim.plan._plan import ShowPlan
 from sim.plan._trajectory import Trajectories
-from sim.verify import _poly
+from sim.verify import _poly, _sweep
 from sim.verify._bounds import check_bounds
+from sim.verify._downwash import DOWNWASH_SEGMENTS, scaled_motion
 from sim.verify._violation import Violation
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
@@ -191,12 +192,23 @@ class PieceExtrema(NamedTuple):
     z_min_t: np.ndarray
 
 
-def piece_extrema(motion: Trajectories) -> PieceExtrema:
-    """Exact per-piece peaks of horizontal / vertical speed, acceleration and altitude (max, min)."""
+def piece_extrema(motion: Trajectories, limits: tuple[float, float, float, float, float] | None = None
+                  ) -> PieceExtrema:
+    """Per-piece peaks of horizontal / vertical speed, acceleration and altitude (max, min).
+
+    Without ``limits`` every value is exact. With ``limits`` (max speed xy, max speed z,
+    max acceleration, max altitude, min altitude) a piece is refined only as far as needed
+    (:func:`sim.verify._poly.piece_extrema`): values past a limit and each drone's peaks are
+    exact, the others may be lower attained values (much less work on long shows).
+    """
     n, p = motion.drone_count, motion.piece_count
     v = np.empty((n, p, 5))
     t = np.empty((n, p, 5))
-    _poly.piece_extrema(motion.breaks_s, motion.coeffs_m, _poly.W, v, t)
+    if limits is None:
+        lim = np.full(5, np.nan)
+    else:
+        lim = np.array([limits[0] ** 2, limits[1] ** 2, limits[2] ** 2, limits[3], limits[4]], dtype=np.float64)
+    _poly.piece_extrema(motion.breaks_s, motion.coeffs_m, _poly.W, v, t, lim)
     root = np.sqrt(np.maximum(v[..., :3], 0.0))
     return PieceExtrema(root[..., 0], t[..., 0], root[..., 1], t[..., 1], root[..., 2], t[..., 2],
                         v[..., 3], t[..., 3], v[..., 4], t[..., 4])
@@ -238,7 +250,8 @@ def _slices(motion: Trajectories, bounds: np.ndarray, t0: float, t1: float, radi
 
 
 def window_close_pairs(
-    motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, *, bounds: np.ndarray | None = None
+    motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, *, bounds: np.ndarray | None = None,
+    method: str = "sweep",
 ) -> ClosePairs:
     """Every pair whose exact minimum distance during [t0_s, t1_s] is <= ``radius_m``, with where it occurs.
 
@@ -247,6 +260,8 @@ def window_close_pairs(
         t0_s, t1_s: the time window, seconds.
         radius_m: search radius, metres (> 0).
         bounds: :func:`speed_bounds` of ``motion`` (computed if not given).
+        method: ``"sweep"`` (swept balls on a numba grid, :mod:`sim.verify._sweep`) or
+            ``"kdtree"`` (a k-d tree per time slice, step 2 of the module docstring; the reference).
 
     Returns:
         The pairs (i < j), their exact minimum distance (m) and its time (s).
@@ -257,8 +272,30 @@ def window_close_pairs(
         return empty
     if bounds is None:
         bounds = speed_bounds(motion)
+    if method == "sweep":
+        sa, sb = _sweep.window_slices(motion.breaks_s, bounds, float(t0_s), float(t1_s), radius_m)
+        i, j, first, last = _sweep.slice_candidates(motion.breaks_s, motion.coeffs_m, bounds, sa, sb, radius_m)
+        lo, hi = sa[first], sb[last]
+    elif method == "kdtree":
+        i, j = _kdtree_candidates(motion, t0_s, t1_s, radius_m, bounds)
+        lo, hi = np.full(len(i), float(t0_s)), np.full(len(i), float(t1_s))
+    else:
+        raise ValueError(f"unknown candidate search {method!r}")
+    m = len(i)
+    if m == 0:
+        return empty
+    d2 = np.empty(m)
+    tm = np.empty(m)
+    _poly.pair_minima(i, j, lo, hi, np.full(m, radius_m**2), motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
+    keep = d2 <= radius_m**2
+    return ClosePairs(i[keep], j[keep], np.sqrt(np.maximum(d2[keep], 0.0)), tm[keep])
+
+
+def _kdtree_candidates(motion: Trajectories, t0_s: float, t1_s: float, radius_m: float, bounds: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs from a k-d tree at each slice centre (step 2 of the module docstring)."""
+    n = motion.drone_count
     centres, _, radii = _slices(motion, bounds, t0_s, t1_s, radius_m)
-    # Each candidate pair is then minimised exactly over the whole window.
     keys: list[np.ndarray] = []
     step = max(1, _EVAL_BUDGET // n)
     for a in range(0, len(centres), step):
@@ -271,16 +308,9 @@ def window_close_pairs(
         if len(keys) > 64:
             keys = [np.unique(np.concatenate(keys))]
     if not keys:
-        return empty
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     k = np.unique(np.concatenate(keys))
-    i, j = k // n, k % n
-    m = len(k)
-    d2 = np.empty(m)
-    tm = np.empty(m)
-    _poly.pair_minima(i, j, np.full(m, float(t0_s)), np.full(m, float(t1_s)), np.full(m, radius_m**2),
-                      motion.breaks_s, motion.coeffs_m, _poly.W, d2, tm)
-    keep = d2 <= radius_m**2
-    return ClosePairs(i[keep], j[keep], np.sqrt(np.maximum(d2[keep], 0.0)), tm[keep])
+    return k // n, k % n
 
 
 def _closest_pair_distance(points: np.ndarray) -> float:
@@ -347,12 +377,15 @@ def _limit_violations(
     return out, peaks
 
 
-def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None) -> CheckReport:
+def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None,
+               candidates: str = "sweep") -> CheckReport:
     """Verify a plan exactly against its show's limits.
 
     Args:
         plan: the planned show.
         progress: optional callback receiving the fraction done in [0, 1].
+        candidates: the pair candidate search of :func:`window_close_pairs` (``"sweep"`` or the
+            reference ``"kdtree"``; both exact, benchmarks compare them).
     """
     s = plan.settings
     limit_d = s.min_distance_m
@@ -360,9 +393,9 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
     P = plan.knot_positions_m
     violations: list[Violation] = []
 
-    ext = piece_extrema(motion)
-    bounds = speed_bounds(motion)
     ground = min(0.0, float(P[0][:, 2].min()))
+    ext = piece_extrema(motion, (s.max_speed_xy_mps, s.max_speed_z_mps, s.max_accel_mps2, s.max_altitude_m, ground))
+    bounds = speed_bounds(motion)
     limit_v, peaks = _limit_violations(plan, ext, ground)
     violations += limit_v
     if progress:
@@ -377,7 +410,7 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         upper = min(closest[-2], closest[-1])
         # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
         radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
-        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds)
+        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds, method=candidates)
         if len(pairs.dist_m):
             m = int(np.argmin(pairs.dist_m))
             seg_min[k] = (float(pairs.dist_m[m]), (int(pairs.i[m]), int(pairs.j[m])), float(pairs.time_s[m]))
@@ -420,6 +453,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
 
     # The altitude floor (outside takeoff and landing) and the geofence, exact per piece.
     violations.extend(check_bounds(plan, plan.settings))
+    # Downwash during takeoff and landing: the same exact pair search in ellipsoid units.
+    violations.extend(downwash_violations(plan, max_listed=1 << 62)[0])
     violations.sort(key=lambda v: (v.time_s, v.kind))
     groups = _by_transition(plan, violations, seg_min)
     min_d, pair, t_min = best
@@ -448,6 +483,44 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         violations=violations[:MAX_LISTED_VIOLATIONS],
         violations_total=len(violations),
     )
+
+
+def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[Violation], int]:
+    """Every pair inside each other's downwash ellipsoid during takeoff or landing, exact
+    (:mod:`sim.verify._downwash`).
+
+    Returns:
+        (violations: one per pair and segment, deepest first within a segment, at most
+        ``max_listed``; the total count). ``value`` is the scaled distance (< 1 inside),
+        ``limit`` 1.
+    """
+    r, c = plan.settings.downwash_axes_m
+    motion = scaled_motion(plan.motion, r, c)
+    segs = [s for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
+    if plan.drone_count < 2 or not segs:
+        return [], 0
+    bounds = speed_bounds(motion)
+    out: list[Violation] = []
+    total = 0
+    for seg in segs:
+        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, 1.0, bounds=bounds)
+        bad = np.flatnonzero(pairs.dist_m < 1.0 - _TOL)
+        total += len(bad)
+        bad = bad[np.argsort(pairs.dist_m[bad], kind="stable")]
+        for q in bad[: max(0, max_listed - len(out))]:
+            i, j, t = int(pairs.i[q]), int(pairs.j[q]), float(pairs.time_s[q])
+            p = plan.motion.evaluate([t], derivatives=0).positions_m[0]
+            upper, lower = (i, j) if p[i, 2] >= p[j, 2] else (j, i)
+            dz = float(p[upper, 2] - p[lower, 2])
+            dxy = float(np.hypot(*(p[upper, :2] - p[lower, :2])))
+            out.append(Violation(
+                kind="downwash", drones=[upper, lower], time_s=t, value=float(pairs.dist_m[q]), limit=1.0,
+                segment=seg.index,
+                message=f"drone {lower} is in drone {upper}'s downwash during {seg.kind} at t = {t:.2f} s: "
+                f"{dz:.2f} m below it and {dxy:.2f} m to the side (ellipsoid {r:g} m wide, {c:g} m high)",
+            ))
+    return out, total
+
 
 
 def _worst_first(v: Violation) -> tuple[int, float, float]:
@@ -526,6 +599,10 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
     if too_fast and formation >= 0:
         fixes.append(f"let the planner choose the duration of the transition into {dst!r} "
                      f"(remove formations[{formation}].transition_s)")
+    if "downwash" in kinds:
+        w = max((v for v in vs if v.kind == "downwash"), key=lambda v: -v.value)
+        fixes.append(f"space the home positions wider (drone {w.drones[1]} is in drone {w.drones[0]}'s downwash): "
+                     f"at least the downwash radius (settings.downwash_radius_m) apart")
     if "min_distance" in kinds and not unresolved:
         if kind == "hold":
             fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")

@@ -236,16 +236,25 @@ def pair_minima(
 
 @numba.njit(cache=True, parallel=True)
 def piece_extrema(
-    breaks: np.ndarray, coeffs: np.ndarray, w: np.ndarray, out_v: np.ndarray, out_t: np.ndarray
+    breaks: np.ndarray, coeffs: np.ndarray, w: np.ndarray, out_v: np.ndarray, out_t: np.ndarray,
+    limits: np.ndarray,
 ) -> None:  # pragma: no cover - numba
-    """Per piece (i, p), exact extrema and their times (s):
+    """Per piece (i, p), extrema and their times (s):
 
     0: max horizontal speed² (vx² + vy²), 1: max vertical speed² (vz²),
     2: max acceleration² (|a|²), 3: max altitude z, 4: min altitude z.
     ``out_v``, ``out_t``: (N, P, 5).
+
+    ``limits`` (5,) in the same units (speeds and acceleration squared; ±inf: none; NaN: refine every
+    piece exactly).
+    A piece is refined exactly whenever it could pass its limit or beat the drone's
+    peak over its earlier pieces; otherwise the branch and bound stops as soon as the
+    bound proves neither (the value is then an attained value below both). So every
+    value past its limit is exact, and so is every drone's (hence the show's) peak.
     """
     n, p_count = coeffs.shape[0], coeffs.shape[1]
     for i in numba.prange(n):
+        run = np.full(5, np.inf)  # best minimised value so far (sgn·extremum) of this drone
         stack = np.empty((_STACK, NB + 1))
         lo_s = np.empty(_STACK)
         hi_s = np.empty(_STACK)
@@ -292,11 +301,18 @@ def piece_extrema(
                         sgn = 1.0
                 for k in range(NB + 1):
                     f[k] *= sgn
+                # Minimising sgn·f: refine below the running best or the limit, whichever is larger.
+                lim = sgn * limits[q]
+                cut = np.inf  # NaN limit: no pruning, every piece exact
+                if run[q] < np.inf and not math.isnan(lim):
+                    cut = max(run[q], lim - 1e-6 * (1.0 + abs(lim)))
                 if length > 0.0:
                     to_bernstein(f, length, w, bern)
-                    v, x = bernstein_min(bern, np.inf, stack, lo_s, hi_s)
+                    v, x = bernstein_min(bern, cut, stack, lo_s, hi_s)
                 else:
                     v, x = f[0], 0.0
+                if v < run[q]:
+                    run[q] = v
                 out_v[i, p, q] = sgn * v
                 out_t[i, p, q] = breaks[i, p] + x * length
 
@@ -316,6 +332,8 @@ def speed_bounds(
         shifted = np.zeros((3, DP + 1))
         f = np.zeros(NB + 1)
         bern = np.empty(NB + 1)
+        tmp = np.empty(NB + 1)
+        level = np.empty((parts, NB + 1))
         for p in range(p_count):
             length = breaks[i, p + 1] - breaks[i, p]
             h = length / parts
@@ -324,17 +342,54 @@ def speed_bounds(
                     vel[ax, k] = 0.0
                 for k in range(1, DP + 1):
                     vel[ax, k - 1] = k * coeffs[i, p, ax, k]
+            still = True
+            for ax in range(3):
+                for k in range(DP):
+                    if vel[ax, k] != 0.0:
+                        still = False
+            if still:  # at rest: speed 0 on every part
+                for s in range(parts):
+                    out[i, p, s] = 0.0
+                continue
+            _square_sum(vel, f)
+            if h <= 0.0 or parts & (parts - 1) != 0:
+                for s in range(parts):
+                    for ax in range(3):
+                        taylor_shift(vel[ax], s * h, shifted[ax])
+                    _square_sum(shifted, f)
+                    if h > 0.0:
+                        to_bernstein(f, h, w, bern)
+                        top = bern[0]
+                        for k in range(1, NB + 1):
+                            top = max(top, bern[k])
+                    else:
+                        top = f[0]
+                    out[i, p, s] = math.sqrt(max(top, 0.0))
+                continue
+            # Bernstein coefficients on the whole piece, then de Casteljau halvings down to the
+            # parts (the same coefficients as converting on each part: subdivision is exact).
+            to_bernstein(f, length, w, bern)
+            level[0, :] = bern
+            width = 1
+            while width < parts:
+                for q in range(width - 1, -1, -1):
+                    for k in range(NB + 1):
+                        tmp[k] = level[q, k]
+                    left = level[2 * q]
+                    right = level[2 * q + 1]
+                    last = tmp[NB]
+                    left[0] = tmp[0]
+                    for r in range(1, NB + 1):
+                        for k in range(NB - r + 1):
+                            tmp[k] = 0.5 * (tmp[k] + tmp[k + 1])
+                        left[r] = tmp[0]
+                        right[NB - r] = tmp[NB - r]
+                    right[NB] = last
+                width *= 2
             for s in range(parts):
-                for ax in range(3):
-                    taylor_shift(vel[ax], s * h, shifted[ax])
-                _square_sum(shifted, f)
-                if h > 0.0:
-                    to_bernstein(f, h, w, bern)
-                    top = bern[0]
-                    for k in range(1, NB + 1):
-                        top = max(top, bern[k])
-                else:
-                    top = f[0]
+                top = level[s, 0]
+                for k in range(1, NB + 1):
+                    top = max(top, level[s, k])
                 out[i, p, s] = math.sqrt(max(top, 0.0))
 
 
