@@ -412,6 +412,16 @@ def _parse_origin(origin: str) -> tuple[float, ...]:
     return values if len(values) == 3 else (*values, 0.0)
 
 
+def _parse_offset(offset: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in offset.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ApiError(422, [{"loc": ["query", "offset"], "path": "offset", "msg": "must be 'x,y,z' in metres"}])
+    return values
+
+
 @router.get(
     "/shows/{show_id}/export/{fmt}",
     summary="Export a show",
@@ -431,6 +441,8 @@ async def export_show(
     origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
     heading_deg: float = Query(0.0, ge=-360, le=360, description="Direction of the show's +y axis, degrees."),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
+    scale: float = Query(1.0, gt=0, le=10, description="Scale factor for positions (crazyswarm, indoor shows)."),
+    offset: str | None = Query(None, description="'x,y,z' metres added after scaling (crazyswarm)."),
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
@@ -465,6 +477,10 @@ async def export_show(
         audio = await asyncio.to_thread(_audio_track, request, show_id)
         if audio is not None:
             options["audio"] = audio  # issue 18: the show's music goes into the file
+    if scale != 1.0:
+        options["scale"] = scale
+    if offset is not None:
+        options["offset_m"] = _parse_offset(offset)
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

@@ -40,6 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="planned trajectory (default) or the simulated flight (sampled formats)")
     p.add_argument("--audio", default=None, metavar="FILE",
                    help="the show's music (WAV, MP3, OGG or FLAC): embedded by skyc (media.audio) and viser-html")
+    p.add_argument("--scale", type=float, default=1.0, metavar="FACTOR",
+                   help="scale positions by FACTOR (crazyswarm: an outdoor show indoors, e.g. 0.02; default 1)")
+    p.add_argument("--offset", default=None, metavar="X,Y,Z",
+                   help="add X,Y,Z metres after scaling (crazyswarm: the show origin in the mocap frame)")
     p.set_defaults(func=_export)
 
 
@@ -75,6 +79,16 @@ def parse_origin(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+def parse_offset(text: str) -> tuple[float, float, float]:
+    """``"X,Y,Z"`` -> floats; a malformed value is a :class:`CliError`."""
+    parts = text.split(",")
+    try:
+        x, y, z = (float(v) for v in parts)
+    except ValueError as exc:
+        raise CliError(f"--offset must be three numbers X,Y,Z (metres), got {text!r}") from exc
+    return x, y, z
+
+
 def _export(args: argparse.Namespace) -> int:
     from app.exports import EXPORT_FORMATS, ExportError, export_show
 
@@ -95,6 +109,8 @@ def _export(args: argparse.Namespace) -> int:
                 source=args.source,
                 progress=update,
                 audio=audio,
+                scale=args.scale,
+                offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
             )
     except ExportError as exc:
         msg = str(exc)

@@ -35,6 +35,25 @@ def frame_count(duration_s: float, fps: float) -> int:
     return int(np.floor(duration_s * fps + 1e-9)) + 2
 
 
+def default_fps(ctx: ExportContext, default: float, *, extra_rows: int = 0) -> float:
+    """``default`` frames per second, or for a show too large for it the highest whole rate within
+    :data:`MAX_SAMPLES` (at least 1), with a warning giving what the lower rate costs."""
+    duration = ctx.plan.duration_s
+    drones = max(ctx.show.drones, 1)
+    if (frame_count(duration, default) + extra_rows) * drones <= MAX_SAMPLES:
+        return default
+    fps = float(max(1, int((MAX_SAMPLES / drones - 2 - extra_rows) / max(duration, 1e-9))))
+    dt = 1.0 / fps
+    chord_mm = ctx.show.settings.max_accel_mps2 * dt * dt / 8.0 * 1000.0
+    ctx.warn(
+        f"{ctx.fmt}: {ctx.show.drones} drones x {duration:.0f} s at the default {default:g} fps exceed the "
+        f"{MAX_SAMPLES:,}-sample limit; wrote {fps:g} fps, so straight lines between rows stray up to "
+        f"~{chord_mm:.0f} mm from the plan and colour fades step every {dt * 1000:.0f} ms (use .skyc, or "
+        "crazyswarm, for exact trajectories)"
+    )
+    return fps
+
+
 def check_sample_count(ctx: ExportContext, n_times: int) -> None:
     """Refuse exports that would hold more than :data:`MAX_SAMPLES` samples."""
     total = n_times * ctx.show.drones
