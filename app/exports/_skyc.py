@@ -65,9 +65,9 @@ import numpy as np
 
 from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
-from app.exports._media import add_skyc_audio
-from app.exports._ledctrl import show_light_programs
 from app.exports._frames import skybrush_orientation_deg
+from app.exports._ledctrl import show_light_programs
+from app.exports._media import add_skyc_audio
 from sim.plan import horner
 
 #: Largest deviation of the Bézier curves from the plan, metres. The drone's budget is 7 mm
