@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 
+from sim.flight._errors import ERROR_PRESETS, error_preset
 from sim.flight._options import FlightOptions
 from sim.flight._result import FLOWN_DISTANCE_TOLERANCE_M, FlightResult
 from sim.flight._runner import fly_local
@@ -65,7 +66,7 @@ __all__ = [
 ]
 
 #: Error-model presets of issue 20 (the names of ``sim.flight.ERROR_PRESETS``).
-PRESETS: tuple[str, ...] = ("ideal", "calm-rtk", "gusty-rtk", "gps-only")
+PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
 #: Centre distance below which two drones count as colliding (m): a show drone is about 0.3-0.5 m
 #: across with its guards, so two centres 1 m apart leave a hand's width once both sway.
 DEFAULT_COLLISION_DISTANCE_M = 1.0
@@ -80,9 +81,8 @@ QUANTILES = (0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 def options_for_preset(name: str, base: FlightOptions | None = None) -> FlightOptions:
     """``base`` flying with the error-model preset ``name`` (one of :data:`PRESETS`).
 
-    The one place that maps a preset onto flight options. Until the per-drone error models
-    (``sim.flight.error_preset``) exist, the presets map onto the options that do: seeded
-    wind gusts and a model mismatch growing with the preset's severity.
+    The one place that maps a preset onto flight options: the preset's per-drone error models
+    (:func:`sim.flight.error_preset`), seeded per drone by ``base.seed``.
 
     Raises:
         ValueError: an unknown preset (names it and the known ones).
@@ -90,16 +90,9 @@ def options_for_preset(name: str, base: FlightOptions | None = None) -> FlightOp
     base = base or FlightOptions()
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r} (expected one of {', '.join(PRESETS)})")
-    # TODO(h20a merge): replace the mapping below by (tested on a merge of h20a at d905766)
-    #     return base.with_(errors=error_preset(name), disturbance="none", mismatch=0.0)
-    # with ``from sim.flight._errors import error_preset``; PRESETS may become tuple(ERROR_PRESETS).
-    mapping: dict[str, dict[str, Any]] = {
-        "ideal": {"disturbance": "none", "mismatch": 0.0},
-        "calm-rtk": {"disturbance": "wind", "mismatch": 0.02},
-        "gusty-rtk": {"disturbance": "wind", "mismatch": 0.05},
-        "gps-only": {"disturbance": "wind", "mismatch": 0.10},
-    }
-    return base.with_(**mapping[name])
+    # The per-drone, seeded error models (sim.flight._errors) carry everything a preset means; the
+    # fleet-wide gusts and mismatch are switched off so they do not count twice.
+    return base.with_(errors=error_preset(name), disturbance="none", mismatch=0.0)
 
 
 def binomial_interval(successes: int, trials: int, confidence: float) -> tuple[float, float]:
