@@ -10,7 +10,7 @@ import { EffectsPanel } from "./effects.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
 import { MusicLane } from "./music.js";
-import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
+import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
 import { Playhead } from "./playhead.js";
@@ -227,7 +227,11 @@ state.addEventListener("change", (/** @type {any} */ e) => {
 });
 
 view.onCursor = ([u, v]) => {
-  const names = view.view === "front" ? ["x", "z"] : ["x", "y"];
+  if (view.is3d) {
+    $("st-cursor").textContent = "3D view";
+    return;
+  }
+  const names = { front: ["x", "z"], top: ["x", "y"], side: ["y", "z"] }[view.view] || ["x", "z"];
   $("st-cursor").textContent = `${names[0]} ${u.toFixed(1)} m  ${names[1]} ${v.toFixed(1)} m`;
 };
 
@@ -250,15 +254,52 @@ setTool("select");
 
 const viewSelect = /** @type {HTMLSelectElement} */ ($("view-select"));
 viewSelect.addEventListener("change", () => {
-  view.setView(/** @type {"front"|"top"} */ (viewSelect.value));
-  // New points go at the formation's typical depth: its median y (front) or altitude (top).
+  view.setView(/** @type {"front"|"top"|"side"|"3d"} */ (viewSelect.value));
+  // New points go at the formation's typical depth: its median y (front), altitude (top) or x (side).
   const axis = view.axes[2];
   const values = (state.formation ? state.formation.points : []).map((p) => p[axis]).sort((a, b) => a - b);
   view.depth = values.length ? Math.round(values[Math.floor(values.length / 2)] * 10) / 10 : axis === 2 ? 40 : 0;
   const depth = /** @type {HTMLInputElement} */ ($("depth-input"));
   depth.value = String(view.depth);
-  depth.setAttribute("aria-label", `Depth of new points (${axis === 2 ? "altitude z" : "y"}), metres`);
-  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : "Depth y (m)";
+  const name = ["x", "y", "altitude z"][axis];
+  depth.setAttribute("aria-label", `Depth of new points (${name}), metres`);
+  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : `Depth ${name} (m)`;
+});
+$("move-axis").addEventListener("change", (e) => {
+  tools.moveAxis = /** @type {"free"|"x"|"y"|"z"} */ (/** @type {HTMLSelectElement} */ (e.target).value);
+});
+
+// Rotations in 3D: about x, y or z through the selection's (or formation's) centre, and the turn
+// about the vertical that faces the formation to the audience.
+$("btn-rotate-axis").addEventListener("click", () => {
+  setError("transform", "");
+  const deg = Number(/** @type {HTMLInputElement} */ ($("rotate-axis-deg")).value);
+  const axis = /** @type {0|1|2} */ (Number(/** @type {HTMLSelectElement} */ ($("rotate-axis")).value));
+  if (!state.formation) return;
+  if (!Number.isFinite(deg)) {
+    setError("transform", "The rotation must be a number of degrees.");
+    return;
+  }
+  const idx = targetIndices(state);
+  state.edit(`Rotate ${+deg.toFixed(3)}° about ${"xyz"[axis]}`, () => {
+    rotateAboutAxis(state.formation.points, idx, axis, deg);
+    for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+  });
+});
+$("btn-face-audience").addEventListener("click", () => {
+  setError("transform", "");
+  const f = state.formation;
+  if (!f || !f.points.length) return;
+  const idx = f.points.map((_, i) => i);
+  const deg = faceAudienceDegrees(f.points, idx, audiencePoint(state.show));
+  if (deg === 0) {
+    toast("The formation already faces the audience");
+    return;
+  }
+  state.edit("Face the audience", () => {
+    rotateAboutAxis(state.formation.points, idx, 2, deg);
+    state.formation.points = roundPoints(state.formation.points);
+  });
 });
 $("btn-fit-view").addEventListener("click", () => view.fit());
 $("depth-input").addEventListener("change", (e) => { view.depth = Number(/** @type {HTMLInputElement} */ (e.target).value) || 0; });
@@ -337,6 +378,10 @@ const shortcuts = installShortcuts({
   tool: setTool,
   toggleView: () => {
     viewSelect.value = view.view === "front" ? "top" : "front";
+    viewSelect.dispatchEvent(new Event("change"));
+  },
+  toggleView3d: () => {
+    viewSelect.value = view.view === "side" ? "3d" : "side";
     viewSelect.dispatchEvent(new Event("change"));
   },
   fit: () => view.fit(),
