@@ -152,6 +152,29 @@ def test_side_and_3d_views_select_move_rotate_and_face_the_audience(ui: Page):
     assert all(saved[j] == pts[j] for j in range(len(pts)) if j != 1)
     page.select_option("#move-axis", "free")
 
+    # ---- the camera: the Pan tool orbits (0.008 rad per pixel), Shift+drag moves the target
+    # along the screen's right vector, the wheel changes the distance; none of it edits the show.
+    cam = "window.swarmshow.view.camera"
+    undo_depth = ui.state("s.undoStack.length")
+    page.get_by_role("radio", name="Pan (H)").click()
+    yaw0, pitch0 = ui.state(f"[{cam}.yaw_rad, {cam}.pitch_rad]")
+    _drag(ui, 300, 200, 400, 150)
+    yaw1, pitch1 = ui.state(f"[{cam}.yaw_rad, {cam}.pitch_rad]")
+    assert abs(yaw1 - (yaw0 - 0.8)) < 1e-9 and abs(pitch1 - (pitch0 - 0.4)) < 1e-9
+    target0 = ui.state(f"{cam}.target")
+    right = ui.state(f"{cam}.frame().right")
+    per_px = ui.state(f"{cam}.distance_m / {cam}.frame().focal")
+    page.keyboard.down("Shift")
+    _drag(ui, 300, 200, 250, 200)
+    page.keyboard.up("Shift")
+    target1 = ui.state(f"{cam}.target")
+    assert _close(target1, [t + 50 * per_px * r for t, r in zip(target0, right, strict=True)], 1e-9)
+    dist0 = ui.state(f"{cam}.distance_m")
+    page.mouse.wheel(0, -200)
+    page.wait_for_function(f"() => {cam}.distance_m < {dist0}")
+    assert ui.state("s.undoStack.length") == undo_depth and not ui.state("s.dirty")
+    page.get_by_role("radio", name="Select and move (S)").click()
+
     # ---- rotate the whole formation by 90° about x (right-hand rule, about its centroid).
     before = ui.state("s.formation.points")
     _key(ui, "Escape")
