@@ -101,6 +101,12 @@ def test_side_and_3d_views_select_move_rotate_and_face_the_audience(ui: Page):
     assert _close(_saved_points(ui)[k], [GRID[k][0], 10.0, 45.0], 1e-3)
     _key(ui, "Control+z")
     assert ui.state("s.formation.points") == pts
+    # Along x, the side view's depth axis, a drag moves nothing and records no undo step.
+    page.select_option("#move-axis", "x")
+    depth = ui.state("s.undoStack.length")
+    _drag(ui, sx, sy, sx + 80, sy - 40)
+    assert ui.state("s.formation.points") == pts and ui.state("s.undoStack.length") == depth
+    page.select_option("#move-axis", "free")
 
     # ---- 3D view: the audience's camera (yaw 0, pitch 0) 100 m in front of the grid.
     page.select_option("#view-select", "3d")

@@ -159,9 +159,10 @@ export class Tools {
     if (c.hasPointerCapture(e.pointerId)) c.releasePointerCapture(e.pointerId);
     if (!g) return;
     if (g.kind === "move") {
-      if (g.moved) {
-        const f = this.state.formation;
-        for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+      const f = this.state.formation;
+      if (g.moved) for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+      // A drag along an axis pointing into the screen (or back to the start) changes nothing: no undo step.
+      if (g.moved && g.idx.some((i, k) => f.points[i].some((v, c) => v !== g.orig[k][c]))) {
         this.state.commit(g.idx.length === 1 ? "Move point" : `Move ${g.idx.length} points`);
       } else {
         this.state.discard();
