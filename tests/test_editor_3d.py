@@ -122,6 +122,14 @@ def test_side_and_3d_views_select_move_rotate_and_face_the_audience(ui: Page):
     assert abs(px - (width / 2 + 5 * focal / 100)) < 1e-6 and abs(py - (height / 2 - 5 * focal / 100)) < 1e-6
     assert abs(depth - 100) < 1e-9
 
+    # The geofence shows in 3D as a box up to the maximum altitude.
+    page.evaluate("""() => { const s = window.swarmshow.state;
+        s.edit("Fence", () => { s.show.settings.geofence = { x_min_m: -60, x_max_m: 60, y_min_m: -30, y_max_m: 40 }; });
+        window.swarmshow.view._draw(); }""")
+    limits = ui.state("window.swarmshow.view.drawnLimits")
+    assert limits == ["geofence x -60..60 m, y -30..40 m, up to 150 m"], limits
+    _key(ui, "Control+z")
+
     # Click selects; a box around the top row selects exactly its three points.
     _key(ui, "Escape")
     cx, cy, _ = _project(ui, GRID[0])

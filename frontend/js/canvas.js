@@ -341,7 +341,7 @@ export class CanvasView {
     else this._drawGrid();
     const show = this.state.show;
     if (!show) return;
-    if (this.is3d) this.drawnLimits = [];
+    if (this.is3d) this._drawLimits3d(show);
     else this._drawLimits(show);
     this._drawHome(show);
     const prev = show.formations[this.state.current - 1];
@@ -390,24 +390,7 @@ export class CanvasView {
     const n = 12;
     const cx = Math.round(cam.target[0] / step) * step;
     const cy = Math.round(cam.target[1] / step) * step;
-    /** A segment on the ground, clipped to in front of the camera. */
-    const seg = (p, q) => {
-      let a = cam.project(p, fr);
-      let b = cam.project(q, fr);
-      const near = 0.5;
-      if (a[2] < near && b[2] < near) return;
-      if (a[2] < near || b[2] < near) {
-        const t = (near - a[2]) / (b[2] - a[2]);
-        const m = p.map((v, k) => v + t * (q[k] - v));
-        const c = cam.project(m, fr);
-        if (a[2] < near) a = c;
-        else b = c;
-      }
-      ctx.beginPath();
-      ctx.moveTo(a[0], a[1]);
-      ctx.lineTo(b[0], b[1]);
-      ctx.stroke();
-    };
+    const seg = (p, q) => this._segment3d(p, q, fr);
     ctx.lineWidth = 1;
     ctx.strokeStyle = "#182036";
     for (let k = -n; k <= n; k++) {
@@ -429,6 +412,50 @@ export class CanvasView {
     ctx.font = "10px system-ui, sans-serif";
     ctx.fillStyle = "#8d99b5";
     ctx.fillText(`3D: drag with Pan (H) or middle button to orbit, Shift to pan · grid ${step} m`, 8, 14);
+  }
+
+  /** A world segment in the 3D view, clipped to in front of the camera (stroked as the context is set). */
+  _segment3d(p, q, fr) {
+    const { ctx, camera: cam } = this;
+    let a = cam.project(p, fr);
+    let b = cam.project(q, fr);
+    const near = 0.5;
+    if (a[2] < near && b[2] < near) return;
+    if (a[2] < near || b[2] < near) {
+      const t = (near - a[2]) / (b[2] - a[2]);
+      const c = cam.project(p.map((v, k) => v + t * (q[k] - v)), fr);
+      if (a[2] < near) a = c;
+      else b = c;
+    }
+    ctx.beginPath();
+    ctx.moveTo(a[0], a[1]);
+    ctx.lineTo(b[0], b[1]);
+    ctx.stroke();
+  }
+
+  /** The 3D view's limits: the geofence as a box from the ground to the maximum altitude. */
+  _drawLimits3d(show) {
+    /** @type {string[]} */
+    this.drawnLimits = [];
+    const g = show.settings.geofence;
+    if (!g) return;
+    const fr = this.camera.frame();
+    const { ctx } = this;
+    const top = show.settings.max_altitude_m;
+    const corners = [[g.x_min_m, g.y_min_m], [g.x_max_m, g.y_min_m], [g.x_max_m, g.y_max_m], [g.x_min_m, g.y_max_m]];
+    ctx.save();
+    ctx.setLineDash([8, 4]);
+    corners.forEach(([x, y], k) => {
+      const [x2, y2] = corners[(k + 1) % 4];
+      // The audience edge (y = y_min) in the fence's colour, the others fainter.
+      ctx.strokeStyle = k === 0 ? "#d0543c" : "rgba(208, 84, 60, 0.45)";
+      this._segment3d([x, y, 0], [x2, y2, 0], fr);
+      this._segment3d([x, y, top], [x2, y2, top], fr);
+      ctx.strokeStyle = "rgba(208, 84, 60, 0.3)";
+      this._segment3d([x, y, 0], [x, y, top], fr);
+    });
+    ctx.restore();
+    this.drawnLimits.push(`geofence x ${g.x_min_m}..${g.x_max_m} m, y ${g.y_min_m}..${g.y_max_m} m, up to ${top} m`);
   }
 
   _drawLimits(show) {
