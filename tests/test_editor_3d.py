@@ -140,6 +140,20 @@ def test_side_and_3d_views_select_move_rotate_and_face_the_audience(ui: Page):
     _drag(ui, ax, ay, bx, by)
     assert sorted(ui.state("[...s.selection]")) == [6, 7, 8]
 
+    # Arrow keys nudge along the world axes nearest the screen's right and up: from the audience's
+    # camera x and z; turned to look along -x (yaw -90°, from the east like the side view), right is +y.
+    page.evaluate("() => window.swarmshow.state.setSelection([4])")
+    _key(ui, "ArrowRight")
+    _key(ui, "ArrowUp")
+    assert ui.state("s.formation.points[4]") == [1, 0, 41]
+    page.evaluate("() => { window.swarmshow.view.camera.yaw_rad = -Math.PI / 2; }")
+    _key(ui, "ArrowRight")
+    assert ui.state("s.formation.points[4]") == [1, 1, 41]
+    for _ in range(3):
+        _key(ui, "Control+z")
+    assert ui.state("s.formation.points") == pts
+    page.evaluate("() => { window.swarmshow.view.camera.yaw_rad = 0; }")
+
     # Free move in the plane facing the camera: 60 px right and 30 px up at depth 100 m.
     _key(ui, "Escape")
     qx, qy, _ = _project(ui, GRID[2])

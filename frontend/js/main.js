@@ -355,13 +355,22 @@ function nudge(e) {
   const idx = [...state.selection];
   if (!idx.length) return;
   const step = e.shiftKey ? 5 : e.altKey ? 0.1 : 1;
-  const [a, b] = view.axes;
+  let [a, b] = view.axes;
+  let [sa, sb] = [1, 1];
+  if (view.is3d) {
+    // Along the world axes nearest the screen's right and up, signed so the arrows match the screen.
+    const { right, up } = view.camera.frame();
+    a = [0, 1, 2].reduce((m, k) => (Math.abs(right[k]) > Math.abs(right[m]) ? k : m), 0);
+    b = [0, 1, 2].filter((k) => k !== a).reduce((m, k) => (Math.abs(up[k]) > Math.abs(up[m]) ? k : m));
+    sa = Math.sign(right[a]) || 1;
+    sb = Math.sign(up[b]) || 1;
+  }
   const d = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, step], ArrowDown: [0, -step] }[e.key];
   state.edit(`Nudge ${idx.length} points`, () => {
     const pts = state.formation.points;
     for (const i of idx) {
-      pts[i][a] += d[0];
-      pts[i][b] += d[1];
+      pts[i][a] += sa * d[0];
+      pts[i][b] += sb * d[1];
       pts[i] = roundPoints([pts[i]])[0];
     }
   });
