@@ -497,7 +497,7 @@ export class CanvasView {
     this.drawnLimits.push(`min altitude ${floor} m`);
   }
 
-  /** The geofence: its x edges in the front view, the whole box (audience side shaded) from the top. */
+  /** The geofence: its x edges in the front view, its y edges in the side view, the whole box (audience side shaded) from the top. */
   _drawFence(show) {
     const g = show.settings.geofence;
     if (!g) return;
