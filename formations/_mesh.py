@@ -334,7 +334,13 @@ def load_mesh(data: bytes, file_type: str, *, up: str = "auto", color: str = "#f
     if not data:
         raise _err("is empty")
     default = parse_color(color)
-    _PRECHECK[file_type](data)
+    try:
+        _PRECHECK[file_type](data)
+    except FormationError:
+        raise
+    except (TypeError, ValueError, AttributeError, KeyError, IndexError, struct.error) as exc:
+        # JSON of the wrong shape ("buffers": "x", "count": "many", ...) is malformed input, not a bug.
+        raise _err(f"malformed {file_type} file ({type(exc).__name__}: {exc})") from None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

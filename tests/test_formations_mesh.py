@@ -325,6 +325,19 @@ def test_hostile_files(name, data, fmt, mode, exc, text):
     assert getattr(err.value, "field", None) == "file"
 
 
+@pytest.mark.parametrize("doc", [
+    {"buffers": "abc"}, {"buffers": [{"byteLength": "many"}]}, {"accessors": [{"count": None}]},
+    {"nodes": [{"mesh": "x"}]}, {"bufferViews": [{"buffer": 0, "byteLength": 4}]}, [1, 2],
+    {"meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}], "nodes": [{"mesh": 0}]},
+])
+@pytest.mark.parametrize("fmt", ["glb", "gltf"])
+def test_malformed_gltf_json_is_a_clear_error(doc, fmt):
+    data = _glb(doc) if fmt == "glb" else json.dumps(doc).encode()  # type: ignore[arg-type]
+    with pytest.raises(FormationError) as err:
+        mesh_points(data, 3, file_type=fmt, mode="vertices")
+    assert getattr(err.value, "field", None) == "file" and "\n" not in str(err.value)
+
+
 def test_too_many_faces_obj(monkeypatch):
     import formations._mesh as m
 
