@@ -58,6 +58,8 @@ CANDIDATES_PER_POINT = 24
 MAX_CANDIDATES = 120_000
 #: Most voxels of the volume grid (its bounding box), bounds memory of the fill.
 MAX_VOXELS = 4_000_000
+#: Most faces the voxelisation's subdivision may make (area / pitch^2).
+MAX_SUBDIVIDED_FACES = 4_000_000
 _TOL = 1e-6
 _MARGIN = 1e-7
 
@@ -569,6 +571,9 @@ def volume_candidates(mesh: Mesh, count: int) -> tuple[np.ndarray, np.ndarray]:
         raise _err("the mesh encloses no volume")
     pitch = (volume / count) ** (1.0 / 3.0)
     pitch = max(pitch, (float(np.prod(extent + 0.0)) / MAX_VOXELS) ** (1.0 / 3.0), float(extent.max()) / 400.0)
+    # Voxelisation subdivides the faces down to the pitch: bound the faces that makes (a crumpled
+    # mesh of large area in a small box would otherwise need hundreds of millions).
+    pitch = max(pitch, math.sqrt(float(tm.area) / MAX_SUBDIVIDED_FACES))
     try:
         shell = tm.voxelized(pitch)
         filled = shell.copy().fill()

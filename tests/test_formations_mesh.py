@@ -151,6 +151,20 @@ def test_vertex_colours(fmt, mode):
     assert err.max() <= 2.5
 
 
+def test_face_colours_ply():
+    # a 2 x 2 x 2 cube: the two faces across x red, across y green, across z blue
+    box = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    axis = np.argmax(np.abs(box.face_normals), axis=1)
+    box.visual.face_colors = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255]], np.uint8)[axis]
+    ps, _ = mesh_points(export(box, "ply"), 60, file_type="ply", mode="surface", size_m=20.0, center_m=CENTER,
+                        min_spacing_m=2.0, up="z")
+    local = to_file_units(ps.points_m, box, 20.0)
+    on = np.abs(np.abs(local) - 1.0) < 1e-6  # which face planes each point lies on
+    single = on.sum(axis=1) == 1  # not on an edge
+    want = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255]])[np.argmax(on, axis=1)]
+    assert single.sum() > 40 and np.array_equal(ps.colors_rgb[single], want[single])
+
+
 def _textured_plane() -> trimesh.Trimesh:
     """A 2 x 2 square in the x-y plane, UV (0, 0) at (-1, -1), with a 4-quadrant PNG texture:
     top-left red, top-right green, bottom-left blue, bottom-right white (top = image row 0 = +y)."""
