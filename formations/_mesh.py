@@ -35,7 +35,7 @@ from formations._points import (
     check_positive,
     parse_color,
 )
-from formations._spacing import ensure_spacing, farthest_point_order
+from formations._spacing import ensure_spacing, farthest_point_order, largest_fitting
 
 #: Mesh file formats (trimesh file types).
 MESH_FORMATS: tuple[str, ...] = ("obj", "ply", "stl", "glb", "gltf")
@@ -52,10 +52,17 @@ MAX_MESH_FACES = 1_000_000
 MAX_MESH_VERTICES = 1_000_000
 #: Most rows of a point file.
 MAX_POINT_ROWS = 500_000
-#: Surface / volume candidates per wanted point, and at most this many in all: farthest-point
-#: sampling costs N x candidates, so this bounds the CPU of a request.
-CANDIDATES_PER_POINT = 24
-MAX_CANDIDATES = 120_000
+#: Surface candidates: the same for every N, so the farthest-point order is the same for every N
+#: and the largest N that fits (a prefix) and the size that fits N are exactly what a request for
+#: them gets. Farthest-point sampling costs N x candidates (20,000 of 100,000: about a second of
+#: CPU), which bounds a request.
+SURFACE_CANDIDATES = 100_000
+#: Volume candidates: interior voxel centres, about this many per wanted point (a grid much finer
+#: than the spacing would let farthest-point picks hug the boundary; this one fills the inside),
+#: at most VOLUME_CANDIDATES. Since the grid depends on N, the largest N that fits is found by
+#: bisection over fresh requests (:func:`formations._spacing.largest_fitting`).
+VOLUME_CANDIDATES_PER_POINT = 24
+VOLUME_CANDIDATES = 100_000
 #: Most voxels of the volume grid (its bounding box), bounds memory of the fill.
 MAX_VOXELS = 4_000_000
 #: Most faces the voxelisation's subdivision may make (area / pitch^2).
@@ -735,10 +742,41 @@ def mesh_points(
     elif len(mesh.faces) == 0:
         raise _err(f"{mode} mode needs faces; the file holds only points (use mode 'vertices')", "mode")
     elif mode == "surface":
-        cand, cols = surface_candidates(unit_mesh, min(MAX_CANDIDATES, max(2000, CANDIDATES_PER_POINT * n)))
+        cand, cols = surface_candidates(unit_mesh, SURFACE_CANDIDATES)
         what = "the mesh surface"
     else:
-        cand, cols = volume_candidates(unit_mesh, min(MAX_CANDIDATES, max(2000, CANDIDATES_PER_POINT * n)))
-        what = "the mesh volume"
+        return _volume_points(unit_mesh, n, s=s, size=size, center=center, origin=_box_centre(verts))
     return pick_points(cand, cols, n, min_spacing_m=s, scale=None if size is None else size,
                        extent=1.0, center_m=center, origin=_box_centre(verts), what=what)
+
+
+def _volume_count(n: int) -> int:
+    return min(VOLUME_CANDIDATES, max(2000, VOLUME_CANDIDATES_PER_POINT * n))
+
+
+def _volume_points(
+    unit_mesh: Mesh, n: int, *, s: float, size: float | None, center: np.ndarray, origin: np.ndarray
+) -> tuple[PointSet, float]:
+    """Volume mode: ``n`` picks among the interior voxels of a grid sized for ``n``; when they do
+    not fit, ``max_n`` is the largest k whose own request fits (bisection, each k verified)."""
+    what = "the mesh volume"
+    cand, cols = volume_candidates(unit_mesh, _volume_count(n))
+    try:
+        return pick_points(cand, cols, n, min_spacing_m=s, scale=size, extent=1.0, center_m=center,
+                           origin=origin, what=what)
+    except MeshFitError as exc:
+        if size is None or exc.max_n is None:
+            raise
+
+        def fits(k: int) -> bool:
+            c, col = volume_candidates(unit_mesh, _volume_count(k))
+            try:
+                pick_points(c, col, k, min_spacing_m=s, scale=size, extent=1.0, center_m=center, origin=origin,
+                            what=what)
+            except MeshFitError:
+                return False
+            return True
+
+        max_n = largest_fitting(fits, n)
+        message = str(exc).replace(f"the largest N that fits is {exc.max_n}", f"the largest N that fits is {max_n}")
+        raise MeshFitError(message, max_n=max_n, fit_size_m=exc.fit_size_m) from None

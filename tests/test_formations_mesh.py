@@ -18,6 +18,8 @@ import struct
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image
 from scipy.spatial.distance import pdist
 
@@ -119,6 +121,33 @@ def test_size_to_fit_is_the_smallest_size(mode):
     k = err.value.max_n
     ps, _ = mesh_points(data, k, file_type="ply", mode=mode, size_m=size * 0.98, center_m=CENTER, min_spacing_m=s)
     assert len(ps) == k and brute_min_dist(ps.points_m) >= s
+
+
+_BALL_PLY = export(trimesh.creation.icosphere(subdivisions=2, radius=1.0), "ply")
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(2, 120), s=st.floats(0.5, 5.0), mode=st.sampled_from(["vertices", "surface", "volume"]),
+       size=st.one_of(st.none(), st.floats(2.0, 60.0)))
+def test_property_exact_n_or_what_fits(n, s, mode, size):
+    """Either exactly n points at >= s within the size, or max_n (which then fits at that size)
+    and fit_size_m (at which n then fits)."""
+    try:
+        ps, used = mesh_points(_BALL_PLY, n, file_type="ply", mode=mode, size_m=size, min_spacing_m=s)
+    except MeshFitError as exc:
+        assert size is not None or mode == "vertices"
+        assert exc.max_n is not None and exc.max_n < n
+        if exc.max_n >= 2 and size is not None:
+            ps, _ = mesh_points(_BALL_PLY, exc.max_n, file_type="ply", mode=mode, size_m=size, min_spacing_m=s)
+            assert brute_min_dist(ps.points_m) >= s
+        if exc.fit_size_m is not None:
+            ps, _ = mesh_points(_BALL_PLY, n, file_type="ply", mode=mode, size_m=exc.fit_size_m, min_spacing_m=s)
+            assert len(ps) == n and brute_min_dist(ps.points_m) >= s
+        return
+    assert len(ps) == n and brute_min_dist(ps.points_m) >= s
+    assert float(np.ptp(ps.points_m, axis=0).max()) <= used * (1 + 1e-9)
+    if size is not None:
+        assert used == pytest.approx(size)
 
 
 def test_more_points_than_vertices():
