@@ -128,7 +128,12 @@ def _check_counts(vertices: int, faces: int) -> None:
 
 
 def _precheck_stl(data: bytes) -> None:
-    if len(data) >= 84 and not data[:5].lower() == b"solid":
+    # Some exporters start binary headers with "solid" too: binary if the sizes agree or no
+    # ASCII "facet" follows.
+    binary = len(data) >= 84 and (data[:5].lower() != b"solid"
+                                  or 84 + 50 * struct.unpack_from("<I", data, 80)[0] == len(data)
+                                  or b"facet" not in data[:4096])
+    if binary:
         (count,) = struct.unpack_from("<I", data, 80)
         _check_counts(0, count)
         if 84 + 50 * count != len(data):

@@ -381,6 +381,15 @@ def test_malformed_gltf_json_is_a_clear_error(doc, fmt):
     assert getattr(err.value, "field", None) == "file" and "\n" not in str(err.value)
 
 
+def test_binary_stl_whose_header_starts_with_solid():
+    data = bytearray(export(trimesh.creation.box(), "stl"))
+    data[:5] = b"solid"
+    ps, _ = mesh_points(bytes(data), 8, file_type="stl", mode="vertices", size_m=10.0, min_spacing_m=1.0)
+    assert len(ps) == 8
+    with pytest.raises(FormationError, match="declares"):
+        mesh_points(bytes(data[:-10]) + b"x" * 3, 8, file_type="stl", mode="vertices", size_m=10.0)
+
+
 def test_too_many_faces_obj(monkeypatch):
     import formations._mesh as m
 
