@@ -56,7 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``formation`` command and its sources."""
     from formations.sources import SHAPE_KINDS
 
-    p = sub.add_parser("formation", help="generate formation points (shape, text, image, SVG, mesh or point file) or repair spacing")
+    p = sub.add_parser("formation", help="generate formation points (shape, text, image, SVG, mesh or point file) "
+                       "or repair spacing")
     fsub = p.add_subparsers(dest="source", metavar="SOURCE")
     fsub.required = True
 
