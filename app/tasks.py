@@ -500,7 +500,7 @@ def _fly_show() -> Any:
 
 
 def formation_task(source: str, params: dict[str, Any], data: bytes | None = None) -> dict[str, Any]:
-    """Build formation points from a shape, text, image or SVG.
+    """Build formation points from a shape, text, image, SVG or mesh / point file.
 
     Returns:
         ``PointSet.to_json()`` (points, colors, min_spacing_m) plus ``count``.
@@ -527,18 +527,27 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
         elif source == "svg":
             p = dict(params)
             points = sources.svg_points(data or b"", p.pop("n"), **p)
+        elif source == "mesh":
+            p = dict(params)
+            points, size_m = sources.mesh_points(data or b"", p.pop("n"), **p)
         else:
             raise TaskFailure(FailureKind.NOT_FOUND, f"unknown formation source {source!r}")
     except InputTooLargeError as exc:
         raise TaskFailure(FailureKind.TOO_LARGE, str(exc)) from None
     except FormationError as exc:
-        problem: dict[str, Any] = {"loc": ["body"], "path": "", "msg": str(exc)}
+        field = getattr(exc, "field", None)  # mesh sources name the form field at fault
+        problem: dict[str, Any] = {"loc": ["body", field] if field else ["body"], "path": field or "",
+                                   "msg": str(exc)}
         if getattr(exc, "max_n", None) is not None:
             problem["max_n"] = exc.max_n
+        if getattr(exc, "fit_size_m", None) is not None:
+            problem["fit_size_m"] = getattr(exc, "fit_size_m")  # noqa: B009 - set by MeshFitError only
         raise TaskFailure(FailureKind.INVALID, [problem]) from None
     _check_formation_result(source, points.points_m)
     out = points.to_json()
     out["count"] = len(out["points"])
+    if source == "mesh":
+        out["size_m"] = size_m
     return out
 
 

@@ -296,3 +296,5 @@ class FormationPoints(BaseModel):
     colors: list[str]
     min_spacing_m: float | None = Field(description="Nearest-pair distance, m (null for one point).")
     count: int
+    size_m: float | None = Field(None, description="Mesh / point-file sources: the size used (largest side "
+                                 "of the bounding box), m.")

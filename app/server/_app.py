@@ -122,6 +122,7 @@ def _body_limits(settings: AppSettings) -> tuple[list[BodyLimit], BodyLimit]:
         limit(r"/api/shows(/[^/]+)?/?", settings.max_show_bytes, "a show file"),
         limit(r"/api/formations/image/?", settings.max_image_bytes, "an image"),
         limit(r"/api/formations/svg/?", settings.max_svg_bytes, "an SVG file"),
+        limit(r"/api/formations/mesh/?", settings.max_mesh_bytes, "a mesh or point file"),
         limit(r"/api/shows/[^/]+/audio/?", settings.max_audio_bytes, "an audio file ('file')"),
     ]
     return limits, BodyLimit(re.compile(""), 1024 * 1024, "this request", 1024 * 1024)
