@@ -10,7 +10,8 @@ import { closePairs, repairSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 
-const PLANE_OF_VIEW = { front: "xz", top: "xy" };
+// The plane a new formation is built in: the one the designer is looking at (the 3D view builds in the front plane).
+const PLANE_OF_VIEW = { front: "xz", top: "xy", side: "yz" };
 
 /** The one kind-specific parameter offered for a shape preset. */
 const SHAPE_PARAM = {
