@@ -36,11 +36,12 @@ typecheck: $(STAMP)
 	@if command -v npx >/dev/null 2>&1; then npx --yes -p typescript@5 tsc --noEmit -p .; \
 	else echo "typecheck: npx not found, tsc skipped (install node and npm)"; fi
 
-## Debian's chromium for browser tests (playwright cannot download browsers here).
+## Debian's chromium for browser tests (playwright cannot download browsers here), and libsndfile for the
+## music (the soundfile wheels bundle it; a platform without a wheel needs Debian's).
 chromium:
 	@if [ ! -x /usr/bin/chromium ]; then \
-		if [ "$$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq chromium >/dev/null; \
-		else sudo apt-get update -qq && sudo apt-get install -y -qq chromium >/dev/null; fi; \
+		if [ "$$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq chromium libsndfile1 >/dev/null; \
+		else sudo apt-get update -qq && sudo apt-get install -y -qq chromium libsndfile1 >/dev/null; fi; \
 	fi
 
 lint: $(STAMP)

@@ -16,6 +16,10 @@ MAX_IMAGE_PIXELS = 40_000_000
 MAX_IMAGE_BYTES = 50 * 1024 * 1024
 #: Largest SVG upload, bytes (DESIGN: 5 MB).
 MAX_SVG_BYTES = 5 * 1024 * 1024
+#: Largest mesh or point-file upload, bytes (formations.sources.MAX_MESH_BYTES).
+MAX_MESH_BYTES = 50 * 1024 * 1024
+#: Largest audio upload, bytes (app.media.MAX_AUDIO_BYTES; a 20-minute MP3 is ~30 MB).
+MAX_AUDIO_BYTES = 64 * 1024 * 1024
 #: Largest body of any other request (JSON formation parameters, updates), bytes.
 MAX_OTHER_BYTES = MAX_SHOW_BYTES
 
@@ -67,6 +71,8 @@ class AppSettings(BaseSettings):
     max_show_bytes: int = Field(MAX_SHOW_BYTES, ge=1024, description="Largest show file upload, bytes.")
     max_image_bytes: int = Field(MAX_IMAGE_BYTES, ge=1024, description="Largest image upload, bytes.")
     max_svg_bytes: int = Field(MAX_SVG_BYTES, ge=1024, description="Largest SVG upload, bytes.")
+    max_mesh_bytes: int = Field(MAX_MESH_BYTES, ge=1024, description="Largest mesh or point-file upload, bytes.")
+    max_audio_bytes: int = Field(MAX_AUDIO_BYTES, ge=1024, description="Largest audio upload (a show's music), bytes.")
     token: SecretStr | None = Field(
         None,
         description="Bearer token every /api and /viser request must carry (required off loopback).",

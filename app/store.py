@@ -93,6 +93,21 @@ MIGRATIONS: tuple[str, ...] = (
     ALTER TABLE shows ADD COLUMN problems TEXT;
     ALTER TABLE revisions ADD COLUMN problems TEXT
     """,
+    # 6: a show's music (issue 18): the uploaded file's bytes (streamed with HTTP ranges through
+    #    SQLite's incremental blob I/O) and its analysis (waveform peaks, beats) as JSON. A new table:
+    #    nothing existing is rewritten.
+    """
+    CREATE TABLE audio (
+        show_id TEXT PRIMARY KEY,
+        filename TEXT NOT NULL,
+        media_type TEXT NOT NULL,
+        size INTEGER NOT NULL,
+        sha256 TEXT NOT NULL,
+        analysis TEXT NOT NULL,
+        data BLOB NOT NULL,
+        created_at TEXT NOT NULL
+    );
+    """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 
@@ -246,6 +261,19 @@ def _draft_problems(doc: dict[str, Any], problems: list[dict[str, Any]]) -> list
         out.append({"loc": [], "path": "", "msg": f"and {more} more problem{'s' if more > 1 else ''}",
                     "where": "the show"})
     return out or [{"loc": [], "path": "", "msg": "invalid show", "where": "the show"}]
+
+
+@dataclass(frozen=True)
+class AudioRecord:
+    """A show's stored music: file name, MIME type, size (bytes), SHA-256, when; ``analysis`` JSON when asked."""
+
+    show_id: str
+    filename: str
+    media_type: str
+    size: int
+    sha256: str
+    created_at: str
+    analysis: str | None = None
 
 
 def _now() -> str:
@@ -463,6 +491,7 @@ class ShowStore:
                 raise RevisionConflict(show_id, expected=expected_revision, current=int(row[0]))
             db.execute("DELETE FROM shows WHERE id = ?", (show_id,))
             db.execute("DELETE FROM revisions WHERE show_id = ?", (show_id,))
+            db.execute("DELETE FROM audio WHERE show_id = ?", (show_id,))
 
     def revisions(
         self, show_id: str, *, limit: int = 100, offset: int = 0
@@ -493,6 +522,50 @@ class ShowStore:
         if row is None:
             raise ShowNotFound(f"{show_id}@{revision}")
         return _revision_record(row, bool(row[8]), row[9])
+
+    # -- audio (issue 18) ---------------------------------------------------------------------
+
+    def put_audio(self, show_id: str, *, filename: str, media_type: str, data: bytes, analysis: str) -> AudioRecord:
+        """Store (or replace) a show's music. Raises :class:`ShowNotFound`."""
+        import hashlib
+
+        digest = hashlib.sha256(data).hexdigest()
+        now = _now()
+        with self._tx() as db:
+            if db.execute("SELECT 1 FROM shows WHERE id = ?", (show_id,)).fetchone() is None:
+                raise ShowNotFound(show_id)
+            db.execute(
+                "INSERT OR REPLACE INTO audio (show_id, filename, media_type, size, sha256, analysis, data, "
+                "created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (show_id, filename, media_type, len(data), digest, analysis, data, now),
+            )
+        return AudioRecord(show_id, filename, media_type, len(data), digest, now, analysis)
+
+    def get_audio(self, show_id: str, *, analysis: bool = False) -> AudioRecord | None:
+        """A show's music record (without its bytes), or None when it has none."""
+        cols = "show_id, filename, media_type, size, sha256, created_at" + (", analysis" if analysis else "")
+        with self._read() as db:
+            row = db.execute(f"SELECT {cols} FROM audio WHERE show_id = ?", (show_id,)).fetchone()
+        return None if row is None else AudioRecord(*row)
+
+    def read_audio(self, show_id: str, start: int = 0, length: int | None = None) -> bytes:
+        """``length`` bytes (all from ``start`` when None) of a show's music, read through SQLite's blob I/O
+        (a range request never loads the whole file). Raises :class:`ShowNotFound` when there is none."""
+        with self._read() as db:
+            row = db.execute("SELECT rowid, size FROM audio WHERE show_id = ?", (show_id,)).fetchone()
+            if row is None:
+                raise ShowNotFound(f"{show_id}/audio")
+            rowid, size = int(row[0]), int(row[1])
+            start = max(0, min(start, size))
+            n = size - start if length is None else max(0, min(length, size - start))
+            with db.blobopen("audio", "data", rowid, readonly=True) as blob:
+                blob.seek(start)
+                return blob.read(n)
+
+    def delete_audio(self, show_id: str) -> bool:
+        """Remove a show's music; True if there was any."""
+        with self._tx() as db:
+            return db.execute("DELETE FROM audio WHERE show_id = ?", (show_id,)).rowcount > 0
 
     # -- cached results ---------------------------------------------------------------------
 

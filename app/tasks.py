@@ -35,6 +35,9 @@ MAX_OUTPUT_SAMPLES = 20_000_000
 #: Most drone-seconds the 3D viewer flies inside one request (the numba engine does about 18,000 per
 #: second on an idle core at 1 kHz, so this stays well inside the interactive time budget).
 MAX_VIEWER_FLIGHT_DRONE_S = 300_000
+#: Most drone-seconds of flight one Monte-Carlo job may ask for (drones x show seconds x runs): a
+#: 1,000-drone 10-minute show 20 times is 1.2e7 (benchmarks/bench_montecarlo.py times it).
+MAX_MONTECARLO_DRONE_S = 30_000_000
 #: Seconds between two looks of :func:`budgeted` at the clock and the cancel flag.
 BUDGET_TICK_S = 0.05
 
@@ -287,6 +290,8 @@ def _plan_failure(exc: Exception) -> TaskFailure:
     problem: dict[str, Any] = {"loc": ["show", *_path_loc(path)], "path": path, "msg": str(exc)}
     if getattr(exc, "minimum_s", None) is not None:
         problem["minimum_s"] = exc.minimum_s  # type: ignore[attr-defined]
+    if getattr(exc, "earliest_s", None) is not None:
+        problem["earliest_s"] = exc.earliest_s  # type: ignore[attr-defined]  # an infeasible cue time (issue 18)
     return TaskFailure(FailureKind.INVALID, [problem])
 
 
@@ -385,6 +390,72 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     return {"plan": plan_summary(plan), "flight": result.summary()}
 
 
+def montecarlo_task(
+    show_text: str, options: dict[str, Any], job_id: str, queue: Any, cancel: Any
+) -> dict[str, Any]:
+    """Plan a show and fly it ``runs`` times (``sim.flight.monte_carlo``), reporting progress.
+
+    ``options``: the API's ``MonteCarloOptions`` fields, plus ``engine`` and ``scheduler`` as the
+    server resolved them (:func:`flight_options`).
+
+    Returns:
+        ``{"plan": plan summary, "montecarlo": MonteCarloResult JSON}`` (the safety report's input).
+
+    Raises:
+        TaskCancelled: the job was cancelled.
+        TaskFailure: the show cannot be planned, the work is over :data:`MAX_MONTECARLO_DRONE_S`
+            (naming ``runs``), or the simulation cluster is not available.
+    """
+    progress = Progress(job_id, queue, cancel)
+    progress.started()
+    from sim import PlanError, plan_show
+    from sim.flight import FlightOptions, monte_carlo, options_for_preset
+
+    show = _show(show_text)
+    try:
+        plan = plan_show(show, progress=progress.scaled(0.0, PLAN_SHARE))
+    except PlanError as exc:
+        raise _plan_failure(exc) from None
+    progress.check_cancelled(force=True)
+    runs = int(options["runs"])
+    check_output_samples(plan.drone_count, plan.duration_s, 25.0)
+    work = plan.drone_count * plan.duration_s * runs
+    if work > MAX_MONTECARLO_DRONE_S:
+        most = max(int(MAX_MONTECARLO_DRONE_S // max(plan.drone_count * plan.duration_s, 1e-9)), 0)
+        raise TaskFailure(FailureKind.TOO_LARGE, [{
+            "loc": ["body", "runs"], "path": "runs",
+            "msg": f"{plan.drone_count} drones x {plan.duration_s:g} s x {runs} runs = {work:.3g} drone-seconds "
+                   f"exceeds the limit of {MAX_MONTECARLO_DRONE_S:g}; use runs <= {most}"}])
+    base = FlightOptions(engine=options.get("engine", "numba"), controller=options.get("controller", "ismc"),
+                         scheduler=options.get("scheduler"))
+    try:
+        result = monte_carlo(
+            plan, options_for_preset(options["preset"], base), runs=runs, seed0=int(options.get("seed0", 0)),
+            confidence=float(options.get("confidence", 0.99)),
+            collision_distance_m=float(options.get("collision_distance_m", 1.0)), preset=options["preset"],
+            progress=progress.scaled(PLAN_SHARE, 1.0),
+        )
+    except TaskCancelled:
+        raise
+    except ConnectionError as exc:
+        progress.check_cancelled(force=True)
+        raise TaskFailure(FailureKind.UNAVAILABLE, f"simulation cluster unavailable: {exc}") from None
+    except Exception:
+        progress.check_cancelled(force=True)
+        raise
+    progress(1.0)
+    report = result.to_json()
+    report["show"] = show.name
+    return {"plan": plan_summary(plan), "montecarlo": report}
+
+
+def safety_report_task(report: dict[str, Any], fmt: str) -> bytes:
+    """Render a Monte-Carlo result as the safety report (``html`` or ``pdf``), in a worker."""
+    from app.exports import render_safety_report
+
+    return render_safety_report(report, fmt)
+
+
 def check_output_samples(drones: int, duration_s: float, output_hz: float) -> None:
     """Refuse a simulation whose recording would hold more than :data:`MAX_OUTPUT_SAMPLES` samples.
 
@@ -429,7 +500,7 @@ def _fly_show() -> Any:
 
 
 def formation_task(source: str, params: dict[str, Any], data: bytes | None = None) -> dict[str, Any]:
-    """Build formation points from a shape, text, image or SVG.
+    """Build formation points from a shape, text, image, SVG or mesh / point file.
 
     Returns:
         ``PointSet.to_json()`` (points, colors, min_spacing_m) plus ``count``.
@@ -456,18 +527,27 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
         elif source == "svg":
             p = dict(params)
             points = sources.svg_points(data or b"", p.pop("n"), **p)
+        elif source == "mesh":
+            p = dict(params)
+            points, size_m = sources.mesh_points(data or b"", p.pop("n"), **p)
         else:
             raise TaskFailure(FailureKind.NOT_FOUND, f"unknown formation source {source!r}")
     except InputTooLargeError as exc:
         raise TaskFailure(FailureKind.TOO_LARGE, str(exc)) from None
     except FormationError as exc:
-        problem: dict[str, Any] = {"loc": ["body"], "path": "", "msg": str(exc)}
+        field = getattr(exc, "field", None)  # mesh sources name the form field at fault
+        problem: dict[str, Any] = {"loc": ["body", field] if field else ["body"], "path": field or "",
+                                   "msg": str(exc)}
         if getattr(exc, "max_n", None) is not None:
             problem["max_n"] = exc.max_n
+        if getattr(exc, "fit_size_m", None) is not None:
+            problem["fit_size_m"] = getattr(exc, "fit_size_m")  # noqa: B009 - set by MeshFitError only
         raise TaskFailure(FailureKind.INVALID, [problem]) from None
     _check_formation_result(source, points.points_m)
     out = points.to_json()
     out["count"] = len(out["points"])
+    if source == "mesh":
+        out["size_m"] = size_m
     return out
 
 
@@ -549,10 +629,44 @@ def viewer_flight_task(show_text: str, options: dict[str, Any]) -> tuple[Any, An
     """
     plan = viewer_plan_task(show_text)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
+    _check_viewer_work(plan)
+    return plan, _fly_show()(plan, **options)
+
+
+def montecarlo_run_options(options: dict[str, Any], run: int) -> Any:
+    """The ``FlightOptions`` of run ``run`` of a Monte-Carlo job with ``options`` (its API options).
+
+    The run is flown by the local numba kernel: the same flight as on the job's engine (local or
+    Dask), seed ``seed0 + run``, the job's preset and controller.
+    """
+    from sim.flight import FlightOptions, options_for_preset
+
+    base = FlightOptions(controller=options.get("controller", "ismc"), seed=int(options.get("seed0", 0)) + int(run))
+    return options_for_preset(options["preset"], base)
+
+
+def viewer_montecarlo_run_task(show_text: str, options: dict[str, Any], run: int) -> tuple[Any, Any]:
+    """Plan a stored show and fly run ``run`` of a Monte-Carlo job (its ``options``) for the 3D viewer.
+
+    Returns:
+        ``(plan, flight)``: the flight's ``positions_m`` are that run's flown trajectories.
+
+    Raises:
+        TaskFailure: the show cannot be planned, or its flight is over the viewer's limits.
+    """
+    from sim.flight import fly_show
+
+    plan = viewer_plan_task(show_text)
+    check_output_samples(plan.drone_count, plan.duration_s, 25.0)
+    _check_viewer_work(plan)
+    return plan, fly_show(plan, montecarlo_run_options(options, run))
+
+
+def _check_viewer_work(plan: Any) -> None:
+    """Refuse a flight over :data:`MAX_VIEWER_FLIGHT_DRONE_S` (a request waits for it)."""
     work = plan.drone_count * plan.duration_s
     if work > MAX_VIEWER_FLIGHT_DRONE_S:
         raise TaskFailure(FailureKind.TOO_LARGE, (
             f"{plan.drone_count} drones x {plan.duration_s:g} s = {work:.3g} drone-seconds of flight exceeds the "
             f"3D viewer's limit of {MAX_VIEWER_FLIGHT_DRONE_S} (a request waits for it); fly it as a job with "
             "POST /api/shows/{id}/simulate"))
-    return plan, _fly_show()(plan, **options)

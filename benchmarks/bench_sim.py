@@ -75,3 +75,26 @@ def test_bench_fly_show_1000_drones(record_result) -> None:
     }
     record_result(fig)
     assert fig["diverged"] == 0 and np.isfinite(fig["flown_min_distance_m"])
+
+
+def test_bench_sim_error_models(record_result) -> None:
+    """numba drone-steps/s with the "gusty-rtk" error models on against ideal drones, same run (issue 20)."""
+    from sim.flight import TrackingReference, error_preset, simulate
+
+    n, seconds = 4000, 2.0
+    rng = np.random.default_rng(0)
+    centers = rng.uniform(-200.0, 200.0, (n, 3)) + [0.0, 0.0, 60.0]
+    ref = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.5)
+    figures: dict[str, float] = {}
+    for name in ("ideal", "gusty-rtk"):
+        errors = error_preset(name)
+        simulate(ref.subset(np.arange(8)), duration_s=0.01, engine="numba", errors=errors)  # compile
+        best = 0.0
+        for _ in range(3):
+            start = time.perf_counter()
+            res = simulate(ref, duration_s=seconds, engine="numba", output_every=40, errors=errors)
+            best = max(best, n * (int(round(seconds / 1e-3)) + 1) / (time.perf_counter() - start))
+            assert res.diverged() == []
+        figures[f"{name}_drone_steps_per_s"] = best
+    figures["errors_over_ideal"] = figures["gusty-rtk_drone_steps_per_s"] / figures["ideal_drone_steps_per_s"]
+    record_result(figures)

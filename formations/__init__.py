@@ -1,6 +1,7 @@
 """The show model and formation sources.
 
-The show file format (``swarmshow/1``) and its validation live in ``_show``;
+The show file format (``swarmshow/1``) and its validation live in ``_show``, its light
+effects (``lights``: groups and the effect stack) in ``_effects``;
 formation sources (shapes, strokes, text, image, SVG, transforms, spacing
 repair) are re-exported from :mod:`formations.sources`.
 """
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 from formations._demo import demo_show as demo_show
 from formations._demo import load_demo_show as load_demo_show
+from formations._effects import LightEffect as LightEffect
+from formations._effects import Lights as Lights
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
@@ -39,6 +42,8 @@ __all__ = [
     "HomeFromGrid",
     "HomeFromPoints",
     "HomeGrid",
+    "LightEffect",
+    "Lights",
     "Settings",
     "ShowFile",
     "ShowValidationError",

@@ -32,6 +32,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from formations._effects import KINDS, TARGETS, Lights, lights_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -61,6 +62,8 @@ MAX_CEILING_M = 10_000.0
 MAX_HORIZONTAL_EXTENT_M = 20_000.0
 #: Shortest hold or forced transition, seconds: a subnormal 1e-320 is "> 0" but no real duration.
 MIN_DURATION_S = 0.01
+#: Latest cue time a formation may be pinned to, seconds (a day).
+MAX_SHOW_TIME_S = 86_400.0
 #: Smallest limit values (speeds m/s, acceleration m/s^2, distances m): tinier ones turn a metre of
 #: travel into years of show (and as many samples in an export).
 MIN_LIMIT = 0.1
@@ -295,6 +298,17 @@ class Formation(_ArrayCachingModel):
     transition_s: float | None = Field(
         None, ge=MIN_DURATION_S, le=86_400, description="Duration of the transition into this formation, seconds."
     )
+    # Issue 18: cue times. A pinned formation is reached (or left) at an absolute show time, seconds
+    # from the start of takeoff; the planner stretches the transition into it (or the hold) to fit.
+    arrive_at_s: float | None = Field(
+        None, ge=0, le=MAX_SHOW_TIME_S,
+        description="Show time at which the drones reach this formation (the transition into it ends), seconds.",
+    )
+    leave_at_s: float | None = Field(
+        None, ge=0, le=MAX_SHOW_TIME_S,
+        description="Show time at which the drones leave this formation (its hold ends; hold_s is then unused), "
+        "seconds.",
+    )
 
     @field_validator("name")
     @classmethod
@@ -317,6 +331,20 @@ class Formation(_ArrayCachingModel):
                 "colors_length",
                 "'colors' has {n_colors} entries but 'points' has {n_points}",
                 {"n_colors": len(self.colors), "n_points": len(self.points)},
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _pins_ok(self) -> Formation:
+        if self.arrive_at_s is not None and self.transition_s is not None:
+            raise PydanticCustomError(
+                "pin_conflict", "give either 'transition_s' or 'arrive_at_s' (the arrival fixes the transition)"
+            )
+        if self.arrive_at_s is not None and self.leave_at_s is not None \
+                and self.leave_at_s - self.arrive_at_s < MIN_DURATION_S - 1e-9:
+            raise PydanticCustomError(
+                "pin_order", "leave_at_s {leave} s must be at least {gap} s after arrive_at_s {arrive} s",
+                {"leave": self.leave_at_s, "arrive": self.arrive_at_s, "gap": MIN_DURATION_S},
             )
         return self
 
@@ -391,6 +419,8 @@ class ShowFile(_ArrayCachingModel):
     ] = Field(description="Ground start positions: a grid or explicit points (metres).")
     settings: Settings = Field(default_factory=Settings)
     formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
+    # Issue 18: light effects over the base colours (None, left out of the file, keeps older shows' hashes).
+    lights: Lights | None = Field(None, description="Drone groups and the stack of light effects (see sim.light).")
 
     @field_validator("name")
     @classmethod
@@ -529,6 +559,26 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+    if show.lights is not None:
+        problem = lights_problem(show.lights, n, [f.name for f in show.formations],
+                                 [len(f.points) for f in show.formations])
+        if problem is not None:
+            return ("lights", *problem[0]), problem[1]
+    return _pin_order_problem(show)
+
+
+def _pin_order_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str] | None:
+    """Cue times must increase along the timeline (each later than every pin before it)."""
+    last: tuple[float, str] | None = None
+    for k, f in enumerate(show.formations):
+        for field_name, t in (("arrive_at_s", f.arrive_at_s), ("leave_at_s", f.leave_at_s)):
+            if t is None:
+                continue
+            if last is not None and t <= last[0]:
+                return ("formations", k, field_name), (
+                    f"{t:g} s is not after {last[1]} = {last[0]:g} s: cue times must increase along the timeline"
+                )
+            last = (t, f"formations[{k}].{field_name}")
     return None
 
 
@@ -565,11 +615,19 @@ class ShowValidationError(ValueError):
         return cls(out)
 
 
+_EFFECT_TAGS = {("effect", k) for k in KINDS} | {("target", k) for k in TARGETS}
+
+
 def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
     for i in range(len(loc) - 2):
         if loc[i] == "home" and loc[i + 1] in ("grid", "points") and loc[i + 2] == loc[i + 1]:
             return loc[: i + 1] + loc[i + 2 :]
+    # Light effects: lights.effects[k].effect.<kind>.field -> lights.effects[k].effect.field (and target).
+    if loc[:1] == ("lights",):
+        for i in range(len(loc) - 1):
+            if (loc[i], loc[i + 1]) in _EFFECT_TAGS:
+                return loc[: i + 1] + loc[i + 2 :]
     return loc
 
 

@@ -1,4 +1,4 @@
-"""Formation sources: shapes, strokes, text, image and SVG sampling, transforms and spacing.
+"""Formation sources: shapes, strokes, text, image, SVG, mesh and point-file sampling, transforms and spacing.
 
 Every source returns a :class:`PointSet` of exactly N points (metres, ENU) with colours and
 keeps a minimum spacing, or raises :class:`FormationError` whose ``max_n`` is the largest N
@@ -12,6 +12,15 @@ from formations._image import IMAGE_MODES as IMAGE_MODES
 from formations._image import MAX_IMAGE_BYTES as MAX_IMAGE_BYTES
 from formations._image import MAX_IMAGE_PIXELS as MAX_IMAGE_PIXELS
 from formations._image import image_points as image_points
+from formations._mesh import MAX_MESH_BYTES as MAX_MESH_BYTES
+from formations._mesh import MAX_MESH_FACES as MAX_MESH_FACES
+from formations._mesh import MAX_MESH_VERTICES as MAX_MESH_VERTICES
+from formations._mesh import MAX_POINT_ROWS as MAX_POINT_ROWS
+from formations._mesh import MESH_FORMATS as MESH_FORMATS
+from formations._mesh import MESH_MODES as MESH_MODES
+from formations._mesh import POINT_FORMATS as POINT_FORMATS
+from formations._mesh import MeshFitError as MeshFitError
+from formations._mesh import mesh_points as mesh_points
 from formations._points import MAX_POINTS as MAX_POINTS
 from formations._points import PLANES as PLANES
 from formations._points import FormationError as FormationError
@@ -48,6 +57,10 @@ __all__ = [
     "IMAGE_MODES",
     "MAX_IMAGE_BYTES",
     "MAX_IMAGE_PIXELS",
+    "MAX_MESH_BYTES",
+    "MAX_MESH_FACES",
+    "MAX_MESH_VERTICES",
+    "MAX_POINT_ROWS",
     "MAX_POINTS",
     "MAX_REPAIR_SHIFT",
     "MAX_STROKES",
@@ -57,16 +70,21 @@ __all__ = [
     "MAX_TEXT_CHARS",
     "MAX_TEXT_LINES",
     "MAX_VERTICES",
+    "MESH_FORMATS",
+    "MESH_MODES",
     "PLANES",
+    "POINT_FORMATS",
     "SHAPE_KINDS",
     "SHAPE_KINDS_3D",
     "SHAPE_PARAMS",
     "FormationError",
     "InputTooLargeError",
+    "MeshFitError",
     "PointSet",
     "fit_to_count",
     "generate_shape",
     "image_points",
+    "mesh_points",
     "nearest_pair_distance",
     "place_on_plane",
     "repair_spacing",

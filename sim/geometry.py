@@ -98,11 +98,16 @@ def closest_pair(points: np.ndarray, *, hint_m: float | None = None) -> tuple[in
 
     Returns:
         ``(i, j, distance_m)`` with i < j, or ``(-1, -1, inf)`` for fewer than two points.
+
+    Raises:
+        ValueError: a point is not finite (the cell search would never end on NaN or inf).
     """
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = len(p)
     if n < 2:
         return -1, -1, float("inf")
+    if not np.isfinite(p).all():
+        raise ValueError("closest_pair needs finite points; leave out drones whose state is not finite")
     extent = float(np.max(p.max(axis=0) - p.min(axis=0)))
     if extent == 0.0:
         return 0, 1, 0.0

@@ -25,9 +25,10 @@ from schemathesis.checks import (  # noqa: E402
 
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 
-# Streams never end on their own; a simulation of a fuzzed show may take minutes (its 202 is tested elsewhere);
+# Streams never end on their own; a simulation (or a Monte-Carlo) of a fuzzed show may take minutes (its 202
+# is tested elsewhere);
 # playback needs the 3D viewer, which these runs switch off to start fast.
-SKIPPED = ("/events", "/simulate", "/playback")
+SKIPPED = ("/events", "/simulate", "/montecarlo", "/playback")
 
 
 def _run(tmp_path, *, examples: int) -> tuple[int, list[tuple]]:

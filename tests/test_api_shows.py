@@ -242,6 +242,14 @@ def test_export_formats(client):
     r = client.get(f"/api/shows/{rec['id']}/export/qgc-plan", params={"origin": "47.4,8.5"})
     assert r.status_code == 200 and r.content
     assert client.get(f"/api/shows/{rec['id']}/export/skyc", params={"fps": 0}).status_code == 422
+    # Crazyswarm scale / offset (issue 19): applied, and bad values named.
+    r = client.get(f"/api/shows/{rec['id']}/export/crazyswarm", params={"scale": 0.5, "offset": "1,2,3"})
+    assert r.status_code == 200, r.text
+    manifest = json.loads(zipfile.ZipFile(io.BytesIO(r.content)).read("manifest.json"))
+    assert manifest["scale"] == 0.5 and manifest["offset_m"] == [1.0, 2.0, 3.0]
+    r = client.get(f"/api/shows/{rec['id']}/export/crazyswarm", params={"offset": "1,2"})
+    assert r.status_code == 422 and r.json()["detail"][0]["path"] == "offset"
+    assert client.get(f"/api/shows/{rec['id']}/export/crazyswarm", params={"scale": 0}).status_code == 422
 
 
 def test_openapi_documents_every_endpoint_and_error(client):

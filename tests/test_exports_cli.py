@@ -161,6 +161,9 @@ def test_cli_overwrites_atomically(show, tmp_path):
         (["--format", "skybrush-csv", "--fps", "0"], "fps"),
         (["--format", "skybrush-csv", "--fps", "nan"], "fps"),
         (["--format", "skyc", "--source", "simulated"], "simulated"),
+        (["--format", "crazyswarm", "--scale", "0"], "scale"),
+        (["--format", "crazyswarm", "--offset", "1,2"], "--offset"),
+        (["--format", "crazyswarm", "--offset", "1,2,x"], "--offset"),
     ],
 )
 def test_cli_bad_options_exit_2(show, tmp_path, capsys, extra, reason):
@@ -191,3 +194,16 @@ def test_cli_prints_warnings(tmp_path, capsys):
     src = _write_show(tmp_path, show)
     assert main(["export", str(src), "--format", "crazyswarm", "-o", str(tmp_path / "c.zip")]) == 0
     assert "warning" in capsys.readouterr().err
+
+
+def test_cli_scale_and_offset_reach_the_crazyswarm_files(show, tmp_path):
+    src = _write_show(tmp_path, show)
+    out = tmp_path / "c.zip"
+    assert main(["export", str(src), "--format", "crazyswarm", "--scale", "0.5", "--offset", "1,2,3",
+                 "-o", str(out)]) == 0
+    with zipfile.ZipFile(out) as z:
+        manifest = json.loads(z.read("manifest.json"))
+        first = sorted(n for n in z.namelist() if n.endswith(".csv"))[0]
+        row = z.read(first).decode().splitlines()[1].split(",")
+    assert manifest["scale"] == 0.5 and manifest["offset_m"] == [1.0, 2.0, 3.0]
+    assert float(row[1 + 16]) == pytest.approx(3.0, abs=1e-9)  # z^0 of the first piece, on the ground: 0.5·0 + 3

@@ -50,6 +50,20 @@ def _expected_local(plan, i):
     return plan.knot_positions_m[knots, i], holds
 
 
+def _load_wpl(text: bytes, tmp_path, name: str) -> list:
+    path = tmp_path / name
+    path.write_bytes(text)
+    loader = mavwp.MAVWPLoader()
+    count = loader.load(str(path))
+    assert count == loader.count()
+    return [loader.wp(k) for k in range(count)]
+
+
+def _expected_commands(n_legs: int) -> list[int]:
+    """Home, takeoff, a waypoint at its top, per leg DO_CHANGE_SPEED + waypoint, land."""
+    return [16, 22, 16] + [178, 16] * n_legs + [21]
+
+
 def test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates(show, plan, tmp_path):
     result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
     with zipfile.ZipFile(io.BytesIO(result.content)) as z:
@@ -58,26 +72,28 @@ def test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates(show, plan,
         for i, name in enumerate(names):
             text = z.read(name)
             assert text.startswith(b"QGC WPL 110\n")
-            path = tmp_path / name
-            path.write_bytes(text)
-            loader = mavwp.MAVWPLoader()
-            count = loader.load(str(path))
+            wps = _load_wpl(text, tmp_path, name)
             local, holds = _expected_local(plan, i)
-            # Home, takeoff, one waypoint per transition (formations and the landing approach), land.
-            assert count == loader.count() == len(local) == 2 + len(holds) + 1
-            wps = [loader.wp(k) for k in range(count)]
-            assert [w.command for w in wps] == [16, 22] + [16] * len(holds) + [21]
+            assert [w.command for w in wps] == _expected_commands(len(holds))
             assert wps[0].current == 1 and all(w.current == 0 for w in wps[1:])
-            assert [w.param1 for w in wps[2:-1]] == pytest.approx(holds)
-            lat = np.array([w.x for w in wps])
-            lon = np.array([w.y for w in wps])
-            alt = np.array([w.z for w in wps])
+            nav = [w for w in wps if w.command != 178]
+            speed = [w for w in wps if w.command == 178]
+            # Holds are whole seconds (ArduPilot truncates), speeds ground speeds within the show's limit.
+            assert all(w.param1 == int(w.param1) for w in nav)
+            assert all(w.param1 == 1 and 0 < w.param2 <= show.settings.max_speed_xy_mps and w.param3 == -1
+                       for w in speed)
+            # (The holds themselves are checked by the replay: the plan's departure, to the nearest second.)
+            lat = np.array([w.x for w in nav])
+            lon = np.array([w.y for w in nav])
+            alt = np.array([w.z for w in nav])
+            # home, takeoff, its top again (hold), the formations and the landing approach, land.
+            want = np.r_[local[:2], local[1:]]
             back = geodetic_to_local(lat, lon, alt, origin=ORIGIN, heading_deg=HEADING)
-            assert np.linalg.norm(back - local, axis=1).max() <= 0.05
+            assert np.linalg.norm(back - want, axis=1).max() <= 0.05
             # Independent of the inverse: ECEF distances equal local distances (a rigid map).
             ecef = geodetic_to_ecef(lat, lon, alt)
             d_ecef = np.linalg.norm(ecef[1:] - ecef[0], axis=1)
-            d_local = np.linalg.norm(local[1:] - local[0], axis=1)
+            d_local = np.linalg.norm(want[1:] - want[0], axis=1)
             assert np.abs(d_ecef - d_local).max() <= 0.05
 
 
@@ -107,15 +123,16 @@ def test_plan_json_structure(show, plan):
             home = geodetic_to_local(*m["plannedHomePosition"], origin=ORIGIN, heading_deg=HEADING)
             assert np.linalg.norm(home - local[0]) <= 0.05
             items = m["items"]
-            assert len(items) == len(local) - 1
-            assert [it["command"] for it in items] == [22] + [16] * len(holds) + [21]
+            assert [it["command"] for it in items] == _expected_commands(len(holds))[1:]
+            want = np.r_[local[1:2], local[1:]]
+            nav = [it for it in items if it["command"] != 178]
             for k, it in enumerate(items):
                 assert it["type"] == "SimpleItem" and it["autoContinue"] is True
-                assert it["doJumpId"] == k + 1 and it["frame"] == 0
+                assert it["doJumpId"] == k + 1 and it["frame"] == (2 if it["command"] == 178 else 0)
                 assert len(it["params"]) == 7
+            for k, it in enumerate(nav):
                 p = geodetic_to_local(*it["params"][4:7], origin=ORIGIN, heading_deg=HEADING)
-                assert np.linalg.norm(p - local[k + 1]) <= 0.05
-            assert [it["params"][0] for it in items[1:-1]] == pytest.approx(holds)
+                assert np.linalg.norm(p - want[k]) <= 0.05
 
 
 @pytest.mark.parametrize("fmt", ["qgc-plan", "qgc-wpl"])
@@ -198,3 +215,138 @@ def test_qgc_keeps_the_knot_positions_under_per_drone_timing(show, plan, fmt):
     a = export_show(show, fmt, plan=plan, origin=ORIGIN, heading_deg=HEADING)
     b = export_show(show, fmt, plan=staggered, origin=ORIGIN, heading_deg=HEADING)
     assert a.content == b.content
+
+
+# ---------------------------------------------------------------- timing: replay at ArduCopter's defaults
+
+
+def _replay_all(content: bytes, plan, tmp_path, *, lim=None, use_speed_commands=True):
+    from tests.wpnav_replay import Limits, replay
+
+    reps = []
+    with zipfile.ZipFile(io.BytesIO(content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".waypoints"))
+        for name in names:
+            wps = _load_wpl(z.read(name), tmp_path, name)
+            local = geodetic_to_local(np.array([w.x for w in wps]), np.array([w.y for w in wps]),
+                                      np.array([w.z for w in wps]), origin=ORIGIN, heading_deg=HEADING)
+            items = [(w.command, w.param1, w.param2, local[k]) for k, w in enumerate(wps)][1:]
+            reps.append(replay(items, local[0], lim or Limits(), use_speed_commands=use_speed_commands))
+    return names, reps
+
+
+def _formation_arrivals(plan):
+    return [s.end_s for s in plan.segments if s.kind == "transition"]
+
+
+def _close_pairs(reps, plan, min_d):
+    from tests.wpnav_replay import positions_at
+
+    end = max(r.times_s[-1] for r in reps)
+    t = np.arange(0.0, end, 0.05)
+    pos = np.stack([positions_at(r, t) for r in reps], axis=1)  # (T, N, 3)
+    ref = plan.evaluate(np.minimum(t, plan.duration_s)).positions_m
+    d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
+    dp = np.linalg.norm(ref[:, :, None] - ref[:, None], axis=-1)
+    n = pos.shape[1]
+    iu = np.triu_indices(n, 1)
+    bad = (d < min_d) & (dp >= min_d)
+    pairs = {(int(i), int(j)) for i, j in zip(*iu, strict=True) if bad[:, i, j].any()}
+    return pairs, float(d[:, iu[0], iu[1]].min())
+
+
+def test_wpl_replay_keeps_the_plans_timing(show, plan, tmp_path):
+    result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    names, reps = _replay_all(result.content, plan, tmp_path)
+    want = np.array(_formation_arrivals(plan))
+    departs = np.array([s.start_s for s in plan.segments if s.kind in ("transition", "landing")])
+    top = show.settings.max_speed_xy_mps
+    errors = []
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        for name, rep in zip(names, reps, strict=True):
+            wps = _load_wpl(z.read(name), tmp_path, name)
+            speeds = [w.param2 for w in wps if w.command == 178]
+            # arrivals: takeoff top, top again (zero-length leg), each formation + the landing approach, land.
+            got = np.array(rep.arrivals_s[2:-1])
+            for k, (g, w_) in enumerate(zip(got, want, strict=True)):
+                # Never late but on a leg flown at the fastest speed commanded; early only where the
+                # leg cannot be flown slower (a steep leg at WPNAV_SPEED_UP / _DN): then it waits.
+                assert g <= w_ + 0.1 or speeds[k] >= top - 0.01, (name, k, g, w_)
+                errors.append(g - w_)
+            # Departures from the takeoff top and each formation: within half a second of the plan's
+            # unless the drone arrived after the plan had already left.
+            dep = np.array(rep.departures_s[2:])
+            arr = np.array(rep.arrivals_s[1:-1])
+            ok = arr <= departs - 0.5
+            assert np.abs(dep - departs)[ok].max(initial=0.0) <= 0.5 + 0.01  # + the replays' ms apart
+    # Without the speed commands (ArduCopter's default 10 m/s and truncated holds) the timing is lost.
+    _, plain = _replay_all(result.content, plan, tmp_path, use_speed_commands=False)
+    plain_err = max(np.abs(np.array(r.arrivals_s[2:-1]) - want).max() for r in plain)
+    assert plain_err > np.abs(errors).max()
+    # The exporter's closed-form replay and this numeric one agree on the worst lateness (ArduCopter's
+    # default climb / descent and jerk limits cannot fly every leg of this show in time) and say so.
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        claimed = json.loads(z.read("manifest.json"))["replay"]["worst_arrival_late_s"]
+    assert claimed == pytest.approx(max(errors), abs=0.05)
+    assert (claimed > 1.0) == any("after the plan" in w for w in result.warnings)
+
+
+def test_wpl_replay_keeps_min_distance_or_names_the_pairs(show, plan, tmp_path):
+    result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    names, reps = _replay_all(result.content, plan, tmp_path)
+    pairs, _ = _close_pairs(reps, plan, show.settings.min_distance_m)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        manifest = json.loads(z.read("manifest.json"))
+    named = {tuple(p["drones"]) for p in manifest["replay"]["close_pairs"]}
+    stems = [n[: -len(".waypoints")] for n in names]
+    assert {(stems[i], stems[j]) for i, j in pairs} <= named
+    assert bool(named) == any("closer than min_distance_m" in w for w in result.warnings)
+
+
+def test_wpl_names_the_pairs_when_the_replay_loses_min_distance(show, plan, tmp_path, monkeypatch):
+    """Limits too low to keep the timing: the independent replay finds close pairs and the export names them."""
+    from app.exports import _qgc, _wpnav
+    from tests.wpnav_replay import Limits
+
+    slow = _wpnav.Wpnav(speed_mps=10.0, accel_mps2=0.4, accel_z_mps2=0.3, jerk_mps3=0.1, speed_up_mps=2.5)
+    real = _qgc.time_mission
+    monkeypatch.setattr(_qgc, "time_mission", lambda *a, **k: real(*a, wpnav=slow))
+    result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    lim = Limits(accel_mps2=0.4, accel_z_mps2=0.3, jerk_mps3=0.1)
+    names, reps = _replay_all(result.content, plan, tmp_path, lim=lim)
+    pairs, _ = _close_pairs(reps, plan, show.settings.min_distance_m)
+    assert pairs, "the slowed replay should lose min_distance somewhere"
+    stems = [n[: -len(".waypoints")] for n in names]
+    warning = next(w for w in result.warnings if "closer than min_distance_m" in w)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        manifest = json.loads(z.read("manifest.json"))
+        readme = z.read("README.txt").decode()
+    named = {tuple(p["drones"]) for p in manifest["replay"]["close_pairs"]}
+    # The pairs the exporter finds at its sampling are the ones the independent replay finds
+    # (sampled every 0.05 s here: a pair grazing the limit between samples may differ).
+    found = {(stems[i], stems[j]) for i, j in pairs}
+    assert len(found & named) >= 0.8 * max(len(found), len(named))
+    first = manifest["replay"]["close_pairs"][0]["drones"]
+    assert first[0] in warning and first[1] in warning and "WARNING" in readme and first[0] in readme
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.05, 300.0), st.floats(0.3, 15.0), st.floats(0.3, 5.0), st.floats(0.2, 5.0))
+def test_scurve_closed_form_respects_its_limits(length, vmax, amax, jerk):
+    """The exporter's closed-form S-curve: reaches the end, never exceeds speed, acceleration or jerk
+    (finite differences of dense samples), and takes as long as the numeric replay's."""
+    from app.exports._wpnav import scurve_distance, scurve_duration
+    from tests.wpnav_replay import STEP_S, leg_profile
+
+    total = float(scurve_duration(length, vmax, amax, jerk))
+    t = np.linspace(0.0, total, 4001)
+    s = scurve_distance(t, length, vmax, amax, jerk)
+    assert s[0] == pytest.approx(0.0, abs=1e-9) and s[-1] == pytest.approx(length, rel=1e-9, abs=1e-9)
+    dt = t[1] - t[0]
+    v = np.diff(s) / dt
+    assert v.min() >= -1e-9 and v.max() <= vmax * (1 + 1e-6) + 1e-9
+    a = np.diff(v) / dt
+    assert np.abs(a).max() <= amax * 1.02 + jerk * dt * 2
+    numeric = (len(leg_profile(length, vmax, amax, jerk)) - 1) * STEP_S
+    # The numeric profile rounds its phases to its 1 ms step: a few ms apart at most.
+    assert numeric == pytest.approx(total, abs=0.005)

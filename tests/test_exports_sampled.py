@@ -75,9 +75,10 @@ def test_skybrush_csv_rows_are_the_plan(show, plan):
         assert sorted(z.namelist()) == sorted(files)
         assert all(SAFE_NAME.fullmatch(n) for n in z.namelist())
         manifest = json.loads(z.comment)
-        assert manifest["format"] == "skybrush-csv" and manifest["fps"] == 4.0 and manifest["drones"] == 16
-    # Every 250 ms from 0, plus the end of the show if it is not on that grid.
-    expected_rows = int(np.floor(plan.duration_s * 4 + 1e-9)) + 1 + (plan.duration_s * 4 % 1 > 1e-9)
+        assert manifest["format"] == "skybrush-csv" and manifest["fps"] == 24.0 and manifest["drones"] == 16
+    # Every 1/24 s (whole ms) from 0, plus the end of the show if it is not on that grid, plus
+    # one row a frame later holding the end (Studio's importer drops the last row).
+    expected_rows = int(np.floor(plan.duration_s * 24 + 1e-9)) + 1 + (plan.duration_s * 24 % 1 > 1e-9) + 1
     for i in range(16):
         rows = files[f"drone_{i + 1:03d}.csv"]
         assert rows[0] == ["Time [msec]", "x [m]", "y [m]", "z [m]", "Red", "Green", "Blue"]
@@ -89,8 +90,9 @@ def test_skybrush_csv_rows_are_the_plan(show, plan):
         data = np.array(body, dtype=float)
         t_ms = data[:, 0]
         assert t_ms[0] == 0 and np.all(np.diff(t_ms) > 0)
-        assert t_ms[-1] == round(plan.duration_s * 1000)
-        ref = plan.evaluate(t_ms / 1000.0, drones=np.array([i]))
+        assert t_ms[-2] == round(plan.duration_s * 1000) and t_ms[-1] == t_ms[-2] + 42
+        np.testing.assert_array_equal(data[-1, 1:], data[-2, 1:])
+        ref = plan.evaluate(np.minimum(t_ms / 1000.0, plan.duration_s), drones=np.array([i]))
         assert np.abs(data[:, 1:4] - ref.positions_m[:, 0]).max() <= 0.0005 + 1e-9
         assert np.linalg.norm(data[:, 1:4] - ref.positions_m[:, 0], axis=1).max() <= 0.001
         assert np.all((data[:, 4:] >= 0) & (data[:, 4:] <= 255))
@@ -276,3 +278,23 @@ def test_sampled_rows_follow_each_drones_own_timing(show, staggered, fmt):
         assert np.abs(data[:, 1:4] - ref.positions_m[:, 0]).max() <= 0.0005 + 1e-9
         assert np.abs(data[:, 1:4] - legs.positions(t)[:, i]).max() <= 0.0005 + 1e-9
         assert np.abs(data[:, 4:] - ref.colors_rgb[:, 0] * 255).max() <= 0.5 + 1e-9
+
+
+@pytest.mark.parametrize("fmt, default", [("skybrush-csv", 24.0), ("waypoints-csv", 10.0)])
+def test_default_rate_fits_the_sample_budget_with_a_warning(show, plan, monkeypatch, fmt, default):
+    from app.exports import _sampling
+
+    # A budget that 16 drones at the default rate exceed: the default drops to the highest whole
+    # rate that fits, and the export says what that costs; an explicit rate is still refused.
+    budget = int(16 * plan.duration_s * 3.5)
+    monkeypatch.setattr(_sampling, "MAX_SAMPLES", budget)
+    result = export_show(show, fmt, plan=plan)
+    files = read_zip_csvs(result.content)
+    rows = len(files["drone_001.csv"]) - 1
+    assert rows * 16 <= budget
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        manifest = json.loads(z.comment if fmt == "skybrush-csv" else z.read("manifest.json"))
+    assert manifest["fps"] == 3.0 < default
+    assert any("sample limit" in w and "3 fps" in w for w in result.warnings)
+    with pytest.raises(ExportError, match="exceeds the limit"):
+        export_show(show, fmt, plan=plan, fps=default)

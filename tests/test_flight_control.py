@@ -38,7 +38,9 @@ def test_circle_reference_converges(disturbance):
                    disturbance=disturbance, engine="numba")
     assert res.diverged() == []
     err = np.linalg.norm(res.telemetry[:, :, 0:3], axis=2)
-    late = res.frame_times_s >= 6.0
+    # (From 3.5 m off the circle the default tilt limit, 0.6 rad as flight stacks use, makes the
+    # approach take about 7 s; the paper's unlimited law is back on the circle by 6 s.)
+    late = res.frame_times_s >= 8.0
     assert err[0].max() > 0.5 and err[late].max() < 1e-3
 
 
@@ -60,8 +62,10 @@ def test_paper_scenario_meets_thresholds_and_beats_baseline():
 
 def test_baseline_runs_with_the_same_interface():
     pts = np.array([[0.0, 0.0, 10.0], [5.0, 0.0, 10.0]])
+    # The paper's PD settles from a 1.7 m step in 6 s (the PID, with its overshoot, in 10 s:
+    # tests/test_flight_errors.py).
     res = simulate(TrackingReference.hover(pts), duration_s=6.0, initial_state=hover_state(pts + 1.0),
-                   gains=BaselineGains(), engine="numba")
+                   gains=BaselineGains.paper(), engine="numba")
     assert res.diverged() == []
     assert np.linalg.norm(res.final_state[:, 0:3] - pts, axis=1).max() < 1e-2
 

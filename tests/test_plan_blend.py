@@ -187,3 +187,23 @@ def test_dense_show_with_blended_legs_passes_the_exact_check_within_the_jerk_lim
     monkeypatch.setattr("sim.plan._schedule.BLEND_SHARES", ())
     unblended = plan_show(show)
     assert plan.duration_s < unblended.duration_s - 1.0
+
+
+def test_a_pinned_arrival_later_than_a_blended_transition_keeps_its_overlaps() -> None:
+    """A formation's arrive_at_s after the blended transition's natural end (issue 18's rest leg first):
+    the drones arrive exactly then, the plan passes the exact check, and the legs stay blended."""
+    from formations import parse_show
+
+    show = dense_show(40, formations=2)
+    natural = plan_show(show)
+    into = natural.transitions[1]
+    doc = show.model_dump(mode="json", exclude_none=True)
+    pinned = into.start_s + into.duration_s + 3.0
+    doc["formations"][1]["arrive_at_s"] = pinned
+    plan = plan_show(parse_show(doc))
+    tr = plan.transitions[1]
+    assert tr.start_s + tr.duration_s == pytest.approx(pinned, abs=1e-9)
+    assert check_plan(plan).violations_total == 0
+    hold = [seg for name, seg in plan.formation_segments() if name == show.formations[1].name][0]
+    at = plan.motion.evaluate(np.array([hold.start_s, hold.end_s])).positions_m
+    assert np.abs(at - plan.knot_positions_m[hold.index][None]).max() < 1e-8

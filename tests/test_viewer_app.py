@@ -106,3 +106,75 @@ def test_viser_html_export_via_api(client, show_id):
     assert r.headers["content-type"].startswith("text/html")
     assert b"__VISER_EMBED_DATA__" in r.content
     assert "attachment" in r.headers.get("content-disposition", "")
+
+
+def test_live_viewer_websocket_outlives_the_header_timeout(tmp_path):
+    """Bug 5's root cause: the slow-loris header timer stayed armed on a connection upgraded to a websocket and
+    closed the 3D view's socket ``header_timeout_s`` after it opened; viser's client reconnected as a new client
+    whose playback restarted from the default one (another show, t = 0). The socket must stay open (and the viewer
+    keep one client), while a connection that never finishes its headers is still closed."""
+    import asyncio
+    import contextlib
+    import socket
+    import time
+
+    import httpx
+    from websockets.asyncio.client import connect
+    from websockets.exceptions import ConnectionClosed
+
+    from tests.live_server import ServerProcess
+
+    timeout_s = 1.0
+    server = ServerProcess(tmp_path, viewer=True, env={"SWARMSHOW_HEADER_TIMEOUT_S": str(timeout_s)})
+    server.start()
+
+    async def hold_open() -> tuple[float, int | None]:
+        async with connect(f"ws://127.0.0.1:{server.port}/viser", subprotocols=[PROTOCOL],  # type: ignore[list-item]
+                           max_size=None, ping_interval=None) as ws:
+            t0 = time.monotonic()
+            # Read what the viewer sends for 3 header timeouts (it sends the scene and GUI, then frames of
+            # nothing); a closed socket ends the loop early.
+            with contextlib.suppress(TimeoutError, ConnectionClosed):
+                async with asyncio.timeout(3 * timeout_s):
+                    async for _ in ws:
+                        pass
+            return time.monotonic() - t0, ws.close_code
+
+    try:
+        slow = socket.create_connection(("127.0.0.1", server.port), timeout=10)
+        slow.sendall(b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ")
+        open_s, close_code = asyncio.run(hold_open())
+        assert close_code is None and open_s >= 3 * timeout_s - 0.1, (open_s, close_code)
+        assert slow.recv(1024) == b""  # the slow-header connection was still closed
+        slow.close()
+        assert httpx.get(f"{server.base}/api/health").status_code == 200
+    finally:
+        server.stop()
+
+
+def test_seek_endpoint_refuses_unknown_pages_and_bad_bodies(client, show_id):
+    """``POST /api/viewer/{token}/seek`` moves one browser's playback: an unknown token is 404, a body must name
+    exactly one of a time and a formation (422 naming the field). (Moving a real page is the browser test's.)"""
+    assert client.post("/api/viewer/nope/seek", json={"time_s": 3.0}).status_code == 404
+    r = client.post("/api/viewer/nope/seek", json={"time_s": -1.0})
+    assert r.status_code == 422 and "time_s" in r.text
+    assert client.post("/api/viewer/nope/seek", json={"at": 1}).status_code == 422
+    viewer = client.app.state.viewer
+    pb = viewer._main  # stands in for a browser's playback: the endpoint finds playbacks by token
+    viewer._clients[999] = pb
+    try:
+        for body in ({}, {"time_s": 1.0, "formation": 0}):
+            r = client.post(f"/api/viewer/{pb.token}/seek", json=body)
+            assert r.status_code == 422 and "exactly one" in r.text, r.text
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"formation": 0})
+        assert r.status_code == 422 and "formation" in r.text  # nothing on screen yet
+        assert client.post(f"/api/shows/{show_id}/playback", json={}).status_code == 200
+        plan = viewer._shows[viewer.current].plan
+        holds = [seg.start_s for _, seg in plan.formation_segments()]
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"formation": len(holds) - 1})
+        assert r.status_code == 200 and r.json()["time_s"] == pytest.approx(holds[-1])
+        r = client.post(f"/api/viewer/{pb.token}/seek", json={"time_s": 1e5})
+        assert r.status_code == 200 and r.json()["time_s"] == pytest.approx(plan.duration_s)  # clamped
+        assert client.post(f"/api/viewer/{pb.token}/seek", json={"formation": len(holds)}).status_code == 422
+    finally:
+        viewer._clients.pop(999)

@@ -184,9 +184,11 @@ def test_playback_thread_paces_30hz(plan):
         v.load(plan, name="small")
         v.play()
         n0, t0 = v.frames_rendered, time.perf_counter()
-        time.sleep(1.0)
+        time.sleep(2.0)
         rate = (v.frames_rendered - n0) / (time.perf_counter() - t0)
-        assert 20 <= rate <= 33
+        # Never faster than 30 Hz (no burst after a slow frame); the lower bound leaves room for a machine
+        # shared with other work (it must still run, and not at a fraction of the rate).
+        assert 10 <= rate <= 31.5, rate
     finally:
         v.stop()
 

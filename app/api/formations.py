@@ -1,4 +1,4 @@
-"""``POST /api/formations/{shape|text|image|svg}``: formation points and colours from a source."""
+"""``POST /api/formations/{shape|text|image|svg|mesh}``: formation points and colours from a source."""
 
 from __future__ import annotations
 
@@ -91,3 +91,48 @@ async def svg(
     params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
               "min_spacing_m": min_spacing_m, "color": color}
     return await deps.run(request, tasks.formation_task, "svg", params, data)
+
+
+_MESH_TYPES = ("obj", "ply", "stl", "glb", "gltf", "csv", "xyz")
+
+
+def _file_type(declared: str | None, filename: str | None) -> str:
+    """The file format: ``format`` if given, else the upload's file-name extension."""
+    ext = (declared or (filename or "").rsplit(".", 1)[-1]).strip().lower()
+    ext = {"txt": "xyz", "xyzrgb": "xyz", "pts": "xyz"}.get(ext, ext)
+    if ext not in _MESH_TYPES:
+        raise ApiError(422, [{"loc": ["body", "format"], "path": "format",
+                              "msg": f"unknown file format {ext!r}; use one of {', '.join(_MESH_TYPES)}"}])
+    return ext
+
+
+@router.post("/mesh", response_model=FormationPoints, summary="Points from a mesh or point file",
+             responses=_UPLOAD_ERRORS)
+async def mesh(
+    request: Request,
+    file: Annotated[UploadFile, File(description="OBJ, PLY, STL, glTF (embedded buffers) or GLB mesh; or a "
+                                     "Skybrush CSV (Name,x,y,z,Red,Green,Blue) or XYZ(RGB) point file. At most "
+                                     "50 MB, 1M faces / vertices.")],
+    n: Annotated[int, Form(ge=1, le=20_000, description="Number of points.")],
+    mode: Annotated[Literal["vertices", "surface", "volume"], Form(
+        description="Mesh vertices, even points over the surface, or a filled volume (closed meshes).")] = "surface",
+    size_m: Annotated[float | None, Form(gt=0, le=10_000, description=(
+        "Largest side of the bounding box, m; empty = the smallest size that keeps min_spacing_m "
+        "(point files keep their own metres)."))] = None,
+    center_m: Annotated[str, Form(description=_CENTER_DOC)] = "0,0,30",
+    min_spacing_m: Annotated[float, Form(ge=0.01, le=100)] = 3.0,
+    up: Annotated[Literal["auto", "y", "z"], Form(
+        description="The file's up axis (auto: +Y for glTF/GLB, +Z otherwise).")] = "auto",
+    format: Annotated[str | None, Form(description="File format (default: from the file name).")] = None,
+    color: Annotated[str, Form(pattern=r"^#[0-9a-fA-F]{6}$",
+                               description="LED colour of points the file gives no colour.")] = "#ffffff",
+) -> dict[str, Any]:
+    """``n`` points from a mesh (vertices, surface or volume) or point file, in the file's vertex
+    colours or texture. If they do not fit, 422 says the largest N (``max_n``) and the size that
+    fits N (``fit_size_m``)."""
+    file_type = _file_type(format, file.filename)
+    limit = deps.settings(request).max_mesh_bytes
+    data = await _read(file, limit=limit, what="a mesh or point file")
+    params = {"n": n, "file_type": file_type, "mode": mode, "size_m": size_m, "center_m": _center(center_m),
+              "min_spacing_m": min_spacing_m, "up": up, "color": color}
+    return await deps.run(request, tasks.formation_task, "mesh", params, data)

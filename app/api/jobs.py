@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 from collections.abc import AsyncIterator
+from typing import Literal
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import StreamingResponse
 
+from app import tasks
 from app.api import deps
-from app.api.errors import job_body
+from app.api.errors import ApiError, job_body
 from app.api.models import JobList, JobOut, error_responses
 from app.jobs import JobManager
 
@@ -39,6 +41,32 @@ def cancel_job(request: Request, job_id: str) -> JobOut:
     """Cancel a queued or running job; it reads ``cancelled`` at once and its worker stops at its next
     progress report. A job that is already done or failed gets 409; cancelling twice is harmless."""
     return JobOut(**job_body(deps.jobs(request).cancel(job_id).snapshot()))
+
+
+@router.get(
+    "/jobs/{job_id}/report.{fmt}",
+    summary="The safety report of a Monte-Carlo job (HTML or PDF)",
+    response_class=Response,
+    responses={200: {"description": "The report.", "content": {"text/html": {}, "application/pdf": {}}},
+               **error_responses(404, 409)},
+)
+async def job_report(request: Request, job_id: str, fmt: Literal["html", "pdf"], download: bool = False) -> Response:
+    """Draw the safety report of a finished Monte-Carlo job (``POST /api/shows/{id}/montecarlo``):
+    minimum separation over time with the runs' band, deviation histogram, speeds against the
+    limits, per-segment margins and the worst pairs. ``html`` is one self-contained page (inline
+    SVG); ``pdf`` a printable file. ``download=true`` sends it as an attachment."""
+    job = deps.jobs(request).get(job_id)
+    if job.kind != "montecarlo":
+        raise ApiError(404, f"job {job_id!r} is a {job.kind} job; safety reports come from Monte-Carlo jobs")
+    snap = job.snapshot()
+    result = snap.get("result")
+    if snap["state"] != "done" or not isinstance(result, dict) or "montecarlo" not in result:
+        raise ApiError(409, f"job {job_id!r} is {snap['state']}; the report needs a finished job", state=snap["state"])
+    content = await deps.run(request, tasks.safety_report_task, result["montecarlo"], fmt)
+    media = {"html": "text/html; charset=utf-8", "pdf": "application/pdf"}[fmt]
+    headers = {"Content-Disposition": f'{"attachment" if download or fmt == "pdf" else "inline"}; '
+                                      f'filename="safety-report-{job_id}.{fmt}"'}
+    return Response(content, media_type=media, headers=headers)
 
 
 _EVENTS_DOC = """Server-sent events (`text/event-stream`) following the job until it ends:

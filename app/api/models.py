@@ -193,6 +193,26 @@ class SimulateOptions(BaseModel):
     output_hz: float = Field(25.0, gt=0, le=1000, description="Rate of the recorded trajectory, Hz.")
 
 
+#: Most Monte-Carlo runs one job may ask for (the work is also bounded by drones x duration x runs,
+#: :data:`app.tasks.MAX_MONTECARLO_DRONE_S`).
+MAX_MONTECARLO_RUNS = 200
+
+PresetName = Literal["ideal", "calm-rtk", "gusty-rtk", "gps-only"]
+
+
+class MonteCarloOptions(BaseModel):
+    """How to fly the show K times for its safety margin (``sim.flight.monte_carlo``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    runs: int = Field(20, ge=1, le=MAX_MONTECARLO_RUNS, description="K, the number of flights (seeds seed0..).")
+    preset: PresetName = Field("gusty-rtk", description="Error-model preset.")
+    controller: ControllerName = Field("ismc", description="Position and attitude controllers.")
+    seed0: int = Field(0, ge=0, le=2**31 - 1, description="Seed of the first run.")
+    confidence: float = Field(0.99, gt=0, lt=1, description="Level of the intervals and of the extra spacing.")
+    collision_distance_m: float = Field(1.0, gt=0, le=100, description="Centre distance counted as a collision, m.")
+
+
 class JobError(BaseModel):
     """Why a job failed or stopped."""
 
@@ -276,3 +296,5 @@ class FormationPoints(BaseModel):
     colors: list[str]
     min_spacing_m: float | None = Field(description="Nearest-pair distance, m (null for one point).")
     count: int
+    size_m: float | None = Field(None, description="Mesh / point-file sources: the size used (largest side "
+                                 "of the bounding box), m.")

@@ -17,6 +17,7 @@ from app.api.errors import ApiError, draft_problems, job_body, require_valid, sh
 from app.api.models import (
     CheckOut,
     JobOut,
+    MonteCarloOptions,
     RevisionList,
     RevisionOut,
     ShowList,
@@ -336,6 +337,57 @@ async def simulate_show(
     return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
 
 
+#: Export formats that carry the show's music.
+AUDIO_FORMATS = ("skyc", "viser-html")
+
+
+def _audio_track(request: Request, show_id: str) -> Any:
+    """The show's stored music as an ``app.media.AudioTrack``, or None."""
+    from app.media import AudioTrack, sniff_container
+
+    store = deps.store(request)
+    rec = store.get_audio(show_id, analysis=True)
+    if rec is None:
+        return None
+    data = store.read_audio(show_id)
+    duration = float(json.loads(rec.analysis or "{}").get("duration_s") or 0.0)
+    return AudioTrack(data=data, container=sniff_container(data) or "mp3", media_type=rec.media_type,
+                      filename=rec.filename, duration_s=duration)
+
+
+@router.post(
+    "/shows/{show_id}/montecarlo",
+    status_code=202,
+    response_model=JobOut,
+    summary="Fly a show K times for its safety margin (background job)",
+    responses=error_responses(404, 422, 429),
+)
+async def montecarlo_show(
+    request: Request, show_id: str, options: Annotated[MonteCarloOptions | None, Body()] = None
+) -> JSONResponse:
+    """Start a Monte-Carlo job: the show flown ``runs`` times with seeds ``seed0 .. seed0 + runs - 1``
+    under the error-model ``preset``; answers 202 with the job (``Location`` points at it).
+
+    Follow it like a simulation (``GET /api/jobs/{id}``, ``/events``); when done its result holds
+    the flown-separation distribution per segment, the probabilities of coming closer than the
+    minimum and the collision distance with their intervals, the worst pairs, deviations and the
+    extra spacing per segment, and ``GET /api/jobs/{id}/report.html`` (or ``.pdf``) draws the
+    safety report. A run's flight plays in the 3D view with ``POST /api/shows/{id}/playback``
+    ``{"source": "simulated", "job_id": ..., "run": k}``.
+    """
+    record = deps.store(request).get(show_id)
+    assert record.json is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
+    opts = (options or MonteCarloOptions()).model_dump()
+    manager = deps.jobs(request)
+    resolved = tasks.flight_options({**opts, "engine": "numba"}, manager.settings.dask_scheduler)
+    job = await asyncio.to_thread(
+        manager.submit, "montecarlo", tasks.montecarlo_task, show_text=record.json,
+        content_hash=record.content_hash, options=opts, show_id=record.id, show_revision=record.revision,
+        client=deps.client_id(request), task_options=resolved,
+    )
+    return JSONResponse(job_body(job.snapshot()), status_code=202, headers={"Location": f"/api/jobs/{job.id}"})
+
+
 def export_formats() -> tuple[str, ...]:
     """Every format ``GET /api/shows/{id}/export/{fmt}`` serves (``show`` first)."""
     try:
@@ -360,6 +412,16 @@ def _parse_origin(origin: str) -> tuple[float, ...]:
     return values if len(values) == 3 else (*values, 0.0)
 
 
+def _parse_offset(offset: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in offset.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ApiError(422, [{"loc": ["query", "offset"], "path": "offset", "msg": "must be 'x,y,z' in metres"}])
+    return values
+
+
 @router.get(
     "/shows/{show_id}/export/{fmt}",
     summary="Export a show",
@@ -379,6 +441,8 @@ async def export_show(
     origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
     heading_deg: float = Query(0.0, ge=-360, le=360, description="Direction of the show's +y axis, degrees."),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
+    scale: float = Query(1.0, gt=0, le=10, description="Scale factor for positions (crazyswarm, indoor shows)."),
+    offset: str | None = Query(None, description="'x,y,z' metres added after scaling (crazyswarm)."),
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
@@ -409,6 +473,14 @@ async def export_show(
         options["fps"] = fps
     if origin is not None:
         options["origin"] = _parse_origin(origin)
+    if fmt in AUDIO_FORMATS:
+        audio = await asyncio.to_thread(_audio_track, request, show_id)
+        if audio is not None:
+            options["audio"] = audio  # issue 18: the show's music goes into the file
+    if scale != 1.0:
+        options["scale"] = scale
+    if offset is not None:
+        options["offset_m"] = _parse_offset(offset)
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

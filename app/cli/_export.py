@@ -5,9 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from app.cli._common import EXIT_OK, CliError, load_show_arg, progress_bar
 from app.cli._common import write_atomically as write_atomically
+
+if TYPE_CHECKING:
+    from app.media import AudioTrack
 
 #: Shows with at least this many drones draw a progress bar (smaller ones finish in a blink).
 _PROGRESS_MIN_DRONES = 200
@@ -34,7 +38,33 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="bearing of the show's +y axis, degrees clockwise from true north (default 0)")
     p.add_argument("--source", choices=("planned", "simulated"), default="planned",
                    help="planned trajectory (default) or the simulated flight (sampled formats)")
+    p.add_argument("--audio", default=None, metavar="FILE",
+                   help="the show's music (WAV, MP3, OGG or FLAC): embedded by skyc (media.audio) and viser-html")
+    p.add_argument("--scale", type=float, default=1.0, metavar="FACTOR",
+                   help="scale positions by FACTOR (crazyswarm: an outdoor show indoors, e.g. 0.02; default 1)")
+    p.add_argument("--offset", default=None, metavar="X,Y,Z",
+                   help="add X,Y,Z metres after scaling (crazyswarm: the show origin in the mocap frame)")
     p.set_defaults(func=_export)
+
+
+def load_audio_arg(path: str) -> AudioTrack:
+    """``--audio FILE`` as an ``app.media.AudioTrack``, checked by decoding it; a bad file is a :class:`CliError`."""
+    from app.media import MAX_AUDIO_BYTES, MEDIA_TYPES, AudioError, AudioTrack, decode
+
+    file = Path(path)
+    try:
+        size = file.stat().st_size
+        if size > MAX_AUDIO_BYTES:
+            raise CliError(f"--audio: {path} is {size} bytes; the limit is {MAX_AUDIO_BYTES}")
+        data = file.read_bytes()
+    except OSError as exc:
+        raise CliError(f"--audio: cannot read {path}: {exc.strerror}") from exc
+    try:
+        dec = decode(data)
+    except AudioError as exc:
+        raise CliError(f"--audio: {path}: {exc.msg}") from exc
+    return AudioTrack(data=data, container=dec.container, media_type=MEDIA_TYPES[dec.container],
+                      filename=file.name, duration_s=dec.duration_s)
 
 
 def parse_origin(text: str) -> tuple[float, float, float]:
@@ -49,6 +79,16 @@ def parse_origin(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+def parse_offset(text: str) -> tuple[float, float, float]:
+    """``"X,Y,Z"`` -> floats; a malformed value is a :class:`CliError`."""
+    parts = text.split(",")
+    try:
+        x, y, z = (float(v) for v in parts)
+    except ValueError as exc:
+        raise CliError(f"--offset must be three numbers X,Y,Z (metres), got {text!r}") from exc
+    return x, y, z
+
+
 def _export(args: argparse.Namespace) -> int:
     from app.exports import EXPORT_FORMATS, ExportError, export_show
 
@@ -57,6 +97,7 @@ def _export(args: argparse.Namespace) -> int:
     origin = parse_origin(args.origin) if args.origin is not None else None
     target = _target_dir_check(args.output)
     show = load_show_arg(args.show)
+    audio = load_audio_arg(args.audio) if args.audio is not None else None
     try:
         with progress_bar(f"export {args.format}", enabled=show.drones >= _PROGRESS_MIN_DRONES) as update:
             result = export_show(
@@ -67,6 +108,9 @@ def _export(args: argparse.Namespace) -> int:
                 heading_deg=args.heading,
                 source=args.source,
                 progress=update,
+                audio=audio,
+                scale=args.scale,
+                offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
             )
     except ExportError as exc:
         msg = str(exc)

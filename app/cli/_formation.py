@@ -1,4 +1,4 @@
-"""``swarmshow formation shape|text|image|svg|repair ...``: formation points as JSON.
+"""``swarmshow formation shape|text|image|svg|mesh|repair ...``: formation points as JSON.
 
 The output is ``PointSet.to_json()``: ``{"points": [[x, y, z], ...], "colors": [...],
 "min_spacing_m": float}`` (metres), written to ``-o FILE`` or stdout (``-o -`` or no ``-o``).
@@ -56,7 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``formation`` command and its sources."""
     from formations.sources import SHAPE_KINDS
 
-    p = sub.add_parser("formation", help="generate formation points (shape, text, image, SVG) or repair spacing")
+    p = sub.add_parser("formation", help="generate formation points (shape, text, image, SVG, mesh or point file) "
+                       "or repair spacing")
     fsub = p.add_subparsers(dest="source", metavar="SOURCE")
     fsub.required = True
 
@@ -87,6 +88,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--width-m", type=float, default=40.0, help="width of the drawing, metres (default 40)")
     _common(q)
     q.set_defaults(func=_svg)
+
+    q = fsub.add_parser("mesh", help="points from an OBJ/PLY/STL/glTF/GLB mesh (vertices, surface or volume) "
+                        "or a Skybrush CSV / XYZ(RGB) point file, in the file's colours")
+    q.add_argument("file", metavar="FILE")
+    q.add_argument("-n", "--drones", dest="n", type=int, required=True, metavar="N", help="number of points")
+    q.add_argument("--mode", choices=("vertices", "surface", "volume"), default="surface",
+                   help="mesh vertices, even points over the surface (default) or a filled volume")
+    q.add_argument("--size", "--size-m", dest="size_m", type=float, default=None, metavar="M",
+                   help="largest side of the bounding box, metres (default: the smallest that keeps the spacing; "
+                   "point files keep their own metres)")
+    q.add_argument("--format", default=None, choices=("obj", "ply", "stl", "glb", "gltf", "csv", "xyz"),
+                   help="file format (default: from the extension)")
+    q.add_argument("--up", choices=("auto", "y", "z"), default="auto",
+                   help="the file's up axis (auto: +Y for glTF/GLB, +Z otherwise)")
+    q.add_argument("--center", type=_center, default=(0.0, 0.0, 30.0), metavar="X,Y,Z",
+                   help="centre, metres (default 0,0,30)")
+    q.add_argument("--min-spacing-m", type=float, default=3.0, help="minimum distance between points (default 3)")
+    q.add_argument("--color", default="#ffffff", metavar="#RRGGBB", help="colour of points the file gives none")
+    q.add_argument("-o", "--output", default="-", metavar="OUT", help="output JSON file ('-' = stdout, the default)")
+    q.set_defaults(func=_mesh)
 
     q = fsub.add_parser("repair", help="spread points of a JSON point set that are closer than the minimum spacing "
                         "(exit 1 if it cannot be reached)")
@@ -159,6 +180,19 @@ def _svg(args: argparse.Namespace) -> int:
 
     data = _read(args.file, MAX_SVG_BYTES)
     return _run(lambda: svg_points(data, args.n, width_m=args.width_m, color=args.color, **_place(args)), args)
+
+
+def _mesh(args: argparse.Namespace) -> int:
+    from formations.sources import MAX_MESH_BYTES, mesh_points
+
+    ext = (args.format or Path(args.file).suffix.lstrip(".")).lower()
+    ext = {"txt": "xyz", "xyzrgb": "xyz", "pts": "xyz"}.get(ext, ext)
+    if ext not in ("obj", "ply", "stl", "glb", "gltf", "csv", "xyz"):
+        raise CliError(f"{args.file}: unknown file format {ext!r}; give --format")
+    data = _read(args.file, MAX_MESH_BYTES)
+    return _run(lambda: mesh_points(data, args.n, file_type=ext, mode=args.mode, size_m=args.size_m,
+                                    center_m=args.center, min_spacing_m=args.min_spacing_m, up=args.up,
+                                    color=args.color)[0], args)
 
 
 def _repair(args: argparse.Namespace) -> int:

@@ -16,6 +16,16 @@ an in-process cluster; the address defaults to ``$SWARMSHOW_DASK_SCHEDULER``). E
 with a one-line message when the scheduler or a worker cannot be reached within
 ``--scheduler-timeout`` seconds.
 
+``swarmshow simulate SHOW --runs K [--preset gusty-rtk] [--seed S] [--confidence 0.99]
+[--collision-distance M] [--report out.html|out.pdf]`` is the Monte-Carlo safety margin
+(``sim.flight.monte_carlo``): K flights with seeds S .. S+K-1 (on the local engine one after
+the other, on ``--engine dask`` one task per run), the flown minimum separation per segment
+and for the show, the probability of coming closer than the minimum distance and than the
+collision distance (exact binomial intervals), the worst pairs, every drone's largest deviation
+and the extra spacing each segment needs at ``--confidence``; ``--report`` writes the safety
+report (HTML with inline plots, or PDF by the suffix). Exit 1 when any run came closer than
+the minimum distance (with the flight tolerance) or a drone diverged.
+
 ``swarmshow simulate --scenario paper [--json] [--plot PNG] [--controller ...]`` runs
 method.md §7 for 20 s with the chosen controller and the other one for comparison;
 exit 1 if the chosen controller misses the paper scenario's thresholds.
@@ -25,10 +35,26 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import sys
+from pathlib import Path
+from typing import Any
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
+from app.cli._common import (
+    EXIT_FAILED,
+    EXIT_OK,
+    CliError,
+    load_show_arg,
+    print_json,
+    progress_bar,
+    write_atomically,
+)
+
+#: Error-model presets and the default collision distance (copied from ``sim.flight`` so that
+#: building the parser does not import the simulation; a test keeps them equal).
+PRESETS = ("ideal", "calm-rtk", "gusty-rtk", "gps-only")
+DEFAULT_COLLISION_DISTANCE_M = 1.0
 
 #: ``local`` (an alias for the in-process engine) is the numba kernel.
 LOCAL_ALIAS = "local"
@@ -63,7 +89,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--disturbance", choices=DISTURBANCES, default="none",
                    help="external disturbance for a show flight (default none)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the wind gusts (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random errors (default 0); with --runs the first run's seed")
+    p.add_argument("--preset", choices=PRESETS,
+                   help="error-model preset (replaces --disturbance): ideal, calm-rtk, gusty-rtk, gps-only")
+    p.add_argument("--runs", type=int, metavar="K",
+                   help="Monte-Carlo: fly the show K times with seeds SEED..SEED+K-1 and report the margin")
+    p.add_argument("--confidence", type=float, default=None, metavar="C",
+                   help="with --runs: level of the intervals and of the extra spacing, in (0, 1) (default 0.99)")
+    p.add_argument("--collision-distance", type=float, default=None, metavar="M",
+                   help=f"with --runs: centre distance counted as a collision, m (default "
+                   f"{DEFAULT_COLLISION_DISTANCE_M:g})")
+    p.add_argument("--report", metavar="FILE",
+                   help="with --runs: write the safety report, HTML (.html) or PDF (.pdf)")
     p.set_defaults(func=_simulate)
 
 
@@ -71,6 +109,8 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.scenario is not None:
         if args.show is not None:
             raise CliError("give either SHOW or --scenario, not both")
+        if args.runs is not None or args.preset is not None or args.report is not None:
+            raise CliError("--runs, --preset and --report fly a SHOW, not --scenario paper")
         return _paper(args)
     if args.show is None:
         raise CliError("a SHOW file or --scenario is required")
@@ -82,7 +122,124 @@ def _simulate(args: argparse.Namespace) -> int:
         raise CliError("--scheduler is only used with --engine dask")
     if not args.scheduler_timeout > 0:
         raise CliError(f"--scheduler-timeout must be > 0, got {args.scheduler_timeout}")
-    return _show(args)
+    if args.runs is None:
+        for flag, value in (("--confidence", args.confidence), ("--collision-distance", args.collision_distance),
+                            ("--report", args.report)):
+            if value is not None:
+                raise CliError(f"{flag} is only used with --runs K (the Monte-Carlo safety margin)")
+        return _show(args)
+    if args.runs < 1:
+        raise CliError(f"--runs must be >= 1, got {args.runs}")
+    if args.confidence is not None and not 0.0 < args.confidence < 1.0:
+        raise CliError(f"--confidence must be in (0, 1), got {args.confidence}")
+    if args.collision_distance is not None and not (math.isfinite(args.collision_distance)
+                                                    and args.collision_distance > 0):
+        raise CliError(f"--collision-distance must be > 0, got {args.collision_distance}")
+    if args.report is not None and _report_format(args.report) is None:
+        raise CliError(f"--report {args.report}: the file name must end in .html or .pdf")
+    return _montecarlo(args)
+
+
+def _report_format(path: str) -> str | None:
+    suffix = Path(path).suffix.lower()
+    return {".html": "html", ".htm": "html", ".pdf": "pdf"}.get(suffix)
+
+
+def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
+    """The run's FlightOptions: engine, controller, output rate, seed and the error preset (if any)."""
+    from sim.flight import FlightOptions, options_for_preset
+
+    options = FlightOptions(
+        engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
+        output_hz=args.output_hz, seed=args.seed, **dask,
+    )
+    return options if args.preset is None else options_for_preset(args.preset, options)
+
+
+def _montecarlo(args: argparse.Namespace) -> int:
+    from sim import PlanError, cached_plan_show
+    from sim.flight import SchedulerUnreachableError, connect_scheduler, monte_carlo
+
+    dask = _dask_options(args)
+    show = load_show_arg(args.show)
+    report_path = Path(args.report) if args.report else None
+    if report_path is not None and not report_path.parent.is_dir():
+        raise CliError(f"{report_path}: cannot write: no such directory {str(report_path.parent)!r}")
+    with contextlib.ExitStack() as stack:
+        if dask:
+            try:
+                dask["scheduler"] = stack.enter_context(connect_scheduler(dask["scheduler"], dask["connect_timeout_s"]))
+            except SchedulerUnreachableError as exc:
+                raise CliError(" ".join(str(exc).split())) from None
+        try:
+            plan = cached_plan_show(show)
+        except PlanError as exc:
+            raise CliError(f"{args.show}: {exc}") from exc
+        with progress_bar(f"monte-carlo x{args.runs}") as update:
+            result = monte_carlo(
+                plan, _flight_options(args, dask), runs=args.runs, seed0=args.seed,
+                confidence=0.99 if args.confidence is None else args.confidence,
+                collision_distance_m=(DEFAULT_COLLISION_DISTANCE_M if args.collision_distance is None
+                                      else args.collision_distance),
+                preset=args.preset, progress=update,
+            )
+    report = result.to_json()
+    report["show"] = show.name
+    if report_path is not None:
+        from app.exports import render_safety_report
+
+        fmt = _report_format(str(report_path)) or "html"
+        write_atomically(report_path, render_safety_report(report, fmt))
+        report["report"] = str(report_path)
+    if args.json:
+        print_json(report)
+    else:
+        print(format_montecarlo(report))
+    unsafe = report["show_min"]["p_below_min_distance"]["runs_below"] > 0 or report["diverged_count"] > 0
+    return EXIT_FAILED if unsafe else EXIT_OK
+
+
+def format_montecarlo(r: dict) -> str:
+    """The Monte-Carlo summary as a few human-readable lines."""
+
+    def num(x: float | None, fmt: str = ".3f") -> str:
+        return "n/a" if x is None else format(x, fmt)
+
+    s = r["show_min"]
+    q = s["flown_min_m"]["quantiles"]
+
+    def prob(p: dict) -> str:
+        return (f"{p['runs_below']}/{p['runs']} runs ({100 * p['ci_low']:.1f}-{100 * p['ci_high']:.1f} % at "
+                f"{100 * p['confidence']:g} %)")
+
+    lines = [
+        f"show {r['show']!r}: {r['drones']} drones, {r['duration_s']:.1f} s, {r['runs']} runs (seeds {r['seed0']}-"
+        f"{r['seed0'] + r['runs'] - 1}, preset {r['preset'] or 'none'}, {r['controller']}, {r['engine']} engine) "
+        f"in {r['wall_time_s']:.1f} s",
+        f"  flown min separation: worst {num(q.get('0'))} m, 5 % {num(q.get('0.05'))} m, median "
+        f"{num(q.get('0.5'))} m (plan {num(s['planned_min_m'])} m, limit {r['min_distance_m']:g} m)",
+        f"  closer than {r['min_distance_m']:g} m: {prob(s['p_below_min_distance'])}",
+        f"  closer than {r['collision_distance_m']:g} m (collision): {prob(s['p_collision'])}",
+        f"  extra spacing needed at {100 * r['confidence']:g} %: {num(s['extra_spacing']['extra_m'], '.3f')} m",
+        f"  largest deviation from the plan: {num(r['deviation']['max_m'], '.3e')} m",
+    ]
+    for seg in r["segments"]:
+        if seg["extra_spacing"]["extra_m"] > 0 or seg["p_below_min_distance"]["runs_below"]:
+            lines.append(
+                f"  segment {seg['index']} {seg['label']!r}: worst {num(seg['flown_min_m']['quantiles'].get('0'))} m, "
+                f"{seg['p_below_min_distance']['runs_below']} runs below, needs "
+                f"+{seg['extra_spacing']['extra_m']:.3f} m")
+    for p in r["worst_pairs"][:3]:
+        lines.append(f"  pair {p['drones'][0]} & {p['drones'][1]}: {p['distance_m']:.3f} m at t = "
+                     f"{p['time_s']:.2f} s ({p['label']}, run {p['run']}, seed {p['seed']})")
+    if r["diverged_count"]:
+        lines.append(f"  DIVERGED: {r['diverged_count']} drone-runs")
+    if r.get("report"):
+        lines.append(f"  report written to {r['report']}")
+    unsafe = s["p_below_min_distance"]["runs_below"] > 0 or r["diverged_count"] > 0
+    lines.append("UNSAFE: some runs broke the minimum distance (see above)" if unsafe
+                 else "OK: every run kept the minimum distance")
+    return "\n".join(lines)
 
 
 def _dask_options(args: argparse.Namespace) -> dict:
@@ -101,7 +258,7 @@ def _engine(args: argparse.Namespace) -> str:
 
 def _show(args: argparse.Namespace) -> int:
     from sim import PlanError, cached_plan_show
-    from sim.flight import FlightOptions, SchedulerUnreachableError, connect_scheduler, fly_show
+    from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
 
     dask = _dask_options(args)
     show = load_show_arg(args.show)
@@ -118,11 +275,7 @@ def _show(args: argparse.Namespace) -> int:
         except PlanError as exc:
             raise CliError(f"{args.show}: {exc}") from exc
         with progress_bar("simulate") as update:
-            options = FlightOptions(
-                engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
-                output_hz=args.output_hz, seed=args.seed, **dask,
-            )
-            result = fly_show(plan, options, progress=update)
+            result = fly_show(plan, _flight_options(args, dask), progress=update)
     summary = result.summary()
     summary["show"] = show.name
     if args.json:

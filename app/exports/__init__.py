@@ -8,6 +8,8 @@ flight at any time; the live viewer (``app.viewer``) plays them and the
 Formats are registered in :data:`EXPORT_FORMATS` (format name -> lazy
 ``"module:function"``); an exporter takes an :class:`ExportContext` and returns
 an :class:`ExportResult`. :func:`export_show` is the entry point.
+:func:`render_safety_report` draws a Monte-Carlo result (``sim.flight.monte_carlo``) as
+HTML or PDF.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from app.exports._core import ExportResult as ExportResult
 from app.exports._formats import EXPORT_FORMATS as EXPORT_FORMATS
 from app.exports._formats import export_plan as export_plan
 from app.exports._formats import export_show as export_show
+from app.exports._safety_report import REPORT_FORMATS as REPORT_FORMATS
+from app.exports._safety_report import render_safety_report as render_safety_report
 from app.exports._tracks import FlightTrack as FlightTrack
 from app.exports._tracks import Frame as Frame
 from app.exports._tracks import PlanTrack as PlanTrack
@@ -32,6 +36,8 @@ from app.exports._tracks import show_bounds as show_bounds
 
 __all__ = [
     "EXPORT_FORMATS",
+    "REPORT_FORMATS",
+    "render_safety_report",
     "FlightTrack",
     "Frame",
     "PlanTrack",

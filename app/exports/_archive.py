@@ -15,6 +15,8 @@ import zipfile
 from collections.abc import Iterable
 from typing import Any
 
+from app.exports._frames import LOCAL_FRAME
+
 #: Longest file-name stem, characters (file systems allow 255 bytes; leave room for suffixes).
 MAX_STEM_CHARS = 64
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -124,6 +126,7 @@ def base_manifest(ctx: Any, *, fmt: str, **extra: Any) -> dict[str, Any]:
         "show_hash": ctx.show.content_hash(),
         "drones": ctx.show.drones,
         "duration_s": round(plan.duration_s, 6),
-        "coordinates": "ENU metres: x east, y north, z up, relative to the show origin",
+        "coordinates": LOCAL_FRAME,
+        "heading_deg": ctx.options.heading_deg,
         **extra,
     }

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 if TYPE_CHECKING:
+    from app.media import AudioTrack
     from formations import ShowFile
     from sim import ShowPlan
 
@@ -25,6 +26,10 @@ MAX_FPS = 1000.0
 #: Most (drone, time) samples one sampled export may hold: writing a sample costs about 2 us (waypoints
 #: CSV), so 4 M keep an export under about 10 s of CPU (it allowed 200 M, minutes and gigabytes).
 MAX_SAMPLES = 4_000_000
+#: Largest position scale factor accepted (``crazyswarm``).
+MAX_SCALE = 10.0
+#: Largest position offset accepted, metres per axis (``crazyswarm``).
+MAX_OFFSET_M = 10_000.0
 
 
 class ExportError(ValueError):
@@ -50,12 +55,20 @@ class ExportOptions:
             from true north (0: +y points north, +x east).
         source: ``"planned"`` (the exact plan) or ``"simulated"`` (the flown
             trajectory of the flight simulation; sampled formats only).
+        audio: the show's music (``.skyc`` and ``viser-html`` embed it; issue 18).
+        scale: factor applied to every position (``crazyswarm``: fly an outdoor
+            show indoors, e.g. 0.02), in (0, 10]; times are kept, speeds scale with it.
+        offset_m: (x, y, z) metres added after scaling (``crazyswarm``: where the
+            show's origin lies in the motion-capture frame).
     """
 
     fps: float | None = None
     origin: tuple[float, float, float] | None = None
     heading_deg: float = 0.0
     source: Source = "planned"
+    audio: AudioTrack | None = None
+    scale: float = 1.0
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if self.fps is not None:
@@ -79,6 +92,18 @@ class ExportOptions:
             object.__setattr__(self, "origin", (lat, lon, alt))
         heading = _number(self.heading_deg, "heading_deg")
         object.__setattr__(self, "heading_deg", heading % 360.0)
+        scale = _number(self.scale, "scale")
+        if not 0.0 < scale <= MAX_SCALE:
+            raise ExportError(f"scale must be in (0, {MAX_SCALE:g}], got {self.scale!r}")
+        object.__setattr__(self, "scale", scale)
+        try:
+            offset = tuple(_number(v, "offset") for v in self.offset_m)
+        except TypeError as exc:
+            raise ExportError(f"offset must be (x, y, z) metres, got {self.offset_m!r}") from exc
+        if len(offset) != 3 or max(abs(v) for v in offset) > MAX_OFFSET_M:
+            raise ExportError(f"offset must be three numbers (x, y, z) within +-{MAX_OFFSET_M:g} m, "
+                              f"got {self.offset_m!r}")
+        object.__setattr__(self, "offset_m", offset)
         if self.source not in ("planned", "simulated"):
             raise ExportError(f"source must be 'planned' or 'simulated', got {self.source!r}")
 

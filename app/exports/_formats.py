@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from app.exports._core import ExportContext, ExportError, ExportOptions, ExportResult, ProgressFn, Source
 
 if TYPE_CHECKING:
+    from app.media import AudioTrack
     from formations import ShowFile
     from sim import ShowPlan
 
@@ -55,6 +56,9 @@ def export_show(
     flight: Any = None,
     drone_names: list[str] | None = None,
     progress: ProgressFn | None = None,
+    audio: AudioTrack | None = None,
+    scale: float = 1.0,
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> ExportResult:
     """Export a show in one of :data:`EXPORT_FORMATS`.
 
@@ -69,6 +73,9 @@ def export_show(
         flight: the simulated flight if already computed (else flown here when needed).
         drone_names: optional per-drone names (sanitised for use as file names).
         progress: optional callback receiving the fraction done in [0, 1].
+        audio: the show's music (``skyc`` and ``viser-html`` embed it).
+        scale: factor applied to positions (``crazyswarm``, indoor shows).
+        offset_m: (x, y, z) metres added after scaling (``crazyswarm``).
 
     Returns:
         The exported file.
@@ -76,7 +83,8 @@ def export_show(
     Raises:
         ExportError: unknown format, bad option, or a show that cannot be planned.
     """
-    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source)
+    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source, audio=audio,
+                            scale=scale, offset_m=offset_m)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
     )

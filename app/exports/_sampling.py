@@ -35,6 +35,25 @@ def frame_count(duration_s: float, fps: float) -> int:
     return int(np.floor(duration_s * fps + 1e-9)) + 2
 
 
+def default_fps(ctx: ExportContext, default: float, *, extra_rows: int = 0) -> float:
+    """``default`` frames per second, or for a show too large for it the highest whole rate within
+    :data:`MAX_SAMPLES` (at least 1), with a warning giving what the lower rate costs."""
+    duration = ctx.plan.duration_s
+    drones = max(ctx.show.drones, 1)
+    if (frame_count(duration, default) + extra_rows) * drones <= MAX_SAMPLES:
+        return default
+    fps = float(max(1, int((MAX_SAMPLES / drones - 2 - extra_rows) / max(duration, 1e-9))))
+    dt = 1.0 / fps
+    chord_mm = ctx.show.settings.max_accel_mps2 * dt * dt / 8.0 * 1000.0
+    ctx.warn(
+        f"{ctx.fmt}: {ctx.show.drones} drones x {duration:.0f} s at the default {default:g} fps exceed the "
+        f"{MAX_SAMPLES:,}-sample limit; wrote {fps:g} fps, so straight lines between rows stray up to "
+        f"~{chord_mm:.0f} mm from the plan and colour fades step every {dt * 1000:.0f} ms (use .skyc, or "
+        "crazyswarm, for exact trajectories)"
+    )
+    return fps
+
+
 def check_sample_count(ctx: ExportContext, n_times: int) -> None:
     """Refuse exports that would hold more than :data:`MAX_SAMPLES` samples."""
     total = n_times * ctx.show.drones
@@ -55,6 +74,10 @@ def iter_samples(
     at ``times_s`` (the flight is sampled far faster than any export rate).
     """
     n = ctx.show.drones
+    from sim.light import LightStack, show_colors
+
+    # Issue 18: the show's light effects over the base colours (an empty stack changes nothing).
+    stack = LightStack.from_show(ctx.show, ctx.plan)
     if ctx.options.source == "simulated":
         flight = ctx.flight
         ft = np.asarray(flight.times_s, dtype=np.float64)
@@ -69,6 +92,8 @@ def iter_samples(
             b = min(a + block, n)
             pos = fpos[i, a:b] * (1.0 - w) + fpos[j, a:b] * w
             col = fcol[i, a:b] * (1.0 - w) + fcol[j, a:b] * w
+            if stack:  # painted over the flown colours at the flown positions
+                col = stack.apply(times_s, col, pos, slice(a, b))
             yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
         return
     plan = ctx.plan
@@ -82,8 +107,11 @@ def iter_samples(
     for a in range(0, n, block):
         b = min(a + block, n)
         pos = plan.motion.evaluate(times_s, slice(a, b), derivatives=0).positions_m
-        C = plan.knot_colors_rgb[:, a:b]
-        col = C[k0] + tau * (C[k1] - C[k0])
+        if stack:
+            col = show_colors(ctx.show, plan, times_s, drones=slice(a, b), positions_m=pos, stack=stack)
+        else:
+            C = plan.knot_colors_rgb[:, a:b]
+            col = C[k0] + tau * (C[k1] - C[k0])
         yield a, pos.transpose(1, 0, 2), col.transpose(1, 0, 2)
 
 

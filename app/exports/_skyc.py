@@ -4,60 +4,91 @@
 
     {"version": 1,
      "settings": {"cues": {"version": 1, "items": []},
-                  "validation": {"minDistance", "maxVelocityXY", "maxVelocityZ",
-                                 "maxAccelerationXY", "maxAccelerationZ", "maxAltitude"}},
+                  "validation": {"maxAltitude", "maxVelocityXY", "maxVelocityZ", ["maxVelocityZUp"],
+                                 "maxAccelerationXY", "maxAccelerationZ", "minDistance",
+                                 "minNavAltitude", "maxYawRate"}},
      "swarm": {"drones": [{"type": "generic",
                            "settings": {"name", "home": [x, y, z],
                                         "trajectory": {"version": 1, "points": [...]},
                                         "lights": {"version": 1, "data": base64}}}]},
-     "environment": {"type": "outdoor"},
+     "environment": {"type": "outdoor", "location": {"origin": [lat·1e7, lon·1e7, amsl_mm],
+                                                     "orientation": deg}},
      "meta": {"title", "generator", "segments": {"takeoff": [t0, t1], "show": [...], "landing": [...]}}}
+
+Frame: Skybrush's show frame is X front, Y left, Z up, and ``location.orientation``
+is the compass bearing of +X. Our x, y, z are written unchanged and the orientation
+is the heading + 90° (see :mod:`app.exports._frames`); ``location`` is written when
+the show has a place on Earth (``settings.geo`` or ``--origin``).
 
 Trajectory points are ``[t, [x, y, z], [control points]]``: the curve from
 the previous point to this one is a Bézier curve in normalised time with 0
 (straight line), 1 or 2 control points; the first point has none. Times are
-strictly increasing seconds.
+strictly increasing seconds, **whole milliseconds**: Skybrush Server converts the
+show to its binary format (durations in integer milliseconds, coordinates int16 at
+a per-drone scale of 1, 2, ... mm) for libskybrush, the drone's player, so a time
+between milliseconds would be cut and the drone's clock would drift from the plan's.
+The server computes each duration as ``floor(round(t1 - t0, 3) · 1000)``, which
+loses a millisecond for about 1 % of whole-millisecond durations (1001 ms reads
+1000.9999999999999): such a segment is written as two segments whose durations
+survive. Segments are at most :data:`MAX_SEGMENT_MS` long (the server splits longer
+ones at fractional milliseconds).
 
 Every drone is written from its own polynomial pieces (``plan.motion``: its own
-break times, so staggered departures and arrivals are kept): each piece of
-degree <= 3 is one cubic Bézier, exactly (the cubic Hermite interpolant of a
-cubic is the cubic itself: control points p0 + h·v0/3 and p1 - h·v1/3); a
-piece of degree 4 or 5 is split into m equal-time parts, each its cubic
-Hermite interpolant (exact position and velocity at every boundary, so the
-curve is C¹), m the smallest count whose error bound (:func:`hermite_error_bound`)
-stays within :data:`TOLERANCE_M`. Pieces of degree <= 1 need no control points
-(a straight line in normalised time is linear in time); zero-length pieces are
-dropped, and runs of constant points are merged.
+break times, so staggered departures and arrivals are kept): runs of constant
+pieces merge into one; each piece of degree <= 3 is one cubic Bézier (the cubic
+Hermite interpolant of a cubic is the cubic itself: control points p0 + h·v0/3 and
+p1 - h·v1/3); a piece of degree 4 or 5 is split into m equal-time parts, m the
+smallest count whose error bound (:func:`hermite_error_bound`) stays within
+:data:`TOLERANCE_M`. Cut times are then rounded to whole milliseconds and each part
+is the cubic Hermite interpolant of its piece between its rounded times (exact
+position and velocity at every stamp, so the curve is C¹ and on time). Pieces of
+degree <= 1 need no control points (a straight line in normalised time is linear
+in time); parts shorter than half a millisecond vanish.
 
 Lights are Skybrush / ``ledctrl`` light-program bytecode (pyledctrl's
 ``CommandCode``): ``SET_COLOR r g b duration`` (0x04), ``FADE_TO_COLOR r g b
 duration`` (0x08, linear) and ``END`` (0x00), durations as unsigned LEB128
 varints in frames of 1/50 s. The plan fades colours linearly between knots,
-which ``FADE_TO_COLOR`` reproduces exactly up to the 20 ms frame grid.
+which ``FADE_TO_COLOR`` reproduces exactly up to the 20 ms frame grid. A show with light effects
+(issue 18) gets each drone's colours fitted as fades and holds instead (:mod:`app.exports._ledctrl`).
 """
 
 from __future__ import annotations
 
 import base64
+import functools
+import gc
 import json
+import math
 
 import numpy as np
 
 from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
+from app.exports._frames import skybrush_orientation_deg
+from app.exports._ledctrl import show_light_programs
+from app.exports._media import add_skyc_audio
 from sim.plan import horner
 
-#: Largest deviation of the Bézier curves from the plan, metres (the issue allows 1 cm).
-TOLERANCE_M = 0.002
-#: Drones Skybrush's viewer displays.
-SKYBRUSH_VIEWER_MAX_DRONES = 5000
+#: Largest deviation of the Bézier curves from the plan, metres. The drone's budget is 7 mm
+#: (libskybrush after the server's conversion), of which the binary format's int16
+#: coordinates take up to ~3.5 mm at scale 2 and ~5.2 mm at scale 3 (1 unit per axis,
+#: truncated); the show-format loader's budget is 2 mm, of which the written decimals
+#: take 0.09 mm. Parts grow like tolerance^(-1/4): 1.5 mm costs 8 % more points than 2 mm.
+TOLERANCE_M = 0.0015
+#: Most drones a .skyc may hold: Skybrush Live and Skybrush Viewer refuse larger shows.
+SKYBRUSH_MAX_DRONES = 5000
+#: Longest segment written, milliseconds: the server cuts longer ones (over 65 s) at fractional milliseconds.
+MAX_SEGMENT_MS = 60_000
+#: Studio's default for the yaw-rate limit (swarmshow drones do not yaw), degrees per second.
+MAX_YAW_RATE_DEG_S = 30.0
 #: Light-program frame rate (``ledctrl`` durations are in frames), frames per second.
 LIGHT_FPS = 50
 OP_END = 0x00
 OP_SET_COLOR = 0x04
 OP_FADE_TO_COLOR = 0x08
-# Decimals kept in show.json: 1 µs for times (piece boundaries must not move), 0.1 mm for positions.
-_TIME_DECIMALS = 6
+# Decimals kept in show.json: times are whole milliseconds, positions 0.1 mm.
+_TIME_DECIMALS = 3
 _POS_DECIMALS = 4
 
 
@@ -146,10 +177,36 @@ def light_program(frames: np.ndarray, colors: np.ndarray) -> bytes:
     return bytes(code)
 
 
-def _drone_points(plan) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Per-drone (times, positions, controls, has_controls) of the Bézier points after the home point.
+def _server_truncates(duration_ms: int) -> bool:
+    """Whether Skybrush Server's .skyc-to-binary conversion stores ``duration_ms`` one millisecond short.
 
-    Every drone's own pieces, split as the module docstring says; constant runs merged.
+    The server takes a segment's duration as ``round(t1 - t0, 3)`` seconds and writes
+    ``floor(duration·1000)`` milliseconds; for some whole-millisecond durations the
+    binary double nearest to ``k/1000`` times 1000 falls just below ``k`` (1001 ms:
+    1000.9999999999999), and every such segment would put the drone's clock 1 ms behind.
+    """
+    return math.floor(round(duration_ms / 1000.0, 3) * 1000.0) != duration_ms
+
+
+@functools.cache
+def _safe_split_ms() -> np.ndarray:
+    """(MAX_SEGMENT_MS + 2,) per duration d (ms): 0 if the server keeps d, else a split a with a and d - a kept."""
+    split = np.zeros(MAX_SEGMENT_MS + 2, dtype=np.int64)
+    for d in range(1, MAX_SEGMENT_MS + 2):
+        if _server_truncates(d):
+            a = d // 2
+            while _server_truncates(a) or _server_truncates(d - a):
+                a -= 1
+            split[d] = a
+    return split
+
+
+def _drone_points(plan) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Per-drone (times in whole ms, positions, controls, has_controls) of the Bézier points after the home point.
+
+    Every drone's own pieces, constant runs merged, split as the module docstring says;
+    the cut times are rounded to whole milliseconds *before* fitting, so each cubic
+    interpolates the plan at the very time stamps the drone's clock uses.
     """
     motion = plan.motion
     breaks, coeffs = motion.breaks_s, motion.coeffs_m
@@ -157,38 +214,52 @@ def _drone_points(plan) -> tuple[list[np.ndarray], list[np.ndarray], list[np.nda
     drone, piece = np.nonzero(np.diff(breaks, axis=1) > 0)  # drone by drone, in time order
     c = coeffs[drone, piece]  # (M, 3, D+1)
     t0 = breaks[drone, piece]
-    dur = breaks[drone, piece + 1] - t0
+    t1 = breaks[drone, piece + 1]
     nonzero = np.any(c != 0.0, axis=1)  # (M, D+1): which powers are used
     degree = np.where(nonzero.any(axis=1), c.shape[-1] - 1 - np.argmax(nonzero[:, ::-1], axis=1), 0)
+    # A constant piece right after another constant piece of the same drone continues it
+    # (the motion is continuous, so both hold the same position): one run, one piece.
+    constant = degree == 0
+    first = np.r_[True, drone[1:] != drone[:-1]] if len(drone) else np.zeros(0, bool)
+    starts = np.flatnonzero(first | ~constant | ~np.r_[False, constant[:-1]])
+    ends = np.r_[starts[1:] - 1, len(drone) - 1].astype(np.int64)
+    drone, c, degree, t0, t1 = drone[starts], c[starts], degree[starts], t0[starts], t1[ends]
+    dur = t1 - t0
     parts = np.where(degree <= 3, 1, subdivisions(c, dur))
-    # One row per part: its piece, its index in the piece.
+    # The server splits segments over 65 s at fractional milliseconds: keep each below MAX_SEGMENT_MS.
+    parts = np.maximum(parts, np.ceil(dur * 1000.0 / MAX_SEGMENT_MS).astype(np.int64))
     row = np.repeat(np.arange(len(drone)), parts)
     j = np.arange(len(row)) - np.repeat(np.cumsum(parts) - parts, parts)
     h = dur[row] / parts[row]
-    u0, u1 = j * h, (j + 1) * h
+    start_ms = np.rint((t0[row] + j * h) * 1000.0).astype(np.int64)
+    end_ms = np.where(j == parts[row] - 1, np.rint(t1[row] * 1000.0), np.rint((t0[row] + (j + 1) * h) * 1000.0))
+    end_ms = end_ms.astype(np.int64)
+    # Sub-millisecond parts vanish: the next part starts where they did, within a millisecond of motion.
+    keep = end_ms > start_ms
+    row, start_ms, end_ms = row[keep], start_ms[keep], end_ms[keep]
+    # Durations the server would shorten by a millisecond become two parts it keeps.
+    split = _safe_split_ms()[end_ms - start_ms]
+    twice = np.repeat(np.arange(len(row)), 1 + (split > 0))
+    second = np.r_[False, twice[1:] == twice[:-1]]
+    first_of_two = np.r_[twice[1:] == twice[:-1], False]
+    row, s_ms, e_ms, cut = row[twice], start_ms[twice], end_ms[twice], split[twice]
+    s_ms = np.where(second, s_ms + cut, s_ms)
+    e_ms = np.where(first_of_two, s_ms + cut, e_ms)
+    # Fit each part: the cubic Hermite interpolant of its piece between the whole-ms stamps.
     cr = c[row]
-    p0, v0 = horner(cr, u0[:, None]), horner(_derivative(cr), u0[:, None])
-    p1, v1 = horner(cr, u1[:, None]), horner(_derivative(cr), u1[:, None])
-    controls = np.stack([p0 + h[:, None] * v0 / 3.0, p1 - h[:, None] * v1 / 3.0], axis=1)  # (R, 2, 3)
-    times = np.where(j == parts[row] - 1, t0[row] + dur[row], t0[row] + u1)
+    u0 = (s_ms / 1000.0 - t0[row])[:, None]
+    u1 = (e_ms / 1000.0 - t0[row])[:, None]
+    hp = ((e_ms - s_ms) / 1000.0)[:, None]
+    dc = _derivative(cr)
+    p0, v0, p1, v1 = horner(cr, u0), horner(dc, u0), horner(cr, u1), horner(dc, u1)
+    controls = np.stack([p0 + hp * v0 / 3.0, p1 - hp * v1 / 3.0], axis=1)  # (R, 2, 3)
     has = degree[row] >= 2
-    constant = degree[row] == 0
     d = drone[row]
-    # A constant point followed by another constant point of the same drone is redundant:
-    # the drone stays still across both.
-    same_next = np.r_[d[1:] == d[:-1], False]
-    keep = ~(constant & np.r_[constant[1:], False] & same_next)
-    d, times, p1, controls, has = d[keep], times[keep], p1[keep], controls[keep], has[keep]
-    # Times are written to 1 µs and must increase strictly: a point that would land on
-    # the previous one's time stamp (a sub-microsecond piece) is dropped; the next curve
-    # then starts less than a microsecond of motion early.
-    stamps = np.round(times, _TIME_DECIMALS)
-    first = np.r_[True, d[1:] != d[:-1]]
-    previous = np.where(first, 0.0, np.r_[0.0, stamps[:-1]])
-    keep = stamps > previous
-    d, times, p1, controls, has = d[keep], times[keep], p1[keep], controls[keep], has[keep]
     cuts = np.cumsum(np.bincount(d, minlength=n))[:-1]
-    return np.split(times, cuts), np.split(p1, cuts), np.split(controls, cuts), np.split(has, cuts)
+    # Rounded to the written decimals once for every drone (+ 0.0: no "-0.0").
+    p1 = np.round(p1, _POS_DECIMALS) + 0.0
+    controls = np.round(controls, _POS_DECIMALS) + 0.0
+    return np.split(e_ms, cuts), np.split(p1, cuts), np.split(controls, cuts), np.split(has, cuts)
 
 
 def _derivative(c: np.ndarray) -> np.ndarray:
@@ -210,27 +281,72 @@ def _segments_meta(plan) -> dict[str, list[float]]:
     }
 
 
+def validation_settings(ctx: ExportContext) -> dict[str, float]:
+    """The safety limits under the keys Skybrush Studio writes (``SafetyCheckParams.as_dict``).
+
+    ``maxVelocityZ`` is the descent limit; ``maxVelocityZUp`` (written when climbing is
+    limited differently) the climb limit, as Studio splits them.
+    """
+    s = ctx.show.settings
+    descent = s.max_descent_speed_mps if s.max_descent_speed_mps is not None else s.max_speed_z_mps
+    out = {
+        "maxAltitude": round(s.max_altitude_m, 3),
+        "maxVelocityXY": round(s.max_speed_xy_mps, 3),
+        "maxVelocityZ": round(descent, 3),
+        "maxAccelerationXY": round(s.max_accel_mps2, 3),
+        "maxAccelerationZ": round(s.max_accel_mps2, 3),
+        "minDistance": round(s.min_distance_m, 3),
+        "minNavAltitude": round(s.min_altitude_m, 3),
+        "maxYawRate": MAX_YAW_RATE_DEG_S,
+    }
+    if descent != s.max_speed_z_mps:
+        out["maxVelocityZUp"] = round(s.max_speed_z_mps, 3)
+    return out
+
+
+def environment(ctx: ExportContext) -> dict:
+    """``environment``: outdoor, and the show's place on Earth when it has one.
+
+    ``location`` is what Studio writes (``ShowLocation.json``): ``origin`` = [latitude·10⁷,
+    longitude·10⁷, AMSL altitude in mm] as integers, ``orientation`` = bearing of the
+    Skybrush +X axis in degrees. Coordinates are written as they are (Skybrush X = our
+    x, Y = our y, Z = our z): Skybrush's frame is X front, Y left, Z up, so with X at
+    bearing heading + 90° (where our +x points) its Y lies at the heading, where our +y
+    points (:func:`app.exports._frames.skybrush_orientation_deg`).
+    """
+    env: dict = {"type": "outdoor"}
+    if ctx.options.origin is not None:
+        lat, lon, alt = ctx.options.origin
+        env["location"] = {
+            "origin": [round(lat * 1e7), round(lon * 1e7), round(alt * 1e3)],
+            "orientation": round(skybrush_orientation_deg(ctx.options.heading_deg), 3),
+        }
+    return env
+
+
 def build_show_json(ctx: ExportContext) -> dict:
     """The ``show.json`` document of the ``.skyc`` (see the module docstring)."""
     from importlib.metadata import PackageNotFoundError, version
 
     plan = ctx.plan
-    s = ctx.show.settings
     names = ctx.drone_names
     times, positions, controls, has = _drone_points(plan)
     ctx.progress(0.5)
     frames = np.rint(plan.knot_times_s * LIGHT_FPS).astype(np.int64)
     colors = np.clip(np.rint(plan.knot_colors_rgb * 255.0), 0, 255).astype(np.int64)
     home = np.round(plan.knot_positions_m[0], _POS_DECIMALS) + 0.0
+    # Issue 18: with light effects, each drone's colours fitted as fades (app.exports._ledctrl).
+    programs = show_light_programs(ctx.show, plan, lambda f: ctx.progress(0.5 + 0.4 * f))
     drones = []
     for i in range(plan.drone_count):
-        t = np.round(times[i], _TIME_DECIMALS).tolist()
-        p = (np.round(positions[i], _POS_DECIMALS) + 0.0).tolist()
-        c = (np.round(controls[i], _POS_DECIMALS) + 0.0).tolist()
+        t = (times[i] / 1000.0).tolist()  # whole ms: the shortest repr is exact to 3 decimals
+        p = positions[i].tolist()  # rounded to _POS_DECIMALS by _drone_points
+        c = controls[i].tolist()
         h = has[i].tolist()
         points = [[0.0, home[i].tolist(), []]]
         points += [[tj, pj, cj if hj else []] for tj, pj, cj, hj in zip(t, p, c, h, strict=True)]
-        lights = base64.b64encode(light_program(frames, colors[:, i])).decode("ascii")
+        program = programs[i] if programs is not None else light_program(frames, colors[:, i])
+        lights = base64.b64encode(program).decode("ascii")
         drones.append(
             {
                 "type": "generic",
@@ -250,17 +366,10 @@ def build_show_json(ctx: ExportContext) -> dict:
         "version": 1,
         "settings": {
             "cues": {"version": 1, "items": []},
-            "validation": {
-                "minDistance": s.min_distance_m,
-                "maxVelocityXY": s.max_speed_xy_mps,
-                "maxVelocityZ": s.max_speed_z_mps,
-                "maxAccelerationXY": s.max_accel_mps2,
-                "maxAccelerationZ": s.max_accel_mps2,
-                "maxAltitude": s.max_altitude_m,
-            },
+            "validation": validation_settings(ctx),
         },
         "swarm": {"drones": drones},
-        "environment": {"type": "outdoor"},
+        "environment": environment(ctx),
         "meta": {"title": ctx.show.name, "generator": generator, "segments": _segments_meta(plan)},
     }
 
@@ -268,13 +377,32 @@ def build_show_json(ctx: ExportContext) -> dict:
 def export_skyc(ctx: ExportContext) -> ExportResult:
     """Build the ``.skyc`` archive (see the module docstring)."""
     require_planned(ctx)
-    if ctx.show.drones > SKYBRUSH_VIEWER_MAX_DRONES:
+    if ctx.show.drones > SKYBRUSH_MAX_DRONES:
         ctx.warn(
-            f"the show has {ctx.show.drones} drones; Skybrush Viewer displays at most {SKYBRUSH_VIEWER_MAX_DRONES}"
+            f"the show has {ctx.show.drones:,} drones: Skybrush Live and Skybrush Viewer refuse .skyc files with "
+            f"more than {SKYBRUSH_MAX_DRONES:,} drones, so this file will not load there; split the show into "
+            f"groups of at most {SKYBRUSH_MAX_DRONES:,} drones"
         )
-    doc = build_show_json(ctx)
+    if ctx.options.origin is None:
+        ctx.warn(
+            "the show has no place on Earth (settings.geo): the .skyc has no environment.location, so set the "
+            "origin in Skybrush Live and its orientation to the show's heading + 90 degrees by hand"
+        )
+    # show.json is millions of small lists and floats, none in a cycle: the cyclic garbage
+    # collector would rescan them over and over while they are built (half the CPU time
+    # of a 5,000-drone export), so it pauses until the text is written.
     z = ZipBuilder()
-    z.add("show.json", json.dumps(doc, separators=(",", ":"), allow_nan=False))
+    paused = gc.isenabled()
+    gc.disable()
+    try:
+        doc = build_show_json(ctx)
+        add_skyc_audio(ctx, doc, z)  # issue 18: the show's music as media.audio
+        text = json.dumps(doc, separators=(",", ":"), allow_nan=False)
+        del doc
+    finally:
+        if paused:
+            gc.enable()
+    z.add("show.json", text)
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}.skyc",
         media_type="application/zip",

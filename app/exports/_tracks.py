@@ -196,13 +196,42 @@ class FlightTrack:
         return p0 + w * d, c0 + w * (self.colors_rgb[k + 1] - c0), speed
 
 
-def make_track(plan: ShowPlan, flight: Any, source: Source) -> Track:
-    """The track for ``source`` (``"simulated"`` needs a flight)."""
+class LitTrack:
+    """A track with a show's light effects (``sim.light.LightStack``) painted over its colours (issue 18)."""
+
+    def __init__(self, track: Track, lights: Any) -> None:
+        self.track = track
+        self.lights = lights
+        self.duration_s = track.duration_s
+        self.drone_count = track.drone_count
+
+    def frame(self, time_s: float) -> Frame:
+        """The inner track's frame with the effects painted on (see :class:`Track`)."""
+        f = self.track.frame(time_s)
+        colors = self.lights.apply([f.time_s], f.colors_rgb[None], f.positions_m[None])[0]
+        return Frame(f.time_s, f.positions_m, colors, f.max_speed_mps)
+
+    def positions(self, times_s: np.ndarray) -> np.ndarray:
+        """(T, N, 3) positions, metres (the inner track's)."""
+        return self.track.positions(times_s)
+
+    def sample(self, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions (m), painted colours and max speeds (m/s) at many times (see :class:`Track`)."""
+        t = np.clip(np.asarray(times_s, dtype=np.float64), 0.0, self.duration_s)
+        pos, colors, speeds = self.track.sample(t)
+        return pos, self.lights.apply(t, colors, pos), speeds
+
+
+def make_track(plan: ShowPlan, flight: Any, source: Source, lights: Any = None) -> Track:
+    """The track for ``source`` (``"simulated"`` needs a flight); with ``lights`` (a non-empty
+    ``sim.light.LightStack``) its colours carry the show's effects."""
     if source == "simulated":
         if flight is None:
             raise ValueError("no simulated flight for this show: simulate it first")
-        return FlightTrack(flight)
-    return PlanTrack(plan)
+        track: Track = FlightTrack(flight)
+    else:
+        track = PlanTrack(plan)
+    return LitTrack(track, lights) if lights else track
 
 
 def show_bounds(plan: ShowPlan, flight: Any = None) -> tuple[np.ndarray, np.ndarray]:
@@ -259,6 +288,7 @@ def framing_camera(lo: np.ndarray, hi: np.ndarray, *, fov_rad: float = 1.3) -> t
 __all__ = [
     "FlightTrack",
     "Frame",
+    "LitTrack",
     "PlanTrack",
     "Source",
     "Track",

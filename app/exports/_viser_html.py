@@ -30,6 +30,7 @@ import viser
 
 from app.exports._archive import safe_stem
 from app.exports._core import ExportContext, ExportError, ExportResult
+from app.exports._media import html_with_audio
 from app.exports._tracks import framing_camera, make_track, show_bounds
 from sim import ShowPlan
 from sim.geometry import closest_pair
@@ -77,6 +78,7 @@ def export_viser_html(
     fps: float | None = None,
     dark_mode: bool = True,
     closest_pair_line: bool = True,
+    lights: Any = None,
 ) -> bytes:
     """A self-contained HTML page that plays the show offline in 3D.
 
@@ -87,13 +89,14 @@ def export_viser_html(
         fps: keyframes per second; default 10, lowered automatically for very large shows.
         dark_mode: night-sky colours.
         closest_pair_line: also record the closest pair and its distance at each keyframe.
+        lights: the show's light effects (a ``sim.light.LightStack``), painted over the colours.
 
     Returns:
         The HTML document, UTF-8.
     """
     src = source or ("simulated" if flight is not None else "planned")
     _auto_fps(plan.drone_count, plan.duration_s, fps)  # refuse an over-budget rate before any work
-    track = make_track(plan, flight, src)  # type: ignore[arg-type]
+    track = make_track(plan, flight, src, lights)  # type: ignore[arg-type]
     rate = _auto_fps(track.drone_count, track.duration_s, fps)
     times = np.arange(int(np.floor(track.duration_s * rate + 1e-9)) + 1) / rate
     if times[-1] < track.duration_s:
@@ -181,9 +184,13 @@ def export_viser_html_file(ctx: ExportContext) -> ExportResult:
     flight = ctx.flight if options.source == "simulated" else None
     ctx.progress(0.8 if flight is not None else 0.1)
     try:
-        html = export_viser_html(ctx.plan, flight=flight, source=options.source, fps=options.fps)
+        from sim.light import LightStack
+
+        html = export_viser_html(ctx.plan, flight=flight, source=options.source, fps=options.fps,
+                                 lights=LightStack.from_show(ctx.show, ctx.plan))
     except ExportBudgetError as exc:
         raise ExportError(str(exc)) from None
+    html = html_with_audio(html, options.audio)  # issue 18: the music plays with the recording
     ctx.progress(1.0)
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}.html",

@@ -30,7 +30,7 @@ from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-from app.api import formations, health, jobs, session, shows
+from app.api import audio, formations, health, jobs, session, shows
 from app.api.errors import install_error_handlers
 from app.api.models import ShowUpdate
 from app.jobs import JobManager
@@ -122,6 +122,8 @@ def _body_limits(settings: AppSettings) -> tuple[list[BodyLimit], BodyLimit]:
         limit(r"/api/shows(/[^/]+)?/?", settings.max_show_bytes, "a show file"),
         limit(r"/api/formations/image/?", settings.max_image_bytes, "an image"),
         limit(r"/api/formations/svg/?", settings.max_svg_bytes, "an SVG file"),
+        limit(r"/api/formations/mesh/?", settings.max_mesh_bytes, "a mesh or point file"),
+        limit(r"/api/shows/[^/]+/audio/?", settings.max_audio_bytes, "an audio file ('file')"),
     ]
     return limits, BodyLimit(re.compile(""), 1024 * 1024, "this request", 1024 * 1024)
 
@@ -155,7 +157,7 @@ def create_app(settings: AppSettings | None = None) -> FastAPI:
         # No token: the server is on loopback, and only loopback names may address it (DNS rebinding).
         app.add_middleware(LoopbackHostMiddleware, extra_hosts=settings.allowed_hosts)
     app.add_middleware(SecurityHeadersMiddleware)
-    for module in (health, shows, jobs, formations, session):
+    for module in (health, shows, jobs, formations, session, audio):
         app.include_router(module.router, prefix="/api")
     for name in EXTENSIONS:
         importlib.import_module(name).install(app)

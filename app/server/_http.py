@@ -4,7 +4,8 @@ uvicorn closes an idle keep-alive connection after ``timeout_keep_alive``, but a
 connection that sends its request line and headers a byte at a time is never timed
 out: 1,520 of them held every file descriptor of a server. Here every connection
 must finish its request headers within ``header_timeout_s`` of connecting (or of its
-previous response), or it is closed.
+previous response), or it is closed. A connection upgraded to a websocket has finished
+its headers: its timer is cancelled at the upgrade.
 """
 
 from __future__ import annotations
@@ -45,6 +46,14 @@ def protocol_class(header_timeout_s: float) -> type[H11Protocol]:
             super().data_received(data)
             if self.cycle is not self._armed_cycle:  # a whole request line and headers arrived
                 self._disarm()
+
+        def handle_websocket_upgrade(self, event: Any) -> None:
+            # The upgrade hands the transport to a websocket protocol and never starts a request
+            # cycle, so data_received above does not disarm the timer: left armed it closed every
+            # websocket (the 3D view's) header_timeout_s after it opened, and viser's client came
+            # back as a new client with a fresh playback (issue 17, bug 5).
+            self._disarm()
+            super().handle_websocket_upgrade(event)
 
         def on_response_complete(self) -> None:
             super().on_response_complete()

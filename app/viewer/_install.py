@@ -15,8 +15,10 @@ import threading
 from typing import Any, Literal
 
 from fastapi import APIRouter, Body, FastAPI, Request
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
+from app.viewer._clock import clock_router
+from app.viewer._marks import check_report_json
 from app.viewer._relay import viewer_router
 from app.viewer._viewer import MAX_SHOWS, Viewer
 
@@ -29,6 +31,25 @@ class PlaybackRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     source: Source = "planned"
+    job_id: str | None = Field(None, max_length=64, description=(
+        "With source 'simulated': a Monte-Carlo job of this show (POST /api/shows/{id}/montecarlo) "
+        "whose run `run` is flown and played instead of the default single flight."))
+    run: int | None = Field(None, ge=0, description="The run of `job_id` to play (0-based; seed = seed0 + run).")
+
+
+class SeekRequest(BaseModel):
+    """Body of ``POST /api/viewer/{token}/seek``: a time, or a formation whose hold to jump to."""
+
+    model_config = ConfigDict(extra="forbid")
+    time_s: float | None = Field(None, ge=0, le=1e6, description="Show time, seconds (clamped to the show).")
+    formation: int | None = Field(None, ge=0, le=100_000, description="Jump to the start of this formation's hold.")
+
+
+class SeekOut(BaseModel):
+    """Where that browser's playback now is."""
+
+    time_s: float
+    show: str | None
 
 
 class PlaybackOut(BaseModel):
@@ -55,14 +76,19 @@ class _Loader:
     def __init__(self, app: FastAPI, viewer: Viewer) -> None:
         self.app, self.viewer = app, viewer
         self._lock = threading.Lock()
-        # (show id) -> (content hash, plan, flight or None)
-        self._cache: dict[str, tuple[str, Any, Any]] = {}
+        # (show id) -> ((content hash, Monte-Carlo run or None), plan, flight or None)
+        self._cache: dict[str, tuple[tuple[str, tuple[str, int] | None], Any, Any]] = {}
+        # (content hash) -> check report JSON of its plan
+        self._reports: dict[str, Any] = {}
 
-    def load(self, show_id: str, source: Source = "planned") -> tuple[Any, Any, bool]:
+    def load(
+        self, show_id: str, source: Source = "planned", run: tuple[str, int] | None = None
+    ) -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
 
         Called from a thread; the planning and the flight run in the job manager's interactive pool
-        under its time budget, never in the server process.
+        under its time budget, never in the server process. ``run`` = ``(job id, k)`` flies run k of
+        a Monte-Carlo job of this show instead of the default single flight.
 
         Returns:
             ``(record, plan, cached)``.
@@ -72,13 +98,22 @@ class _Loader:
         jobs = self.app.state.jobs
         record = self.app.state.store.get(show_id)
         label = _label(record)
+        run_options = self._run_options(record, run) if run is not None and source == "simulated" else None
+        # The cached flight is the one of this content and this run (None: the default flight).
+        key = (record.content_hash, None if run_options is None else run)
         with self._lock:
             hit = self._cache.get(show_id)
-            plan, flight = (hit[1], hit[2]) if hit and hit[0] == record.content_hash else (None, None)
+            plan, flight = (hit[1], hit[2]) if hit and hit[0] == key else (None, None)
+            if hit and hit[0][0] == record.content_hash and plan is None:
+                plan = hit[1]  # same show, another flight: the plan still holds
         cached = plan is not None and (source == "planned" or flight is not None)
         viewer = self.viewer
         try:
-            if source == "simulated" and flight is None:
+            if run_options is not None and flight is None:
+                assert run is not None
+                viewer.set_busy(f"Flying run {run[1]} of {record.name}", 0.0)
+                plan, flight = jobs.run_sync(tasks.viewer_montecarlo_run_task, record.json, run_options, run[1])
+            elif source == "simulated" and flight is None:
                 viewer.set_busy(f"Simulating {record.name}", 0.0)
                 options = tasks.flight_options({}, jobs.settings.dask_scheduler)
                 # Interactive pool and budget: a request waits for it (a long show answers 504, the job
@@ -91,17 +126,63 @@ class _Loader:
             viewer.set_busy(None)
         with self._lock:
             self._cache.pop(show_id, None)
-            self._cache[show_id] = (record.content_hash, plan, flight)
+            self._cache[show_id] = (key, plan, flight)
             while len(self._cache) > MAX_SHOWS:
                 del self._cache[next(iter(self._cache))]
-        viewer.load(plan, name=label, flight=flight, source=source)
+        report = self._reports.get(record.content_hash)
+        viewer.load(plan, name=label, flight=flight, source=source, report=report,
+                    lights=_lights(record.json, plan))
+        if report is None:
+            # The exact check runs in a worker after the show is on screen; its violations appear when it is done.
+            threading.Thread(target=self._check, args=(record.content_hash, label, plan), daemon=True,
+                             name="viewer-check").start()
         return record, plan, cached
+
+    def _check(self, content_hash: str, label: str, plan: Any) -> None:
+        try:
+            report = self.app.state.jobs.run_sync(check_report_json, plan)
+        except Exception as exc:  # the show still plays, only without its violations drawn
+            log.warning("viewer: cannot check %s: %s", label, exc)
+            return
+        with self._lock:
+            self._reports[content_hash] = report
+            while len(self._reports) > MAX_SHOWS:
+                del self._reports[next(iter(self._reports))]
+        self.viewer.set_report(label, report)
+
+    def _run_options(self, record: Any, run: tuple[str, int]) -> dict[str, Any]:
+        """The options of a Monte-Carlo job of ``record``'s show, checked for playing run ``run[1]``.
+
+        Raises:
+            JobNotFound: no such job (404).
+            ApiError: 422 naming ``job_id`` (not a Monte-Carlo job of this show) or ``run`` (out of range).
+        """
+        from app.api.errors import ApiError
+
+        job = self.app.state.jobs.get(run[0])
+        if job.kind != "montecarlo" or job.content_hash != record.content_hash:
+            raise ApiError(422, [{"loc": ["body", "job_id"], "path": "job_id", "msg": (
+                f"job {run[0]!r} is not a Monte-Carlo job of this show as it is now")}])
+        runs = int(job.options.get("runs", 0))
+        if not 0 <= run[1] < runs:
+            raise ApiError(422, [{"loc": ["body", "run"], "path": "run",
+                                  "msg": f"run must be in 0..{runs - 1} (the job flew {runs} runs)"}])
+        return dict(job.options)
 
     def catalog(self) -> dict[str, str]:
         """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
         they are left out."""
         records, _ = self.app.state.store.list(limit=200)
         return {r.id: _label(r) for r in records if not r.draft}
+
+
+def _lights(show_json: Any, plan: Any) -> Any:
+    """The stored show's light effects over its plan (issue 18), or None when it has none."""
+    from formations import parse_show
+    from sim.light import LightStack
+
+    stack = LightStack.from_show(parse_show(show_json), plan)
+    return stack if stack else None
 
 
 def playback_router() -> APIRouter:
@@ -127,13 +208,46 @@ def playback_router() -> APIRouter:
         if loader is None:
             raise ApiError(503, "the 3D viewer is not running")
         require_valid(request.app.state.store.get(show_id), "shown in the 3D viewer")  # a draft: 422
-        source: Source = (body or PlaybackRequest()).source
+        req = body or PlaybackRequest()
+        source: Source = req.source
+        run: tuple[str, int] | None = None
+        if req.job_id is not None or req.run is not None:
+            if source != "simulated" or req.job_id is None or req.run is None:
+                raise ApiError(422, [{"loc": ["body", "run" if req.run is None else "job_id"], "path": "run",
+                                      "msg": "job_id and run go together, with source 'simulated'"}])
+            run = (req.job_id, req.run)
         # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).
-        record, plan, cached = await asyncio.to_thread(loader.load, show_id, source)
+        record, plan, cached = await asyncio.to_thread(loader.load, show_id, source, run)
         return PlaybackOut(
             show_id=record.id, revision=record.revision, name=record.name, source=source,
             drones=plan.drone_count, duration_s=plan.duration_s, viewer_url="/viser/", cached=cached,
         )
+
+    @router.post(
+        "/viewer/{token}/seek",
+        response_model=SeekOut,
+        summary="Move one browser's 3D playback (the editor's shared playhead)",
+        responses=error_responses(404, 422, 503),
+    )
+    async def seek(request: Request, token: str, body: SeekRequest) -> SeekOut:
+        """Seek the playback of the viewer page carrying ``token`` (the editor reads it from its preview
+        pane): to ``time_s``, or to the start of ``formation``'s hold. Other browsers are not touched."""
+        from app.api.errors import ApiError
+
+        viewer: Viewer | None = getattr(request.app.state, "viewer", None)
+        if viewer is None:
+            raise ApiError(503, "the 3D viewer is not running")
+        pb = viewer.playback_by_token(token[:64])
+        if pb is None:
+            raise ApiError(404, "no viewer page with this token (reload the preview)")
+        if (body.time_s is None) == (body.formation is None):
+            raise ApiError(422, "give exactly one of time_s and formation", field="body")
+        if body.formation is not None:
+            if pb.seek_formation(body.formation) is None:
+                raise ApiError(422, f"formation {body.formation} is not in the show on screen", field="formation")
+        else:
+            pb.seek(float(body.time_s or 0.0))
+        return SeekOut(time_s=pb.time_s, show=pb.current)
 
     return router
 
@@ -167,6 +281,7 @@ def install(app: FastAPI) -> None:
     """Add the viewer to an app made by ``create_app``: routes now, the viser server in the lifespan."""
     app.include_router(viewer_router(None))
     app.include_router(playback_router(), prefix="/api")
+    app.include_router(clock_router(), prefix="/api")  # issue 18: the editor's music follows the 3D view
     app.state.startup.append(_start)
     app.state.shutdown.append(_stop)
 
@@ -174,4 +289,4 @@ def install(app: FastAPI) -> None:
 #: Alias matching the brief's name.
 install_viewer = install
 
-__all__ = ["PlaybackOut", "PlaybackRequest", "install", "install_viewer", "playback_router"]
+__all__ = ["PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install", "install_viewer", "playback_router"]

@@ -1,15 +1,18 @@
 """The live 3D viewer: a loopback viser server, its scene, GUI and a 30 Hz playback thread.
 
-One :class:`Viewer` serves every connected browser the same state (scene and
-GUI are server-wide in viser), so loading a show or pressing play is seen by
-all of them. The app relays browsers to it through its own port (see
-:mod:`app.viewer._relay`).
+One :class:`Viewer` holds the shows; each browser gets its own playback on its own
+scene and GUI (``client.scene``, ``client.gui``) in per-client mode (the app's), or
+every browser sees one server-wide playback. Besides the drones it draws the check's
+violations and, with a flight, the gap to the plan (:mod:`app.viewer._marks`). The
+app relays browsers to it through its own port (see :mod:`app.viewer._relay`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import html
 import io
+import secrets
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -22,12 +25,14 @@ import viser
 
 from app.exports import (
     Frame,
+    PlanTrack,
     Source,
     Track,
     framing_camera,
     make_track,
     show_bounds,
 )
+from app.viewer._marks import Problem, active_problems, deviation_colors, problem_list, problem_segments
 from sim import ShowPlan
 from sim.geometry import closest_pair
 
@@ -46,6 +51,8 @@ DARK_LED_FLOOR = 0.2
 NO_SHOW = "(no show loaded)"
 #: Shows kept in the registry (a simulated flight can be hundreds of MB); the oldest go first.
 MAX_SHOWS = 8
+#: Below this canvas width (pixels) a browser's control panel starts minimised (a phone, the editor's preview pane).
+COMPACT_WIDTH_PX = 800
 
 CatalogFn = Callable[[], Mapping[str, str]]
 LoadFn = Callable[[str], None]
@@ -58,6 +65,9 @@ class _Entry:
     name: str
     plan: ShowPlan
     flight: Any = None
+    #: The check report (``CheckReport.to_json()``) once it is known.
+    report: Any = None
+    lights: Any = None  # the show's light effects (sim.light.LightStack), painted over the colours
 
 
 #: Eye height of the audience camera, metres.
@@ -115,6 +125,14 @@ class _Playback:
         # synchronous on_update callback is not mistaken for a user's input.
         self._programmatic = 0
         self.frames_rendered = 0
+        #: Names this playback to the editor of the same browser tab (read from the page, see _setup_gui).
+        self.token = secrets.token_urlsafe(12)
+        self._problems: list[Problem] = []
+        self._plan_track: PlanTrack | None = None
+        #: (K, 2, 3) the violation marks drawn in the last frame, metres.
+        self.last_problem_segments = np.zeros((0, 2, 3), dtype=np.float32)
+        #: (N,) flown-minus-planned distance of each drone in the last frame (None: not shown), metres.
+        self.last_deviation_m: np.ndarray | None = None
         self.last_frame: Frame | None = None
         self.last_pair: tuple[int, int, float] = (-1, -1, float("inf"))
         if self.headless:
@@ -122,10 +140,11 @@ class _Playback:
             # (Typed Any like the viser handles they stand in for: viser has no type information.)
             on: Any = _Toggle(True)
             self._targets_cb = self._trails_cb = self._pair_cb = self._homes_cb = self._loop_cb = on
+            self._problems_cb = self._gap_cb = on
             # No widgets either: _set_gui ignores writes to them.
             none: Any = None
             self._show_dd = self._source_dd = self._play = self._slider = self._speed_dd = self._camera_dd = none
-            self._readout = self._progress = self._busy_md = none
+            self._readout = self._progress = self._busy_md = self._next_problem = self._link = none
         else:
             self._setup_scene()
             self._setup_gui()
@@ -165,6 +184,17 @@ class _Playback:
         self._pair_label = scene.add_label(
             "/closest_pair/label", "", anchor="bottom-center", visible=False
         )
+        self._problem_lines = scene.add_line_segments(
+            "/violations/marks", seg, (255, 40, 40), thickness=6.0, thickness_units="screen", visible=False
+        )
+        self._problem_label = scene.add_label("/violations/label", "", anchor="bottom-center", visible=False)
+        self._planned_ghost = scene.add_point_cloud(
+            "/planned_ghost", empty, (150, 150, 170), point_size=0.6, point_shape="circle", precision="float32",
+            visible=False,
+        )
+        self._gap_lines = scene.add_line_segments(
+            "/deviation", seg, (0, 255, 0), thickness=3.0, thickness_units="screen", visible=False
+        )
 
     def _setup_gui(self) -> None:
         gui = self.gui
@@ -178,17 +208,27 @@ class _Playback:
         self._loop_cb = gui.add_checkbox("Loop", initial_value=True)
         self._camera_dd = gui.add_dropdown("Camera", CAMERAS, initial_value="free",
                                            hint="audience: the front view from the audience side")
+        self._next_problem = gui.add_button("Next problem", icon=viser.Icon.ALERT_TRIANGLE, disabled=True,
+                                            hint="Jump to the next violation of the check (drawn in red)")
         with gui.add_folder("Display"):
             self._targets_cb = gui.add_checkbox("Next formation targets", initial_value=True)
             self._trails_cb = gui.add_checkbox("Trails", initial_value=True)
             self._pair_cb = gui.add_checkbox("Closest pair", initial_value=True)
             self._homes_cb = gui.add_checkbox("Home grid", initial_value=True)
+            self._problems_cb = gui.add_checkbox("Violations", initial_value=True,
+                                                 hint="Red marks on the drones around each violation's time")
+            self._gap_cb = gui.add_checkbox("Planned beside flown", initial_value=True,
+                                            hint="With the simulated flight: the plan in grey, the gap coloured "
+                                            "green (on the plan) to red (half the minimum distance off)")
         self._readout = gui.add_markdown(
             "No show loaded: pick one under **Show**, or send one from the editor "
             "(`POST /api/shows/{id}/playback`)."
         )
         self._progress = gui.add_progress_bar(0.0, visible=False, animated=True)
         self._busy_md = gui.add_markdown("", visible=False)
+        # The editor embeds this page (same origin) and reads the token and the playhead from this element
+        # to drive this tab's playback only (POST /api/viewer/{token}/seek).
+        self._link = gui.add_html(self._link_html())
 
         self._show_dd.on_update(self._user(self._on_show_selected))
         self._source_dd.on_update(self._user(lambda ev: self.set_source(ev.target.value)))
@@ -197,8 +237,30 @@ class _Playback:
         self._speed_dd.on_update(lambda ev: self._set_speed_label(ev.target.value))
         self._loop_cb.on_update(lambda ev: setattr(self, "_loop", bool(ev.target.value)))
         self._camera_dd.on_update(self._user(lambda ev: self.set_camera(str(ev.target.value))))
-        for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb):
+        self._next_problem.on_click(lambda _ev: self.next_problem())
+        for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb, self._problems_cb, self._gap_cb):
             cb.on_update(lambda _ev: self._invalidate())
+
+    def _link_html(self) -> str:
+        """The hidden element naming this playback and its playhead (time, and the formation it is in or going to)."""
+        seg_kind, formation = self._phase(self._time_s)
+        return (f'<span id="swarmshow-viewer" hidden data-token="{html.escape(self.token)}" '
+                f'data-time="{self._time_s:.2f}" data-phase="{seg_kind}" data-formation="{formation}" '
+                f'data-playing="{int(self._playing)}"></span>')
+
+    def _phase(self, t: float) -> tuple[str, int]:
+        """(segment kind, formation index) at ``t``: the hold's formation, or the one a transition leads into."""
+        if self._current is None:
+            return "none", -1
+        plan = self.viewer._shows[self._current].plan
+        k = int(plan.segment_index(t))
+        seg = plan.segments[k]
+        holds_before = sum(1 for s in plan.segments[:k] if s.kind == "hold")
+        if seg.kind == "hold":
+            return "hold", holds_before
+        if seg.kind == "transition" and holds_before < len(self._hold_starts_s):
+            return "transition", holds_before
+        return str(seg.kind), -1
 
     def _user(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
         """Wrap a GUI callback to run only for a browser's input, not for Python's own writes."""
@@ -295,7 +357,7 @@ class _Playback:
     def _activate(self, name: str, source: Source) -> None:
         with self.viewer._lock:
             entry = self.viewer._shows[name]
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._current, self._source = name, source
             self._time_s = 0.0
             self._playing = False
@@ -306,6 +368,9 @@ class _Playback:
             holds = [seg for _, seg in plan.formation_segments()]
             self._hold_starts_s = np.array([s.start_s for s in holds])
             self._hold_knots = np.array([s.index for s in holds], dtype=np.intp)
+            self._problems = problem_list(entry.report)
+            self._set_gui(self._next_problem, "disabled", not self._problems)
+            self._plan_track = None
 
             n = plan.drone_count
             spacing = float(plan.settings.min_distance_m)
@@ -347,6 +412,31 @@ class _Playback:
         if self._current is not None and not self.headless:
             self._place_camera()
 
+    def seek_formation(self, index: int) -> float | None:
+        """Jump to the start of formation ``index``'s hold; returns that time (None: no such formation)."""
+        with self.viewer._lock:
+            if self._track is None or not 0 <= index < len(self._hold_starts_s):
+                return None
+            self.seek(float(self._hold_starts_s[index]))
+            return self._time_s
+
+    def next_problem(self) -> float | None:
+        """Jump to the next violation after the playhead (the first one after the last); returns its time."""
+        with self.viewer._lock:
+            if self._track is None or not self._problems:
+                return None
+            times = np.array([p.time_s for p in self._problems])
+            later = times[times > self._time_s + 1e-6]
+            self.seek(float(later[0] if len(later) else times[0]))
+            return self._time_s
+
+    def set_report(self, report: Any) -> None:
+        """Take the check report of the show on screen (its violations are drawn)."""
+        with self.viewer._lock:
+            self._problems = problem_list(report)
+            self._set_gui(self._next_problem, "disabled", not self._problems)
+            self._invalidate()
+
     def _place_camera(self) -> None:
         server = self.viewer.server
         lo, hi = self._bounds
@@ -373,7 +463,7 @@ class _Playback:
                 self._set_gui(self._source_dd, "value", self._source)
                 return
             t = self._time_s
-            self._track = make_track(entry.plan, entry.flight, source)
+            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._source = source
             self._set_gui(self._source_dd, "value", source)
             self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
@@ -477,6 +567,16 @@ class _Playback:
                     hint = self._pair_hint_m * 1.01 + 2.0 * frame.max_speed_mps * abs(frame_dt_s) + 1e-3
                 # The search releases the GIL: run it beside the drone update below.
                 pending = v._pair_pool.submit(closest_pair, frame.positions_m, hint_m=hint)
+            near = active_problems(self._problems, t) if bool(self._problems_cb.value) else []
+            self.last_problem_segments = problem_segments(near, frame.positions_m)
+            planned = None
+            if self._source == "simulated" and bool(self._gap_cb.value) and self._current is not None:
+                if self._plan_track is None:
+                    self._plan_track = PlanTrack(v._shows[self._current].plan)
+                planned = self._plan_track.frame(t).positions_m
+                self.last_deviation_m = np.linalg.norm(frame.positions_m - planned, axis=1)
+            else:
+                self.last_deviation_m = None
             if self.headless:
                 if pending is not None:
                     self.last_pair = pending.result()
@@ -503,6 +603,7 @@ class _Playback:
                     self._pair_label.position = tuple(ends.mean(axis=0) + [0.0, 0.0, 1.0])
                 self._pair_line.visible = show_pair
                 self._pair_label.visible = show_pair
+                self._draw_marks(near, frame, planned)
                 pair_text = (
                     f"{self.last_pair[2]:.2f} m (#{self.last_pair[0]}–#{self.last_pair[1]})" if show_pair else "–"
                 )
@@ -511,12 +612,51 @@ class _Playback:
                     f"**Formation** {self._formation_text(t)}  \n"
                     f"**Min distance** {pair_text}  \n"
                     f"**Max speed** {frame.max_speed_mps:.2f} m/s · {track.drone_count} drones"
+                    + self._problem_text(near) + self._deviation_text()
                 )
                 self._set_gui(self._slider, "value", round(t / 0.05) * 0.05)
+                self._set_gui(self._link, "content", self._link_html())
             self.last_frame = frame
             self.frames_rendered += 1
             self._dirty = False
             return frame
+
+    def _problem_text(self, near: list[Problem]) -> str:
+        if not self._problems:
+            return ""
+        now = f" · now: {near[0].text}" if near else ""
+        return f"  \n**Problems** {len(self._problems)} in the check{now}"
+
+    def _deviation_text(self) -> str:
+        dev = self.last_deviation_m
+        if dev is None or len(dev) == 0:
+            return ""
+        worst = int(np.argmax(dev))
+        biggest, mean = _length(float(dev[worst])), _length(float(dev.mean()))
+        return f"  \n**Flown vs planned** max {biggest} (#{worst}) · mean {mean}"
+
+    def _draw_marks(self, near: list[Problem], frame: Frame, planned: np.ndarray | None) -> None:
+        """Violations near the playhead in red; with the flight, the plan in grey and each drone's gap coloured."""
+        segs = self.last_problem_segments
+        show = len(segs) > 0
+        if show:
+            self._problem_lines.points = segs
+            self._problem_label.text = f"⚠ {near[0].text}"
+            self._problem_label.position = tuple(segs[0].mean(axis=0) + [0.0, 0.0, 1.5])
+        self._problem_lines.visible = show
+        self._problem_label.visible = show
+        gap = planned is not None and self.last_deviation_m is not None
+        if gap:
+            assert planned is not None and self.last_deviation_m is not None
+            plan = self.viewer._shows[self._current].plan if self._current else None
+            scale = 0.5 * float(plan.settings.min_distance_m) if plan is not None else 1.0
+            cols = deviation_colors(self.last_deviation_m, scale)
+            self._planned_ghost.points = planned.astype(np.float32)
+            self._planned_ghost.point_size = float(self._drones.point_size) * 0.6
+            self._gap_lines.points = np.stack([planned, frame.positions_m], axis=1).astype(np.float32)
+            self._gap_lines.colors = np.repeat(cols[:, None, :], 2, axis=1)
+        self._planned_ghost.visible = gap
+        self._gap_lines.visible = gap
 
     def _update_targets(self, t: float) -> None:
         show = bool(self._targets_cb.value)
@@ -578,6 +718,11 @@ class _Playback:
                 return None
             return self.render(frame_dt_s=dt if self._playing else None)
 
+
+
+def _length(value_m: float) -> str:
+    """A small length readably: millimetres below 10 cm (a well-tracked flight is off by fractions of one)."""
+    return f"{value_m * 1000.0:.2f} mm" if value_m < 0.1 else f"{value_m:.2f} m"
 
 
 class _Toggle:
@@ -724,6 +869,25 @@ class Viewer:
         """Playback speed factor of the default playback."""
         return self._main.speed
 
+    def playback_by_token(self, token: str) -> _Playback | None:
+        """The browser playback whose page carries ``token`` (see ``_Playback.token``), None if none."""
+        with self._lock:
+            for pb in self._clients.values():
+                if secrets.compare_digest(pb.token, token):
+                    return pb
+            return None
+
+    def set_report(self, name: str, report: Any) -> None:
+        """Attach the check report (``CheckReport.to_json()``) to the loaded show ``name``; its violations are drawn."""
+        with self._lock:
+            entry = self._shows.get(name)
+            if entry is None:
+                return
+            entry.report = report
+            for pb in self.playbacks:
+                if pb.current == name:
+                    pb.set_report(report)
+
     def client_playback(self, client_id: int) -> _Playback | None:
         """A browser's own playback (per-client mode), None if it has none."""
         with self._lock:
@@ -756,7 +920,8 @@ class Viewer:
 
     # ----------------------------------------------------------------- loading
 
-    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None) -> None:
+    def load(self, plan: ShowPlan, *, name: str, flight: Any = None, source: Source | None = None,
+             report: Any = None, lights: Any = None) -> None:
         """Load (or replace) a show: the default playback shows it (new browsers start on it), and
         so do the browsers showing nothing, an older version of it, or that picked it in the selector.
 
@@ -765,12 +930,17 @@ class Viewer:
             name: registry name shown in the selector (loading the same name replaces it).
             flight: optional simulated flight (``times_s``, ``positions_m`` (T, N, 3), ``colors_rgb``).
             source: ``"planned"`` or ``"simulated"``; default: simulated when a flight is given.
+            report: the check report (``CheckReport.to_json()``), if known (else see :meth:`set_report`).
+            lights: the show's light effects (``sim.light.LightStack``), played over the colours.
         """
         if flight is not None and np.shape(flight.positions_m)[1] != plan.drone_count:
             raise ValueError("the flight and the plan have different drone counts")
         with self._lock:
-            self._shows.pop(name, None)
-            self._shows[name] = _Entry(name, plan, flight)
+            old = self._shows.pop(name, None)
+            # A new flight of the same plan keeps the plan's check.
+            if report is None and old is not None and old.plan is plan:
+                report = old.report
+            self._shows[name] = _Entry(name, plan, flight, report, lights)
             while len(self._shows) > MAX_SHOWS:
                 del self._shows[next(iter(self._shows))]
             src: Source = source or ("simulated" if flight is not None else "planned")
@@ -882,6 +1052,10 @@ class Viewer:
                 # The browser's own playback starts where the default one is.
                 pb = _Playback(self, scene=client.scene, gui=client.gui, client=client)
                 self._clients[client.client_id] = pb
+                # A small window (a phone, the editor's preview pane) starts with the panel minimised.
+                with contextlib.suppress(Exception):  # the camera is reported by every browser; be lenient
+                    if 0 < int(client.camera.image_width) < COMPACT_WIDTH_PX:
+                        client.gui.main_panel.minimize()
                 main = self._main
                 if main.current is not None:
                     pb._activate(main.current, main.source)
@@ -933,4 +1107,4 @@ class Viewer:
                 self._stop.wait(delay)
 
 
-__all__ = ["FRAME_RATE_HZ", "Viewer", "audience_camera"]
+__all__ = ["COMPACT_WIDTH_PX", "FRAME_RATE_HZ", "Viewer", "audience_camera"]

@@ -228,6 +228,20 @@ export function simulateShow(id, options = {}) {
   return request("POST", `/api/shows/${encodeURIComponent(id)}/simulate`, { json: options });
 }
 
+/**
+ * Start a Monte-Carlo job: the show flown `runs` times for its safety margin.
+ * @param {string} id @param {{runs?: number, preset?: string, controller?: string, seed0?: number, confidence?: number}} [options]
+ * @returns {Promise<any>} the job (202).
+ */
+export function monteCarloShow(id, options = {}) {
+  return request("POST", `/api/shows/${encodeURIComponent(id)}/montecarlo`, { json: options });
+}
+
+/** @param {string} jobId @param {"html"|"pdf"} [format] @returns {string} the safety report of a Monte-Carlo job. */
+export function safetyReportUrl(jobId, format = "html") {
+  return `/api/jobs/${encodeURIComponent(jobId)}/report.${format}`;
+}
+
 /** @param {string} jobId */
 export function getJob(jobId) {
   return request("GET", `/api/jobs/${encodeURIComponent(jobId)}`);
@@ -262,9 +276,12 @@ export function buildFormation(source, params, file) {
   return request("POST", `/api/formations/${source}`, { json: params });
 }
 
-/** @param {string} id @param {"planned"|"simulated"} [source] */
-export function loadPlayback(id, source = "planned") {
-  return request("POST", `/api/shows/${encodeURIComponent(id)}/playback`, { json: { source } });
+/**
+ * @param {string} id @param {"planned"|"simulated"} [source]
+ * @param {{job_id: string, run: number}} [run] with "simulated": fly this run of a Monte-Carlo job
+ */
+export function loadPlayback(id, source = "planned", run = undefined) {
+  return request("POST", `/api/shows/${encodeURIComponent(id)}/playback`, { json: run ? { source, ...run } : { source } });
 }
 
 /**
@@ -334,4 +351,13 @@ export async function exportFormats() {
 
 function resolveRef(spec, ref) {
   return ref.replace(/^#\//, "").split("/").reduce((o, k) => (o ? o[k] : undefined), spec);
+}
+
+/**
+ * Move the 3D playback of one viewer page (the editor's own preview pane): to a time or a formation's hold.
+ * @param {string} token the page's token (see Preview.viewerState)
+ * @param {{time_s?: number, formation?: number}} where
+ */
+export function viewerSeek(token, where) {
+  return request("POST", `/api/viewer/${encodeURIComponent(token)}/seek`, { json: where });
 }

@@ -65,7 +65,7 @@ export function applyColor(state, color) {
  * @param {string} a start colour
  * @param {string} b end colour
  * @param {"h"|"v"|"order"|"radial"} direction left->right, bottom->top (in the view), point order, centre->out
- * @param {"front"|"top"} view
+ * @param {string} view a key of VIEW_AXES
  */
 export function applyGradient(state, a, b, direction, view) {
   const idx = targetIndices(state);
@@ -96,7 +96,7 @@ export function applyGradient(state, a, b, direction, view) {
  * (transparent pixels leave the colour unchanged).
  * @param {import("./state.js").EditorState} state
  * @param {Blob} file a PNG or JPEG
- * @param {"front"|"top"} view
+ * @param {string} view a key of VIEW_AXES
  * @returns {Promise<number>} how many points were coloured
  */
 export async function colorsFromImage(state, file, view) {

@@ -7,7 +7,7 @@ export const formationProblems = new Map();
 
 /** Remove every field error shown for the show document. */
 export function clearShowErrors() {
-  for (const el of document.querySelectorAll("#form-settings [data-error-for], .timeline [data-error-for]")) el.textContent = "";
+  for (const el of document.querySelectorAll("#form-settings [data-error-for], .timeline [data-error-for], #effects-panel [data-error-for]")) el.textContent = "";
   for (const el of document.querySelectorAll("#form-settings .has-error")) el.classList.remove("has-error");
   formationProblems.clear();
 }
@@ -41,6 +41,12 @@ export function showShowErrors(problems, fallback) {
       const where = m[2] ? `${m[2]}: ` : "";
       if (!formationProblems.has(k)) formationProblems.set(k, `${where}${p.msg}`);
       formations.push(k);
+      continue;
+    }
+    if (path.startsWith("lights") && setError("lights", `${path.replace(/^lights\.?/, "")}: ${p.msg}`)) {
+      // Light effects (issue 18): shown in the effects panel with the effect's path.
+      const panel = /** @type {HTMLDetailsElement|null} */ (document.getElementById("effects-panel"));
+      if (panel) panel.open = true;
       continue;
     }
     const input = document.querySelector(`#form-settings [data-path="${CSS.escape(path)}"]`);

@@ -36,6 +36,8 @@ export class ExportMenu {
       heading_deg: /** @type {HTMLInputElement} */ (document.getElementById("exp-heading")),
       fps: /** @type {HTMLInputElement} */ (document.getElementById("exp-fps")),
       source: /** @type {HTMLSelectElement} */ (document.getElementById("exp-source")),
+      scale: /** @type {HTMLInputElement} */ (document.getElementById("exp-scale")),
+      offset: /** @type {HTMLInputElement} */ (document.getElementById("exp-offset")),
     };
     for (const [key, el] of Object.entries(this.fields)) {
       // The place on Earth belongs to the show (settings.geo); rate and source are the browser's.
@@ -88,7 +90,8 @@ export class ExportMenu {
     for (const [key, el] of Object.entries(this.fields)) {
       if (key === "origin" || key === "heading_deg") continue; // the server reads them from the show
       const v = el.value.trim().replace(/\s+/g, "");
-      if (v !== "" && !(key === "heading_deg" && Number(v) === 0) && !(key === "source" && v === "planned")) out[key] = v;
+      if (v !== "" && !(key === "heading_deg" && Number(v) === 0) && !(key === "source" && v === "planned")
+          && !(key === "scale" && Number(v) === 1)) out[key] = v;
     }
     return out;
   }

@@ -2,8 +2,12 @@
 // Point-set geometry in the canvas views: view axes, arc-length resampling, fit to a count,
 // scale and rotate about the centroid.
 
-/** View name -> [horizontal axis, vertical axis, depth axis] (indices into x, y, z). */
-export const VIEW_AXES = Object.freeze({ front: [0, 2, 1], top: [0, 1, 2] });
+/**
+ * View name -> [horizontal axis, vertical axis, depth axis] (indices into x, y, z). The side view
+ * looks from the east (along -x): y to the right, z up. The free 3D view ("3d") has no fixed
+ * plane; tools that need one (new points, gradients, rotate in the view) use the front view's.
+ */
+export const VIEW_AXES = Object.freeze({ front: [0, 2, 1], top: [0, 1, 2], side: [1, 2, 0], "3d": [0, 2, 1] });
 
 function polyLength(poly) {
   let len = 0;
@@ -161,7 +165,7 @@ export function scaleAbout(points, indices, factor) {
  * @param {number[][]} points
  * @param {number[]} indices
  * @param {number} degrees
- * @param {"front"|"top"} view
+ * @param {string} view a key of {@link VIEW_AXES}
  */
 export function rotateInView(points, indices, degrees, view) {
   const [u, v] = VIEW_AXES[view];
@@ -184,4 +188,98 @@ export function rotateInView(points, indices, degrees, view) {
  */
 export function roundPoints(points) {
   return points.map((p) => p.map((v) => Math.round(v * 1000) / 1000 + 0));
+}
+
+/**
+ * Rotate points (in place) about an axis through `center` (default: their centroid) by the right-hand
+ * rule: counter-clockwise seen from the axis' positive end, the rotation matrices R_x, R_y, R_z.
+ * @param {number[][]} points
+ * @param {number[]} indices
+ * @param {0|1|2} axis 0 = x, 1 = y, 2 = z
+ * @param {number} degrees
+ * @param {number[]} [center]
+ */
+export function rotateAboutAxis(points, indices, axis, degrees, center) {
+  const c = center || centroid(points, indices);
+  // The plane turned: (y, z) about x, (z, x) about y, (x, y) about z, each in right-handed order.
+  const u = (axis + 1) % 3;
+  const v = (axis + 2) % 3;
+  const t = (degrees * Math.PI) / 180;
+  const cos = Math.cos(t);
+  const sin = Math.sin(t);
+  for (const i of indices) {
+    const du = points[i][u] - c[u];
+    const dv = points[i][v] - c[v];
+    points[i][u] = c[u] + du * cos - dv * sin;
+    points[i][v] = c[v] + du * sin + dv * cos;
+  }
+}
+
+/**
+ * Where the audience watches from, for turning formations toward it: the first light effect's
+ * audience camera (`camera_m`), else a point in front of the geofence's audience side (y below
+ * `y_min_m`, the audience looks along +y), else null (the default audience: far away along -y).
+ * @param {any} show
+ * @returns {number[]|null}
+ */
+export function audiencePoint(show) {
+  const fx = (show && show.lights && show.lights.effects) || [];
+  const cam = fx.find((e) => Array.isArray(e.camera_m));
+  if (cam) return cam.camera_m.slice(0, 3);
+  const g = show && show.settings && show.settings.geofence;
+  if (g) return [(g.x_min_m + g.x_max_m) / 2, g.y_min_m - 1, 1.7];
+  return null;
+}
+
+/**
+ * The rotation about the vertical axis (degrees, counter-clockwise from above) that turns a
+ * formation's front toward the audience. The front is the horizontal normal of the formation's
+ * plane: the minor axis of the points' horizontal (x, y) covariance, the closed-form eigenvector of
+ * a symmetric 2x2 matrix, with the sign facing the audience (so the turn is at most 90°). A
+ * formation without a clear plane (horizontal spread within 20% in every direction) counts as
+ * facing -y, the way flat shapes are authored in the front view.
+ * @param {number[][]} points
+ * @param {number[]} indices
+ * @param {number[]|null} audience a point, or null for the audience far along -y
+ * @returns {number} degrees, in (-180, 180]
+ */
+export function faceAudienceDegrees(points, indices, audience) {
+  const c = centroid(points, indices);
+  let sxx = 0;
+  let syy = 0;
+  let sxy = 0;
+  for (const i of indices) {
+    const dx = points[i][0] - c[0];
+    const dy = points[i][1] - c[1];
+    sxx += dx * dx;
+    syy += dy * dy;
+    sxy += dx * dy;
+  }
+  const want = audience ? [audience[0] - c[0], audience[1] - c[1]] : [0, -1];
+  if (Math.hypot(want[0], want[1]) < 1e-9) return 0;
+  const tr = sxx + syy;
+  const gap = Math.sqrt((sxx - syy) ** 2 + 4 * sxy * sxy);
+  const lmin = (tr - gap) / 2;
+  const lmax = (tr + gap) / 2;
+  /** @type {number[]} */
+  let n;
+  let signFree = true;
+  if (lmax <= 0 || lmin > 0.8 * 0.8 * lmax) {
+    n = [0, -1];
+    signFree = false;
+  } else if (Math.abs(sxy) > 1e-12 * tr) {
+    n = [sxy, lmin - sxx]; // (A - lmin I) n = 0, first row
+  } else {
+    n = sxx <= syy ? [1, 0] : [0, 1];
+  }
+  if (signFree) {
+    const along = n[0] * want[0] + n[1] * want[1];
+    // A quarter turn either way is a tie: keep the authored front (-y) on the audience's side.
+    const tie = Math.abs(along) < 1e-9 * Math.hypot(n[0], n[1]) * Math.hypot(want[0], want[1]);
+    if (tie ? n[1] > 0 : along < 0) n = [-n[0], -n[1]];
+  }
+  let deg = ((Math.atan2(want[1], want[0]) - Math.atan2(n[1], n[0])) * 180) / Math.PI;
+  while (deg <= -180) deg += 360;
+  while (deg > 180) deg -= 360;
+  return Math.abs(deg) < 1e-9 ? 0 : deg;
 }

@@ -6,11 +6,14 @@ import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
+import { EffectsPanel } from "./effects.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
-import { rotateInView, roundPoints, scaleAbout } from "./geometry.js";
+import { MusicLane } from "./music.js";
+import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
+import { Playhead } from "./playhead.js";
 import { ReportPanel } from "./report.js";
 import { SettingsForm } from "./settings.js";
 import { installShortcuts, renderHelp } from "./shortcuts.js";
@@ -66,9 +69,19 @@ const report = new ReportPanel($("report-body"), state, persist, { timeline, vie
 const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"));
+const playhead = new Playhead(state, timeline, preview);
 const exportMenu = new ExportMenu(state, persist);
+// The music lane (issue 18) places unpinned formations where the last check planned them.
+const music = new MusicLane(state, {
+  plan: () => (report.result ? report.result.plan : null),
+  previewOpen: () => preview.isOpen,
+});
+const renderReport = report.render.bind(report);
+report.render = () => { renderReport(); music.draw(); };
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
+const effects = new EffectsPanel($("effects-body"), state, { redraw: () => view.redraw(), toast });
+view.colorOverride = (f, base) => effects.colorsFor(f, base);
 
 // ---- page state ------------------------------------------------------------------------------
 
@@ -214,7 +227,11 @@ state.addEventListener("change", (/** @type {any} */ e) => {
 });
 
 view.onCursor = ([u, v]) => {
-  const names = view.view === "front" ? ["x", "z"] : ["x", "y"];
+  if (view.is3d) {
+    $("st-cursor").textContent = "3D view";
+    return;
+  }
+  const names = { front: ["x", "z"], top: ["x", "y"], side: ["y", "z"] }[view.view] || ["x", "z"];
   $("st-cursor").textContent = `${names[0]} ${u.toFixed(1)} m  ${names[1]} ${v.toFixed(1)} m`;
 };
 
@@ -237,15 +254,52 @@ setTool("select");
 
 const viewSelect = /** @type {HTMLSelectElement} */ ($("view-select"));
 viewSelect.addEventListener("change", () => {
-  view.setView(/** @type {"front"|"top"} */ (viewSelect.value));
-  // New points go at the formation's typical depth: its median y (front) or altitude (top).
+  view.setView(/** @type {"front"|"top"|"side"|"3d"} */ (viewSelect.value));
+  // New points go at the formation's typical depth: its median y (front), altitude (top) or x (side).
   const axis = view.axes[2];
   const values = (state.formation ? state.formation.points : []).map((p) => p[axis]).sort((a, b) => a - b);
   view.depth = values.length ? Math.round(values[Math.floor(values.length / 2)] * 10) / 10 : axis === 2 ? 40 : 0;
   const depth = /** @type {HTMLInputElement} */ ($("depth-input"));
   depth.value = String(view.depth);
-  depth.setAttribute("aria-label", `Depth of new points (${axis === 2 ? "altitude z" : "y"}), metres`);
-  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : "Depth y (m)";
+  const name = ["x", "y", "altitude z"][axis];
+  depth.setAttribute("aria-label", `Depth of new points (${name}), metres`);
+  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : `Depth ${name} (m)`;
+});
+$("move-axis").addEventListener("change", (e) => {
+  tools.moveAxis = /** @type {"free"|"x"|"y"|"z"} */ (/** @type {HTMLSelectElement} */ (e.target).value);
+});
+
+// Rotations in 3D: about x, y or z through the selection's (or formation's) centre, and the turn
+// about the vertical that faces the formation to the audience.
+$("btn-rotate-axis").addEventListener("click", () => {
+  setError("transform", "");
+  const deg = Number(/** @type {HTMLInputElement} */ ($("rotate-axis-deg")).value);
+  const axis = /** @type {0|1|2} */ (Number(/** @type {HTMLSelectElement} */ ($("rotate-axis")).value));
+  if (!state.formation) return;
+  if (!Number.isFinite(deg)) {
+    setError("transform", "The rotation must be a number of degrees.");
+    return;
+  }
+  const idx = targetIndices(state);
+  state.edit(`Rotate ${+deg.toFixed(3)}° about ${"xyz"[axis]}`, () => {
+    rotateAboutAxis(state.formation.points, idx, axis, deg);
+    for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+  });
+});
+$("btn-face-audience").addEventListener("click", () => {
+  setError("transform", "");
+  const f = state.formation;
+  if (!f || !f.points.length) return;
+  const idx = f.points.map((_, i) => i);
+  const deg = faceAudienceDegrees(f.points, idx, audiencePoint(state.show));
+  if (deg === 0) {
+    toast("The formation already faces the audience");
+    return;
+  }
+  state.edit("Face the audience", () => {
+    rotateAboutAxis(state.formation.points, idx, 2, deg);
+    state.formation.points = roundPoints(state.formation.points);
+  });
 });
 $("btn-fit-view").addEventListener("click", () => view.fit());
 $("depth-input").addEventListener("change", (e) => { view.depth = Number(/** @type {HTMLInputElement} */ (e.target).value) || 0; });
@@ -301,13 +355,22 @@ function nudge(e) {
   const idx = [...state.selection];
   if (!idx.length) return;
   const step = e.shiftKey ? 5 : e.altKey ? 0.1 : 1;
-  const [a, b] = view.axes;
+  let [a, b] = view.axes;
+  let [sa, sb] = [1, 1];
+  if (view.is3d) {
+    // Along the world axes nearest the screen's right and up, signed so the arrows match the screen.
+    const { right, up } = view.camera.frame();
+    a = [0, 1, 2].reduce((m, k) => (Math.abs(right[k]) > Math.abs(right[m]) ? k : m), 0);
+    b = [0, 1, 2].filter((k) => k !== a).reduce((m, k) => (Math.abs(up[k]) > Math.abs(up[m]) ? k : m));
+    sa = Math.sign(right[a]) || 1;
+    sb = Math.sign(up[b]) || 1;
+  }
   const d = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, step], ArrowDown: [0, -step] }[e.key];
   state.edit(`Nudge ${idx.length} points`, () => {
     const pts = state.formation.points;
     for (const i of idx) {
-      pts[i][a] += d[0];
-      pts[i][b] += d[1];
+      pts[i][a] += sa * d[0];
+      pts[i][b] += sb * d[1];
       pts[i] = roundPoints([pts[i]])[0];
     }
   });
@@ -324,6 +387,10 @@ const shortcuts = installShortcuts({
   tool: setTool,
   toggleView: () => {
     viewSelect.value = view.view === "front" ? "top" : "front";
+    viewSelect.dispatchEvent(new Event("change"));
+  },
+  toggleView3d: () => {
+    viewSelect.value = view.view === "side" ? "3d" : "side";
     viewSelect.dispatchEvent(new Event("change"));
   },
   fit: () => view.fit(),
@@ -400,5 +467,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects };
 start();

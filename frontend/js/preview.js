@@ -62,6 +62,29 @@ export class Preview {
     this.onLayout();
   }
 
+  /**
+   * The preview's own viewer playback, read from its page (same origin): the token that names it to
+   * the server and where its playhead is. Null while the preview is closed or still connecting.
+   * @returns {{token: string, time_s: number, phase: string, formation: number, playing: boolean}|null}
+   */
+  viewerState() {
+    if (!this.isOpen) return null;
+    let el = null;
+    try {
+      el = this.frame.contentDocument && this.frame.contentDocument.getElementById("swarmshow-viewer");
+    } catch {
+      return null;
+    }
+    if (!el || !el.dataset.token) return null;
+    return {
+      token: el.dataset.token,
+      time_s: Number(el.dataset.time),
+      phase: el.dataset.phase || "none",
+      formation: Number(el.dataset.formation),
+      playing: el.dataset.playing === "1",
+    };
+  }
+
   /** Save if needed, load the show into the viewer and (re)load the viewer page. */
   async load() {
     setError("preview", "");

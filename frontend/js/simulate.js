@@ -76,12 +76,22 @@ export class SimulatePanel {
       }
       this._progress(0, "0%");
       this._message("muted", "Starting…");
-      const options = {
-        controller: /** @type {HTMLSelectElement} */ (document.getElementById("sim-controller")).value,
-        disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
-      };
+      const controller = /** @type {HTMLSelectElement} */ (document.getElementById("sim-controller")).value;
+      const runsSel = /** @type {HTMLSelectElement|null} */ (document.getElementById("sim-runs"));
+      const runs = runsSel ? Number(runsSel.value) || 1 : 1;
       this.startedVersion = st.version;
-      const job = await api.simulateShow(st.meta.id, options);
+      let job;
+      if (runs > 1) {
+        // Monte-Carlo: K flights with different seeds; the result is the safety margin and report.
+        const preset = /** @type {HTMLSelectElement} */ (document.getElementById("sim-preset")).value;
+        job = await api.monteCarloShow(st.meta.id, { runs, preset, controller });
+      } else {
+        const options = {
+          controller,
+          disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
+        };
+        job = await api.simulateShow(st.meta.id, options);
+      }
       this.job = job;
       this._update(job);
       if (!["done", "failed", "cancelled"].includes(job.state)) this._follow(job.id);
@@ -154,7 +164,11 @@ export class SimulatePanel {
     if (job.state === "queued") this._progress(p, "queued");
     else if (job.state === "running") {
       this._progress(p);
-      this._message("muted", `Flying… ${Math.round(p * 100)}%`);
+      this._message("muted", `${this.job.kind === "montecarlo" ? "Flying the runs" : "Flying"}… ${Math.round(p * 100)}%`);
+    } else if (job.state === "done" && this.job.kind === "montecarlo") {
+      this._progress(1, "100%");
+      this.cancelBtn.hidden = true;
+      this._monteCarlo(this.job.id, (job.result || {}).montecarlo || {}, job.cached);
     } else if (job.state === "done") {
       const fresh = this.flownVersion !== this.startedVersion;
       this.flownVersion = this.startedVersion;
@@ -168,6 +182,76 @@ export class SimulatePanel {
       const why = job.error ? job.error.message || JSON.stringify(job.error.detail) : "";
       this._message("report-bad", job.state === "cancelled" ? "Cancelled." : `Failed: ${why}`);
     }
+  }
+
+  /**
+   * The Monte-Carlo summary: flown separation over the runs, probabilities, extra spacing, and links
+   * to the safety report (HTML, PDF) and to the worst run in the 3D view.
+   * @param {string} jobId @param {any} mc the job's `result.montecarlo` @param {boolean} cached
+   */
+  _monteCarlo(jobId, mc, cached) {
+    this.body.replaceChildren();
+    const s = mc.show_min || {};
+    const below = s.p_below_min_distance || {};
+    const coll = s.p_collision || {};
+    const ok = below.runs_below === 0 && !mc.diverged_count;
+    const head = document.createElement("p");
+    head.className = ok ? "report-ok" : "report-bad";
+    head.textContent = ok ? `✓ ${mc.runs} runs: every run kept the minimum distance`
+      : `✗ ${below.runs_below} of ${mc.runs} runs came closer than ${fmt(mc.min_distance_m, 1, " m")}`;
+    this.body.append(head);
+    const table = document.createElement("table");
+    table.setAttribute("aria-label", "Monte-Carlo summary");
+    const row = (label, value, bad = false) => {
+      const tr = document.createElement("tr");
+      const a = document.createElement("td");
+      a.textContent = label;
+      const b = document.createElement("td");
+      b.textContent = value;
+      if (bad) b.className = "bad-value";
+      tr.append(a, b);
+      table.append(tr);
+    };
+    const q = (s.flown_min_m || {}).quantiles || {};
+    const pct = (p) => p.p == null ? "—"
+      : `${(100 * p.p).toFixed(1)} % (${(100 * p.ci_low).toFixed(1)}–${(100 * p.ci_high).toFixed(1)} %)`;
+    row("Flown min separation", `worst ${fmt(q["0"], 2, " m")}, median ${fmt(q["0.5"], 2, " m")}`, !ok);
+    row(`P(closer than ${fmt(mc.min_distance_m, 1, " m")})`, pct(below), below.runs_below > 0);
+    row(`P(collision, < ${fmt(mc.collision_distance_m, 1, " m")})`, pct(coll), coll.runs_below > 0);
+    row(`Extra spacing at ${Math.round(1000 * (mc.confidence || 0)) / 10} %`, fmt((s.extra_spacing || {}).extra_m, 2, " m"));
+    row("Largest deviation", fmt((mc.deviation || {}).max_m, 3, " m"));
+    row("Preset", `${mc.preset || "—"}, ${mc.controller || ""}, seeds ${mc.seed0}–${mc.seed0 + mc.runs - 1}`);
+    if (mc.wall_time_s != null) row("Computed in", `${fmt(mc.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`);
+    this.body.append(table);
+    const links = document.createElement("p");
+    const report = document.createElement("a");
+    report.id = "sim-report-link";
+    report.href = api.safetyReportUrl(jobId, "html");
+    report.target = "_blank";
+    report.rel = "noopener";
+    report.textContent = "Safety report";
+    const pdf = document.createElement("a");
+    pdf.href = api.safetyReportUrl(jobId, "pdf");
+    pdf.textContent = "PDF";
+    pdf.setAttribute("download", "");
+    links.append(report, " · ", pdf);
+    const worst = s.worst_run;
+    if (worst && this.state.meta) {
+      const showId = this.state.meta.id;
+      const play = document.createElement("button");
+      play.type = "button";
+      play.id = "sim-play-worst";
+      play.textContent = `Play worst run (seed ${worst.seed}) in 3D`;
+      play.addEventListener("click", async () => {
+        try {
+          await api.loadPlayback(showId, "simulated", { job_id: jobId, run: worst.run });
+        } catch (err) {
+          this._message("report-bad", `Cannot play the run: ${err.message}`);
+        }
+      });
+      links.append(" · ", play);
+    }
+    this.body.append(links);
   }
 
   _summary(result, cached) {

@@ -1,5 +1,5 @@
 // @ts-check
-// Formation sources and whole-formation operations: shape presets, text, image and SVG uploads
+// Formation sources and whole-formation operations: shape presets, text, image, SVG and mesh uploads
 // (through the formation endpoints), scale, rotate, fit to the drone count, spacing repair.
 
 import * as api from "./api.js";
@@ -10,7 +10,8 @@ import { closePairs, repairSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 
-const PLANE_OF_VIEW = { front: "xz", top: "xy" };
+// The plane a new formation is built in: the one the designer is looking at (the 3D view builds in the front plane).
+const PLANE_OF_VIEW = { front: "xz", top: "xy", side: "yz" };
 
 /** The one kind-specific parameter offered for a shape preset. */
 const SHAPE_PARAM = {
@@ -88,6 +89,7 @@ export class Sources {
       plane: PLANE_OF_VIEW[this.view.view],
       center_m: this._center(Number(fd.get("z"))),
     }));
+    this._meshForm();
     const num = (id) => Number(/** @type {HTMLInputElement} */ (document.getElementById(id)).value);
     document.getElementById("btn-scale").addEventListener("click", () => this.scale(num("scale-input") / 100));
     document.getElementById("btn-rotate").addEventListener("click", () => this.rotate(num("rotate-input")));
@@ -237,6 +239,61 @@ export class Sources {
             (size != null ? ` ${size} m fits all ${body.n} ("Size to fit").` : " Use fewer drones or a smaller minimum distance.");
         }
         setError(key, msg);
+      } finally {
+        button.disabled = false;
+        button.removeAttribute("aria-busy");
+      }
+    });
+  }
+
+  /**
+   * The mesh / point-cloud import: all drones over the surface, vertices or volume of an uploaded
+   * OBJ/PLY/STL/glTF/GLB, or a Skybrush CSV / XYZ point file; an empty size asks the server for the
+   * smallest size that keeps the minimum distance.
+   */
+  _meshForm() {
+    const form = /** @type {HTMLFormElement} */ (document.getElementById("form-mesh"));
+    form.addEventListener("submit", async (e) => {
+      e.preventDefault();
+      setError("mesh", "");
+      const st = this.state;
+      if (!st.formation) return setError("mesh", "Open or create a show first.");
+      const fd = new FormData(form);
+      const file = /** @type {File} */ (fd.get("file"));
+      if (!file || !file.name) return setError("mesh", "Choose a mesh or point file.");
+      const size = String(fd.get("size_m") || "").trim();
+      /** @type {any} */
+      const body = {
+        mode: String(fd.get("mode")),
+        center_m: this._center(Number(fd.get("z"))),
+        n: st.show.drones,
+        min_spacing_m: st.show.settings.min_distance_m,
+      };
+      if (size) body.size_m = Number(size);
+      const button = /** @type {HTMLButtonElement} */ (form.querySelector("button[type=submit]"));
+      button.disabled = true;
+      button.setAttribute("aria-busy", "true");
+      try {
+        const res = /** @type {any} */ (await api.buildFormation(/** @type {any} */ ("mesh"), body, file));
+        uploads.set(file.name, file);
+        const label = `From ${file.name}`;
+        st.edit(label, () => {
+          st.formation.points = roundPoints(res.points);
+          st.formation.colors = res.colors;
+          st.formation.source = { kind: "mesh", params: withoutCount(body), file: file.name,
+            fingerprint: fingerprint(st.formation.points) };
+          st.selection = new Set();
+        });
+        this.view.fit();
+        toast(`${label}: ${res.points.length} points, ${res.size_m != null ? res.size_m.toFixed(1) + " m across" : ""}`);
+      } catch (err) {
+        const p = err.problems && err.problems[0];
+        let msg = err.message;
+        if (p && p.max_n != null) {
+          msg = `${body.n} drones do not fit at ${body.size_m} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
+            (p.fit_size_m != null ? ` ${Math.ceil(p.fit_size_m * 10) / 10} m fits all ${body.n} (or leave the size empty).` : "");
+        }
+        setError("mesh", msg);
       } finally {
         button.disabled = false;
         button.removeAttribute("aria-busy");

@@ -267,6 +267,11 @@ export class Timeline {
     hold.step = "0.5";
     hold.value = String(f.hold_s);
     hold.setAttribute("aria-label", `Hold time of formation ${k + 1}, seconds`);
+    if (f.leave_at_s != null) {
+      // A departure pin (issue 18) sets the hold's end: hold_s is not used.
+      hold.disabled = true;
+      hold.title = `The hold lasts until the departure pin at ${f.leave_at_s} s`;
+    }
     hold.addEventListener("change", () => setTimeout(() => {
       const v = Number(hold.value);
       if (!(v > 0)) { hold.value = String(f.hold_s); return; }
@@ -281,6 +286,14 @@ export class Timeline {
       count.title = `${st.show.drones - n} fewer points than drones: use "Fit to N drones"`;
     }
     meta.append(holdLabel, count);
+    if (f.arrive_at_s != null || f.leave_at_s != null) {
+      // Cue times (issue 18): pinned on the music lane.
+      const pin = document.createElement("span");
+      pin.className = "tl-pin";
+      pin.textContent = `⟂ ${f.arrive_at_s != null ? f.arrive_at_s.toFixed(2) : "…"}${f.leave_at_s != null ? `–${f.leave_at_s.toFixed(2)}` : ""} s`;
+      pin.title = "Pinned cue time (drag its marker on the music lane; double-click it to unpin)";
+      meta.append(pin);
+    }
 
     const sw = document.createElement("div");
     sw.className = "tl-swatches";

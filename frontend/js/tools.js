@@ -1,12 +1,18 @@
 // @ts-check
 // Canvas editing tools: select (click, box, move), freehand draw (resampled to the drone count),
-// place, erase, pan. Every finished gesture is one undo step.
+// place, erase, pan. Every finished gesture is one undo step. In the free 3D view a move drags the
+// selection in the plane through it facing the camera, or along one axis (`moveAxis`); the pan
+// tool orbits there.
 
+import { axisParameter } from "./camera.js";
 import { resamplePolylines, roundPoints } from "./geometry.js";
 import { closePairs } from "./spacing.js";
 
 /** Tool names, in the order of the tool buttons. */
 export const TOOLS = ["select", "draw", "place", "erase", "pan"];
+
+/** Constraints of a move: free (the view's plane, or the camera-facing plane in 3D), or one axis. */
+export const MOVE_AXES = ["free", "x", "y", "z"];
 
 /** Pointer gestures on the canvas, turned into edits of the current formation. */
 export class Tools {
@@ -20,6 +26,8 @@ export class Tools {
     this.state = state;
     this.opts = opts;
     this.tool = "select";
+    /** @type {"free"|"x"|"y"|"z"} what a drag moves along */
+    this.moveAxis = "free";
     this._gesture = null;
     /** Strokes of the current drawing (world u, v), so Shift+draw can add one more stroke. */
     this.strokes = [];
@@ -66,6 +74,10 @@ export class Tools {
       this.view.startPan(e);
       return;
     }
+    if (this.view.is3d && (this.tool === "draw" || this.tool === "place")) {
+      this.opts.onError("Draw and Place work in the front, top and side views (the 3D view has no drawing plane).");
+      return;
+    }
     c.setPointerCapture(e.pointerId);
     if (this.tool === "select") {
       const hit = this.view.hitTest(sx, sy);
@@ -82,7 +94,9 @@ export class Tools {
         this.state.checkpoint();
         const f = this.state.formation;
         const idx = [...this.state.selection];
-        this._gesture = { kind: "move", start: uv, idx, orig: idx.map((i) => f.points[i].slice()), moved: false };
+        const orig = idx.map((i) => f.points[i].slice());
+        this._gesture = { kind: "move", start: uv, sx, sy, idx, orig, moved: false, anchor: f.points[hit].slice() };
+        if (this.view.is3d) this._gesture.start3d = this._dragPoint(sx, sy, this._gesture.anchor);
       } else {
         this._gesture = { kind: "box", x0: sx, y0: sy, add: e.shiftKey || e.ctrlKey || e.metaKey };
       }
@@ -114,16 +128,13 @@ export class Tools {
     const sx = e.offsetX;
     const sy = e.offsetY;
     if (g.kind === "move") {
-      const uv = this.view.toWorldUV(sx, sy);
-      const [a, b] = this.view.axes;
-      const du = uv[0] - g.start[0];
-      const dv = uv[1] - g.start[1];
-      if (!g.moved && Math.hypot(du, dv) * this.view.scale < 3) return;
+      if (!g.moved && Math.hypot(sx - g.sx, sy - g.sy) < 3) return;
+      const delta = this._moveDelta(g, sx, sy);
+      if (!delta) return;
       g.moved = true;
       const f = this.state.formation;
       g.idx.forEach((i, k) => {
-        f.points[i][a] = g.orig[k][a] + du;
-        f.points[i][b] = g.orig[k][b] + dv;
+        for (let c = 0; c < 3; c++) f.points[i][c] = g.orig[k][c] + delta[c];
       });
       this.state.touch();
     } else if (g.kind === "box") {
@@ -148,9 +159,10 @@ export class Tools {
     if (c.hasPointerCapture(e.pointerId)) c.releasePointerCapture(e.pointerId);
     if (!g) return;
     if (g.kind === "move") {
-      if (g.moved) {
-        const f = this.state.formation;
-        for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+      const f = this.state.formation;
+      if (g.moved) for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+      // A drag along an axis pointing into the screen (or back to the start) changes nothing: no undo step.
+      if (g.moved && g.idx.some((i, k) => f.points[i].some((v, c) => v !== g.orig[k][c]))) {
         this.state.commit(g.idx.length === 1 ? "Move point" : `Move ${g.idx.length} points`);
       } else {
         this.state.discard();
@@ -168,6 +180,48 @@ export class Tools {
     }
     this.view.overlay = { strokes: [], box: null };
     this.view.redraw();
+  }
+
+  /**
+   * Where a 3D drag holds the grabbed point: on the plane through `anchor` facing the camera, or
+   * the axis parameter when the move is along one axis.
+   * @param {number} sx @param {number} sy @param {number[]} anchor
+   * @returns {number[]|number|null}
+   */
+  _dragPoint(sx, sy, anchor) {
+    const cam = this.view.camera;
+    if (this.moveAxis === "free") return cam.unprojectAt(sx, sy, anchor);
+    const a = [0, 0, 0];
+    a[MOVE_AXES.indexOf(this.moveAxis) - 1] = 1;
+    return axisParameter(cam.ray(sx, sy), anchor, a);
+  }
+
+  /**
+   * The displacement (metres, x y z) of a move gesture with the pointer at (sx, sy), or null
+   * where the pointer does not meet the drag plane or axis.
+   * @returns {number[]|null}
+   */
+  _moveDelta(g, sx, sy) {
+    const axis = MOVE_AXES.indexOf(this.moveAxis) - 1; // -1: free
+    if (this.view.is3d) {
+      const now = this._dragPoint(sx, sy, g.anchor);
+      if (now === null || g.start3d === null || g.start3d === undefined) return null;
+      if (typeof now === "number") {
+        const d = [0, 0, 0];
+        d[axis] = now - /** @type {number} */ (g.start3d);
+        return d;
+      }
+      const s = /** @type {number[]} */ (g.start3d);
+      return [now[0] - s[0], now[1] - s[1], now[2] - s[2]];
+    }
+    const uv = this.view.toWorldUV(sx, sy);
+    const [a, b] = this.view.axes;
+    const d = [0, 0, 0];
+    d[a] = uv[0] - g.start[0];
+    d[b] = uv[1] - g.start[1];
+    // Along one axis: keep that component only (an axis into the screen does not move).
+    if (axis >= 0) for (let c = 0; c < 3; c++) if (c !== axis) d[c] = 0;
+    return d;
   }
 
   _eraseAt(sx, sy) {

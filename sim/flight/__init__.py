@@ -9,7 +9,11 @@ Public names re-exported from the private modules (see each for the details)::
     # the same flight sharded over drones on a Dask cluster (identical arrays)
     result = fly_show(plan, FlightOptions(engine="dask", scheduler="tcp://127.0.0.1:8786"))
 
-Layers (each imports only those below): ``_fly`` (the dispatcher) -> ``_dask`` ->
+    # K flights with seeds 0..K-1 folded into the flown-separation margin (Monte-Carlo)
+    mc = monte_carlo(plan, options_for_preset("gusty-rtk"), runs=20, confidence=0.99)
+    mc.to_json()
+
+Layers (each imports only those below): ``_montecarlo`` -> ``_fly`` (the dispatcher) -> ``_dask`` ->
 ``_runner`` (local flight) -> ``_result``, ``_options`` -> ``engines`` -> ``control``,
 ``_quadrotor``, ``_disturbance``; ``scenarios`` sits on ``engines``.
 """
@@ -21,7 +25,18 @@ from sim.flight._dask import connect_scheduler as connect_scheduler
 from sim.flight._dask import fly_show_dask as fly_show_dask
 from sim.flight._disturbance import Disturbance as Disturbance
 from sim.flight._disturbance import make_disturbance as make_disturbance
+from sim.flight._errors import ERROR_PRESETS as ERROR_PRESETS
+from sim.flight._errors import ErrorModel as ErrorModel
+from sim.flight._errors import error_preset as error_preset
 from sim.flight._fly import fly_show as fly_show
+from sim.flight._montecarlo import DEFAULT_COLLISION_DISTANCE_M as DEFAULT_COLLISION_DISTANCE_M
+from sim.flight._montecarlo import PRESETS as PRESETS
+from sim.flight._montecarlo import MonteCarloResult as MonteCarloResult
+from sim.flight._montecarlo import RunStats as RunStats
+from sim.flight._montecarlo import binomial_interval as binomial_interval
+from sim.flight._montecarlo import fly_run as fly_run
+from sim.flight._montecarlo import monte_carlo as monte_carlo
+from sim.flight._montecarlo import options_for_preset as options_for_preset
 from sim.flight._options import CONTROLLERS as CONTROLLERS
 from sim.flight._options import DISTURBANCES as DISTURBANCES
 from sim.flight._options import ENGINES as ENGINES
@@ -53,8 +68,18 @@ from sim.flight.scenarios._paper import run_paper_scenario as run_paper_scenario
 
 __all__ = [
     "CONTROLLERS",
+    "DEFAULT_COLLISION_DISTANCE_M",
+    "PRESETS",
+    "MonteCarloResult",
+    "RunStats",
+    "binomial_interval",
+    "fly_run",
+    "monte_carlo",
+    "options_for_preset",
     "DISTURBANCES",
     "ENGINES",
+    "ERROR_PRESETS",
+    "ErrorModel",
     "FLOWN_DISTANCE_TOLERANCE_M",
     "ControllerName",
     "DisturbanceName",
@@ -73,6 +98,7 @@ __all__ = [
     "SimResult",
     "TrackingReference",
     "connect_scheduler",
+    "error_preset",
     "fly_show",
     "fly_show_dask",
     "hover_state",

@@ -145,3 +145,128 @@ def make_disturbance(kind: str | Disturbance | None, *, seed: int = 0) -> Distur
     if kind == "wind":
         return Disturbance.wind_gusts(seed=seed)
     raise ValueError(f"unknown disturbance {kind!r} (expected none, paper or wind)")
+
+
+# ----------------------------------------------------------------------------------------
+# A wind field varying in space and time (the error models' wind, sim.flight._errors)
+# ----------------------------------------------------------------------------------------
+#: Largest k·L of the turbulence modes: the Dryden energy above it (0.85 % of the variance,
+#: wavelengths below L/30) is left out; it would only alias in the 10 Hz wind tables.
+TURBULENCE_KL_MAX = 200.0
+#: Lowest height of the mean-wind profile (m): the power law vanishes at the ground.
+WIND_MIN_HEIGHT_M = 1.0
+
+
+def _dryden_cdf(x: np.ndarray) -> np.ndarray:
+    """∫0^x s⁴/(1+s²)³ ds: the cumulative Dryden energy spectrum in k·L (unnormalised)."""
+    out: np.ndarray = (3.0 * np.arctan(x) - x * (5.0 * x * x + 3.0) / (1.0 + x * x) ** 2) / 8.0
+    return out
+
+
+def dryden_correlation(distance_m: np.ndarray, length_m: float, *, longitudinal: bool) -> np.ndarray:
+    """Dryden's velocity correlation coefficient at separation r (MIL-F-8785C; von Kármán & Howarth).
+
+    Longitudinal (velocity component along the separation): ``f(r) = exp(-r/L)``;
+    lateral (component across it): ``g(r) = f + r f'/2 = (1 - r/(2L)) exp(-r/L)``.
+    """
+    r = np.asarray(distance_m, dtype=np.float64) / float(length_m)
+    out: np.ndarray = np.exp(-r) if longitudinal else (1.0 - 0.5 * r) * np.exp(-r)
+    return out
+
+
+@dataclass(frozen=True)
+class WindField:
+    """Mean wind with a power-law height profile plus frozen isotropic Dryden turbulence.
+
+    Turbulence is a sum of M random Fourier modes (Kraichnan 1970, "Diffusion by a
+    random velocity field"): wave vectors ``k_m`` drawn isotropically with ``|k|`` from
+    the Dryden energy spectrum ``E(k) ∝ (kL)⁴ / (1 + (kL)²)³`` (the 3-D spectrum whose
+    longitudinal correlation is ``exp(-r/L)``, Pope 2000 eq. 6.207 applied to the
+    Dryden 1-D spectrum), amplitudes ``P(k_m) g_m`` (projected normals, so the field is
+    divergence-free) scaled so that ``E[u uᵀ](r)`` equals the Dryden correlation tensor
+    in expectation over seeds::
+
+        u(x, t) = √(3/M) σ Σ_m P(k_m) g_m cos(k_m·(x - U t) + ω_m t + φ_m)
+
+    It is advected by the mean wind at the reference height (Taylor's frozen
+    turbulence) and each mode also drifts in time with ``ω_m ~ N(0, (σ |k_m|)²)`` so
+    that a calm field still changes. The vertical component is scaled by
+    ``vertical_factor`` (MIL-F-8785C's σ_w / σ_u at low altitude).
+
+    Attributes:
+        mean_mps: Mean wind speed at ``ref_height_m`` (m/s).
+        direction_rad: Direction the mean wind blows toward (rad from +x toward +y).
+        ref_height_m: Reference height of ``mean_mps`` (m).
+        shear_exponent: Power-law exponent of the height profile.
+        wavevectors: ``(M, 3)`` k_m (rad/m).
+        amplitudes: ``(M, 3)`` the modes' velocity amplitudes (m/s).
+        omega_rad_s: ``(M,)`` temporal drift of each mode (rad/s).
+        phase_rad: ``(M,)`` phases (rad).
+    """
+
+    mean_mps: float
+    direction_rad: float
+    ref_height_m: float
+    shear_exponent: float
+    wavevectors: np.ndarray
+    amplitudes: np.ndarray
+    omega_rad_s: np.ndarray
+    phase_rad: np.ndarray
+
+    @classmethod
+    def dryden(
+        cls, *, mean_mps: float = 0.0, direction_rad: float = 0.0, ref_height_m: float = 10.0,
+        shear_exponent: float = 1.0 / 7.0, sigma_mps: float = 0.0, length_m: float = 150.0,
+        vertical_factor: float = 1.0, modes: int = 128, seed: int = 0,
+    ) -> WindField:
+        """Draw a field (one per seed; the same for every drone, shard and chunk)."""
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed) & 0xFFFFFFFF, 0x57494E44]))
+        m = int(modes)
+        # |k| L by inverting the Dryden energy CDF on a fine grid.
+        grid = np.concatenate([[0.0], np.geomspace(1e-4, TURBULENCE_KL_MAX, 4000)])
+        cdf = _dryden_cdf(grid)
+        kl = np.interp(rng.uniform(0.0, cdf[-1], m), cdf, grid)
+        direction = rng.normal(size=(m, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        k = direction * (kl / float(length_m))[:, None]
+        g = rng.normal(size=(m, 3))
+        g -= np.sum(g * direction, axis=1, keepdims=True) * direction  # P(k) g: across k
+        amp = np.sqrt(3.0 / m) * float(sigma_mps) * g
+        amp[:, 2] *= float(vertical_factor)
+        return cls(
+            mean_mps=float(mean_mps), direction_rad=float(direction_rad), ref_height_m=float(ref_height_m),
+            shear_exponent=float(shear_exponent), wavevectors=k, amplitudes=amp,
+            omega_rad_s=rng.normal(size=m) * float(sigma_mps) * np.linalg.norm(k, axis=1),
+            phase_rad=rng.uniform(0.0, 2.0 * np.pi, m),
+        )
+
+    def mean_velocity(self, heights_m: np.ndarray) -> np.ndarray:
+        """Mean wind ``(P, 3)`` (m/s) at heights ``(P,)``: ``U (z / z_ref)^a`` horizontally."""
+        z = np.maximum(np.asarray(heights_m, dtype=np.float64), WIND_MIN_HEIGHT_M)
+        speed = self.mean_mps * (z / self.ref_height_m) ** self.shear_exponent
+        out = np.zeros((z.size, 3))
+        out[:, 0] = speed * np.cos(self.direction_rad)
+        out[:, 1] = speed * np.sin(self.direction_rad)
+        return out
+
+    def velocity(self, points_m: np.ndarray, times_s: np.ndarray) -> np.ndarray:
+        """Wind ``(P, 3)`` (m/s) at points ``(P, 3)`` (m) and times ``(P,)`` (s).
+
+        Element-wise and in a fixed order (no BLAS), so a point's value does not depend
+        on which other points are evaluated with it.
+        """
+        pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+        t = np.broadcast_to(np.asarray(times_s, dtype=np.float64), pts.shape[:1])
+        out = self.mean_velocity(pts[:, 2])
+        ux = self.mean_mps * np.cos(self.direction_rad)
+        uy = self.mean_mps * np.sin(self.direction_rad)
+        # Frozen turbulence swept by the mean wind at the reference height.
+        x, y, z = pts[:, 0] - ux * t, pts[:, 1] - uy * t, pts[:, 2]
+        for mode in range(self.omega_rad_s.size):
+            kx, ky, kz = self.wavevectors[mode]
+            arg = kx * x + ky * y + kz * z + self.omega_rad_s[mode] * t + self.phase_rad[mode]
+            c = np.cos(arg)
+            out[:, 0] += self.amplitudes[mode, 0] * c
+            out[:, 1] += self.amplitudes[mode, 1] * c
+            out[:, 2] += self.amplitudes[mode, 2] * c
+        return out

@@ -10,10 +10,11 @@ and their checks exist once. The name sets (:data:`ENGINES`, :data:`CONTROLLERS`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal, get_args
 
 from sim.flight._disturbance import Disturbance
+from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import QuadrotorParams
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
@@ -54,7 +55,8 @@ class FlightOptions:
         disturbance: one of :data:`DISTURBANCES`, or a :class:`Disturbance`.
         output_hz: rate of the recorded frames (Hz); frames are every
             ``round(1000 / output_hz)`` control steps, so 25, 40 and 50 Hz are exact.
-        seed: seed of the wind gusts.
+        seed: seed of every random component (the wind gusts and every per-drone draw of
+            ``errors``); each drone's streams are keyed by (seed, its index in the plan).
         params: vehicle parameters (default: the paper's quadrotor).
         gains: explicit controller gains; overrides ``controller``.
         mismatch: plant mass and inertia off by this fraction (dimensionless).
@@ -67,6 +69,8 @@ class FlightOptions:
             scheduler and a first worker (s).
         flown_distance: compute the flown minimum distance; False leaves it inf (the
             Dask shards skip it and compute it once over all drones).
+        errors: per-drone error models (GNSS, clock, wind field, motors, spread, battery,
+            drag); default ideal (:class:`~sim.flight._errors.ErrorModel`).
 
     Raises:
         ValueError: a field out of its range, naming the field (the API maps it to 422).
@@ -86,6 +90,7 @@ class FlightOptions:
     shards: int | None = None
     connect_timeout_s: float = 10.0
     flown_distance: bool = True
+    errors: ErrorModel = field(default_factory=ErrorModel)
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -102,6 +107,8 @@ class FlightOptions:
             raise ValueError(f"output_hz must be > 0, got {self.output_hz}")
         if not self.chunk_s > 0:
             raise ValueError(f"chunk_s must be > 0, got {self.chunk_s}")
+        if not isinstance(self.errors, ErrorModel):
+            raise ValueError(f"errors must be an ErrorModel, got {type(self.errors).__name__}")
         if self.engine != "dask" and (self.scheduler is not None or self.shards is not None):
             # A scheduler given to a local engine would silently fly on this machine instead.
             raise ValueError(f"scheduler and shards are only used with engine='dask', not {self.engine!r}")

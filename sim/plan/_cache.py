@@ -46,7 +46,9 @@ def cached_plan_show(
     Raises:
         PlanError: as ``plan_show`` (failures are not cached).
     """
-    key = (show.content_hash(), bool(enforce_limits))
+    # The plan does not read the light effects (issue 18): editing only them must not plan again.
+    key = (show.content_hash() if show.lights is None else show.model_copy(update={"lights": None}).content_hash(),
+           bool(enforce_limits))
     with _lock:
         plan = _plans.get(key)
         if plan is not None:

@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
+from sim.plan._cues import earliest_window, fit_transition
 from sim.plan._schedule import (
     Limits,
     Schedule,
@@ -45,6 +46,8 @@ from sim.plan._schedule import (
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
+#: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
+MIN_HOLD_S = 0.01
 ProgressFn = Callable[[float], None]
 
 
@@ -55,10 +58,13 @@ class PlanError(ValueError):
     shortest admissible duration, when that is the reason.
     """
 
-    def __init__(self, message: str, *, path: str = "", minimum_s: float | None = None) -> None:
+    def __init__(self, message: str, *, path: str = "", minimum_s: float | None = None,
+                 earliest_s: float | None = None) -> None:
         super().__init__(message)
         self.path = path
         self.minimum_s = minimum_s
+        #: For an infeasible cue time (``arrive_at_s`` / ``leave_at_s``): the earliest feasible one, seconds.
+        self.earliest_s = earliest_s
 
 
 @dataclass(frozen=True)
@@ -379,6 +385,38 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             return tp, tp.legs[-1].b_m
         return replace(tp, legs=tp.legs[:-1], overlaps_s=tp.overlaps_s[:-1]), source
 
+    def pin_arrival(tp: TransitionPlan, k: int, t0: float) -> TransitionPlan:
+        """Fit the transition into formation k (starting at ``t0``) to end at its ``arrive_at_s`` (issue 18)."""
+        f = show.formations[k]
+        if f.arrive_at_s is None:
+            return tp
+        label = f"into {f.name!r}"
+        fitted = fit_transition(tp, f.arrive_at_s - t0, lim, min_distance_m=s.min_distance_m, label=label)
+        if fitted is not None:
+            return fitted
+        earliest = t0 + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
+        raise PlanError(
+            f"formations[{k}].arrive_at_s = {f.arrive_at_s:g} s is too early for formation {f.name!r}: the "
+            f"transition into it starts at {t0:.2f} s and needs {earliest - t0:.1f} s, so the earliest feasible "
+            f"arrival is {earliest:.1f} s",
+            path=f"formations[{k}].arrive_at_s", minimum_s=earliest - t0, earliest_s=earliest,
+        )
+
+    def hold_length(k: int) -> float:
+        """Formation k's hold: ``hold_s``, or until its ``leave_at_s`` (issue 18)."""
+        f = show.formations[k]
+        if f.leave_at_s is None:
+            return f.hold_s
+        arrived = times[-1]
+        if f.leave_at_s - arrived < MIN_HOLD_S - 1e-9:
+            earliest = arrived + MIN_HOLD_S
+            raise PlanError(
+                f"formations[{k}].leave_at_s = {f.leave_at_s:g} s is too early for formation {f.name!r}: it is "
+                f"reached at {arrived:.2f} s at the earliest, so the earliest feasible leave time is {earliest:.2f} s",
+                path=f"formations[{k}].leave_at_s", earliest_s=earliest,
+            )
+        return f.leave_at_s - arrived
+
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
     # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
@@ -386,7 +424,12 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     up = home + lift
     first = show.formations[0]
     tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
-    tp, up = fold_first(tp, home)
+    if first.arrive_at_s is None:
+        tp, up = fold_first(tp, home)
+    else:
+        # A pinned first formation: the takeoff's length must be known before the transition is fitted
+        # (folding would change it), so the takeoff climbs to the lifted grid.
+        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
     add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
@@ -398,11 +441,12 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         if k > 0:
             tp = prepare(positions[-1], previous, f.name, f.points_m, f.transition_s,
                          f"formations[{k}].transition_s")
+            tp = pin_arrival(tp, k, times[-1])
         end, info = commit(tp, previous, f.name, f.points_m)
         col = f.colors_rgb[tp.goal_index]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
-        add("hold", f.name, f.hold_s, end, col)
+        add("hold", f.name, hold_length(k), end, col)
         wait(times[-1])
         previous = f.name
         if progress:

@@ -18,12 +18,25 @@ silent on it):
 * Anti-windup: when any rotor of a drone saturates at step k, that drone's ``u_d``
   (position and attitude) is not advanced; ``∫(u_n + f)`` keeps integrating so ``s``
   keeps measuring the true mismatch.
-* The two directions of ω̃ use a boundary layer ``x / max(||x||, SWITCH_EPS)`` with
-  ``SWITCH_EPS = 1e-9`` (m/s or rad/s). In normal sliding the discrete twisting keeps
+* **Switching law** (``IsmcGains.switching``). ``"sign"`` is the paper's law: the two
+  directions of ω̃ use ``x / max(||x||, SWITCH_EPS)`` with ``SWITCH_EPS = 1e-9`` (m/s or
+  rad/s). In normal sliding the discrete twisting keeps
   ``||s||`` near ``α dt²`` (~5e-6), far above it, so performance is unchanged; it only
   replaces the direction of a vector made of rounding noise (e.g. ``s - s_prev`` when it
   is exactly or nearly zero) by a proportional term, so a 1e-17 difference cannot turn
-  into a full-size switching step.
+  into a full-size switching step. Its cost is chattering: after settling the torques
+  carry a ~9 Hz oscillation with ±0.2 N·m peaks and 1 ms jumps (issue 20), which real
+  motors (5-50 ms) cannot produce. ``"boundary"`` (the default) is the continuous
+  saturation ``x / max(||x||, φ)`` with a boundary layer φ = ``boundary_layer`` of each
+  loop (1e-2 by default, the value issue 20 measured): inside the layer the law is
+  linear (a high-gain integral action on s), outside it is the paper's law. It gives up
+  exact finite-time sliding (s converges into ||s|| ≲ φ instead of to 0) and in
+  exchange makes u_d Lipschitz, so the command filter and the torques stay smooth
+  (docs/method.md §4.1 has the measured trade-off).
+* **PID** (the baseline, :class:`~sim.flight.control._baseline.BaselineGains`):
+  ``u -= k_i ∫e1 dt``, the integral clamped to ``±integral_limit`` per axis, frozen
+  while a rotor saturates and advanced on an axis only while ``|e1| < integral_zone``
+  (anti-windup). ``k_i = 0`` for the ISMC.
 * ``sig`` and unit vectors are guarded at zero (ISMC makes ``s(0) = 0`` exactly, an
   unguarded ``||s||^(r-1)`` is NaN at step 0). ``r = 1/2`` is evaluated as
   ``1/sqrt(||x||)`` (exact and cheap) in every engine.
@@ -42,19 +55,23 @@ import numpy as np
 from sim.flight.control._attitude import CommandFilter
 
 __all__ = [
+    "SWITCHING_LAWS",
     "SWITCH_EPS",
     "AttitudeGains",
     "IsmcGains",
     "PositionGains",
     "ismc_nominal",
     "ismc_switching",
+    "limit_thrust_accel",
     "sig",
     "unit",
 ]
 
 
-#: Boundary layer of the switching directions (m/s for the position loop, rad/s for attitude).
+#: Boundary layer of the paper's ("sign") switching directions (m/s for position, rad/s for attitude).
 SWITCH_EPS = 1e-9
+#: The selectable switching laws of :class:`IsmcGains`.
+SWITCHING_LAWS = ("boundary", "sign")
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,6 +84,21 @@ class PositionGains:
         r1: Exponent on the position error, 0 < r1 < 1.
         r2: Exponent on the velocity error, 0 < r2 < 1.
         alpha: Switching gain α (m/s³), must exceed twice the bound on ||ḋ||.
+        boundary_layer: φ of the ``"boundary"`` switching law (m/s).
+        ki: Integral gain on the position error (1/s³); 0 for the ISMC, > 0 makes the
+            baseline a PID.
+        integral_limit: Clamp of ∫e1 per axis (m·s), anti-windup.
+        integral_zone: The integral advances on an axis only while |e1| is below this (m)
+            (integral separation: a large transient does not wind it up).
+        min_thrust_accel_mps2: Floor of the commanded vertical thrust acceleration u_z
+            (m/s²): a large downward error must not command zero thrust, which with
+            per-rotor clipping leaves no torque and the drone tumbles.
+        max_tilt_rad: Largest angle of u from the vertical (rad); the horizontal part is
+            scaled down beyond it. 0.6 rad (34°), about ArduPilot's default ANGLE_MAX of 30°;
+            with 0.8 rad a 3 m GNSS-bias step (the "gps-only" preset) made the attitude loop
+            lose the drone. Both limits are inactive in normal tracking (the
+            paper scenario never reaches them); while one acts, the drone counts as
+            saturated (u_d and the integral are frozen).
     """
 
     k1: float = 5.0
@@ -74,6 +106,12 @@ class PositionGains:
     r1: float = 0.5
     r2: float = 5.0 / 7.0
     alpha: float = 5.0
+    boundary_layer: float = 1e-2
+    ki: float = 0.0
+    integral_limit: float = 2.5
+    integral_zone: float = 0.5
+    min_thrust_accel_mps2: float = 4.9
+    max_tilt_rad: float = 0.6
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +124,7 @@ class AttitudeGains:
         r3: Exponent on the angle error, 0 < r3 < 1.
         r4: Exponent on the angle-rate error, 0 < r4 < 1.
         beta: Switching gain β (rad/s³).
+        boundary_layer: φ of the ``"boundary"`` switching law (rad/s).
     """
 
     k3: float = 12.0
@@ -93,23 +132,69 @@ class AttitudeGains:
     r3: float = 0.5
     r4: float = 5.0 / 7.0
     beta: float = 4.0
+    boundary_layer: float = 1e-2
 
 
 @dataclass(frozen=True, slots=True)
 class IsmcGains:
-    """All controller settings: both ISMC loops and the Θ_ref command filter."""
+    """All controller settings: both ISMC loops, the switching law and the Θ_ref command filter.
+
+    Attributes:
+        position: Position-loop gains.
+        attitude: Attitude-loop gains.
+        filter: The Θ_ref command filter.
+        kind: Label (``"ismc"`` or ``"baseline"``).
+        switching: ``"boundary"`` (continuous, the default) or ``"sign"`` (the paper's
+            law, eq. 35 as written; :meth:`paper` selects it).
+    """
 
     position: PositionGains = PositionGains()
     attitude: AttitudeGains = AttitudeGains()
     filter: CommandFilter = CommandFilter()
     kind: str = "ismc"
+    switching: str = "boundary"
 
-    def as_vector(self) -> np.ndarray:
-        """Pack for the fused kernel: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ]``."""
+    def __post_init__(self) -> None:
+        if self.switching not in SWITCHING_LAWS:
+            raise ValueError(
+                f"unknown switching law {self.switching!r} (expected one of {', '.join(SWITCHING_LAWS)})"
+            )
+        for name, value in (("position.boundary_layer", self.position.boundary_layer),
+                            ("attitude.boundary_layer", self.attitude.boundary_layer)):
+            if not value > 0:
+                raise ValueError(f"{name} must be > 0, got {value}")
+
+    @classmethod
+    def paper(cls, *, switching: str = "sign") -> IsmcGains:
+        """The paper's controller exactly: its gains, the discontinuous switching law, no thrust or tilt limits."""
+        return cls(position=PositionGains(min_thrust_accel_mps2=-np.inf, max_tilt_rad=np.pi / 2), switching=switching)
+
+    def switch_eps(self, dt_s: float) -> tuple[float, float, float, float]:
+        """Boundary layers of the switching directions: ``(s, s - s_prev)`` of position, then attitude.
+
+        ``"sign"``: ``SWITCH_EPS`` for all four. ``"boundary"``: φ on s, and on the step
+        difference ``s - s_prev ≈ ṡ dt`` the layer ``φ_d dt`` with ``φ_d = √(gain φ) / 4``,
+        which makes the linearised law inside both layers, ``s̈ = -(gain/φ) s - (gain/(2 φ_d)) ṡ``,
+        critically damped (natural frequency ``√(gain/φ)``: 22 rad/s for α = 5, φ = 1e-2).
+        """
+        if self.switching == "sign":
+            return SWITCH_EPS, SWITCH_EPS, SWITCH_EPS, SWITCH_EPS
+        out: list[float] = []
+        for gain, phi in ((self.position.alpha, self.position.boundary_layer),
+                          (self.attitude.beta, self.attitude.boundary_layer)):
+            out += [phi, max(np.sqrt(gain * phi) / 4.0 * dt_s, SWITCH_EPS)]
+        return out[0], out[1], out[2], out[3]
+
+    def as_vector(self, dt_s: float = 1e-3) -> np.ndarray:
+        """Pack for the fused kernel (``dt_s`` scales the layers on ``s - s_prev``).
+
+        Layout: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ, φp_s,φp_q,φa_s,φa_q, k_i,i_lim,i_zone, u_z_min,tan_tilt_max]``.
+        """
         p, a, f = self.position, self.attitude, self.filter
         return np.array(
             [p.k1, p.k2, p.r1, p.r2, p.alpha, a.k3, a.k4, a.r3, a.r4, a.beta,
-             f.omega_n_rad_s, f.zeta],
+             f.omega_n_rad_s, f.zeta, *self.switch_eps(dt_s), p.ki, p.integral_limit, p.integral_zone,
+             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad))],
             dtype=np.float64,
         )
 
@@ -158,9 +243,28 @@ def ismc_nominal(
     return out
 
 
-def ismc_switching(s: np.ndarray, s_prev: np.ndarray, *, gain: float) -> np.ndarray:
+def limit_thrust_accel(u: np.ndarray, *, min_z: float, tan_tilt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Clamp ``u`` ``(N, 3)``: ``u_z >= min_z`` and ``||u_xy|| <= u_z tan(max tilt)``.
+
+    Returns:
+        ``(limited u (N, 3), limited (N,) bool)``; rows within the limits are returned unchanged.
+    """
+    uz = np.maximum(u[:, 2], min_z)
+    h = np.sqrt(u[:, 0] * u[:, 0] + u[:, 1] * u[:, 1])
+    hmax = uz * tan_tilt
+    tilt = h > hmax
+    scale = np.where(tilt, hmax / np.where(tilt, h, 1.0), 1.0)
+    out = np.stack([np.where(tilt, u[:, 0] * scale, u[:, 0]), np.where(tilt, u[:, 1] * scale, u[:, 1]), uz], axis=1)
+    return out, (u[:, 2] < min_z) | tilt
+
+
+def ismc_switching(
+    s: np.ndarray, s_prev: np.ndarray, *, gain: float, eps: float = SWITCH_EPS, eps_diff: float = SWITCH_EPS,
+) -> np.ndarray:
     """Switching law ``ω̃ = -gain (s/||s|| + 0.5 ṡ/||ṡ||)`` (eq. 35), ṡ ∝ ``s - s_prev``.
 
-    Both directions use the boundary layer ``SWITCH_EPS`` (see the module docstring).
+    The directions use the boundary layers ``eps`` (on s) and ``eps_diff`` (on
+    ``s - s_prev``): ``SWITCH_EPS`` for the paper's law, :meth:`IsmcGains.switch_eps`
+    for the continuous one (see the module docstring).
     """
-    return -gain * (unit(s, SWITCH_EPS) + 0.5 * unit(s - s_prev, SWITCH_EPS))
+    return -gain * (unit(s, eps) + 0.5 * unit(s - s_prev, eps_diff))

@@ -15,11 +15,13 @@ from typing import Any
 import numpy as np
 
 from sim.flight._disturbance import Disturbance, make_disturbance
+from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import STATE_SIZE, QuadrotorParams
 from sim.flight.control._baseline import BaselineGains
 from sim.flight.control._ismc import IsmcGains
 from sim.flight.engines._numpy import init_controller, run_chunk_numpy
 from sim.flight.engines._state import (
+    C_PHAT,
     STAT_COUNT,
     STAT_DTHRUST,
     STAT_MAX,
@@ -30,6 +32,7 @@ from sim.flight.engines._state import (
     TrackingReference,
     hover_state,
 )
+from sim.flight.engines._tables import ErrorTables
 
 __all__ = ["simulate", "warm_up"]
 
@@ -56,6 +59,8 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     frames_out: np.ndarray | None = None,
     on_chunk: Callable[[int, np.ndarray], None] | None = None,
+    errors: ErrorModel | None = None,
+    drone_ids: np.ndarray | None = None,
 ) -> SimResult:
     """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
 
@@ -69,7 +74,7 @@ def simulate(
         mismatch: Plant mass and inertia off by this fraction (dimensionless).
         gains: ISMC gains (default the paper's) or ``BaselineGains`` for the PD baseline.
         disturbance: ``"none" | "paper" | "wind"`` or a ``Disturbance``.
-        seed: Seed of the wind gusts.
+        seed: Seed of the wind gusts and of every draw of ``errors``.
         dt_s: Control and integration step (s), default 1 ms (the paper's).
         output_every: Record positions (and telemetry) every this many steps.
         telemetry: Also record ``TELEMETRY_FIELDS`` at the frames.
@@ -83,6 +88,9 @@ def simulate(
             float64), F = ``(steps - 1) // output_every + 1``; saves a float64 copy.
         on_chunk: Called after every chunk with ``(steps_done, diverged_step)``:
             frames with index ``< ceil(steps_done / output_every)`` are final.
+        errors: Per-drone error models (default: ideal drones).
+        drone_ids: ``(N,)`` each drone's index in the plan, the key of its random
+            streams (default ``0..N-1``); a subset flown alone gets its drones' own draws.
 
     Returns:
         A ``SimResult``.
@@ -116,6 +124,16 @@ def simulate(
         if frames.shape != (n_frames, n, 3):
             raise ValueError(f"frames_out must be {(n_frames, n, 3)}, got {frames.shape}")
     tel = np.full((n_frames, n, TEL_SIZE), np.nan) if telemetry else None
+    ids = np.arange(n) if drone_ids is None else np.asarray(drone_ids, dtype=np.int64)
+    if ids.shape != (n,):
+        raise ValueError(f"drone_ids must be ({n},), got {ids.shape}")
+    err_tables = ErrorTables(errors or ErrorModel(), seed=seed, drone_ids=ids, plant=plant, dt_s=dt_s,
+                             duration_s=(steps - 1) * dt_s)
+    if err_tables.use_gnss:
+        # The estimator starts at the first GNSS fix (a biased one puts the drone off its place).
+        ctrl[:, C_PHAT:C_PHAT + 3] += err_tables.initial_gnss_error()
+    if integrator != "euler" and not err_tables.switches.ideal:
+        raise ValueError("the rk4 integrator flies ideal drones only (errors=ErrorModel())")
 
     if engine == "numba":
         if integrator != "euler":
@@ -132,6 +150,7 @@ def simulate(
     opts: dict[str, Any] = {
         "params": params, "plant": plant, "gains": gains, "disturbance": dist, "dt_s": dt_s,
         "integrator": integrator, "divergence_limit_m": float(divergence_limit_m),
+        "drone": err_tables.drone, "switches": err_tables.switches,
     }
     step = 0
     while step < steps:
@@ -140,7 +159,7 @@ def simulate(
         runner(
             state, ctrl, stats, dstep, dreason, ref=reference, chunk=reference.chunk(times),
             dist=np.ascontiguousarray(dist.signals(times)), step0=step, times=times,
-            every=every, frames=frames, tel=tel, opts=opts,
+            every=every, frames=frames, tel=tel, opts=opts, tables=err_tables.chunk(step, count, reference),
         )
         step += count
         if on_chunk is not None:
@@ -161,6 +180,7 @@ def simulate(
         final_state=state,
         dt_s=dt_s,
         engine=engine,
+        extra={"estimate": ctrl[:, C_PHAT:C_PHAT + 6].copy(), "drone": err_tables.drone},
     )
 
 

@@ -48,26 +48,40 @@ from sim.flight._quadrotor import (
     w_dot_omega,
 )
 from sim.flight.control._attitude import resolve_attitude
-from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching
+from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching, limit_thrust_accel
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
     C_IATT,
+    C_IERR,
+    C_INNOV,
     C_IPOS,
     C_LAST_THRUST,
+    C_PHAT,
+    C_ROTOR,
     C_SAPREV,
     C_SPREV,
     C_THC,
     C_THC_DOT,
     C_UD,
     C_UDA,
+    C_VHAT,
     CTRL_SIZE,
+    D_CLOCK,
+    D_DRAG,
+    D_IX,
+    D_IZ,
+    D_MASS,
+    D_MOTOR,
+    D_SAG_RATE,
+    D_THRUST,
     DIVERGED_NONFINITE,
     DIVERGED_RUNAWAY,
     STAT_COUNT,
     STAT_DTHRUST,
     STAT_MAX,
     STAT_SUMSQ,
+    ErrorSwitches,
     RefChunk,
     TrackingReference,
 )
@@ -77,6 +91,7 @@ from sim.flight.engines._state import STATS_SIZE as STATS_SIZE
 from sim.flight.engines._state import TELEMETRY_FIELDS as TELEMETRY_FIELDS
 from sim.flight.engines._state import SimResult as SimResult
 from sim.flight.engines._state import hover_state as hover_state
+from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
 
 __all__ = ["init_controller", "numpy_step", "run_chunk_numpy"]
 
@@ -103,6 +118,11 @@ def init_controller(
     ctrl[:, C_THC:C_THC + 3] = theta_ref
     ctrl[:, C_E4_0:C_E4_0 + 3] = np.einsum("nij,nj->ni", euler_rate_matrix(euler), omega)
     ctrl[:, C_LAST_THRUST] = params.mass_kg * np.sum(u * thrust_axis(euler), axis=1)
+    ctrl[:, C_PHAT:C_PHAT + 3] = p
+    ctrl[:, C_VHAT:C_VHAT + 3] = v
+    # The motors start at the first thrust command, level (the lag then acts on the changes).
+    ctrl[:, C_ROTOR:C_ROTOR + 4] = np.clip(ctrl[:, C_LAST_THRUST] / (4.0 * params.k_f), 0.0,
+                                           params.omega_max_sq)[:, None]
     return ctrl
 
 
@@ -113,42 +133,68 @@ def numpy_step(
     state: np.ndarray, ctrl: np.ndarray, *, pr: np.ndarray, vr: np.ndarray, ar: np.ndarray,
     yaw: np.ndarray, dist: np.ndarray, t_s: float, disturbance: Disturbance,
     params: QuadrotorParams, plant: QuadrotorParams, gains: IsmcGains, dt_s: float,
-    integrator: str = "euler",
+    integrator: str = "euler", drone: np.ndarray | None = None, gnss: np.ndarray | None = None,
+    wind: np.ndarray | None = None, errors: ErrorSwitches | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One control + integration step for every drone given.
 
     Args:
         state: ``(N, 12)`` plant state at ``t_s``.
         ctrl: ``(N, CTRL_SIZE)`` controller state at ``t_s``.
-        pr, vr, ar: ``(N, 3)`` reference position (m), velocity (m/s), acceleration (m/s²).
+        pr, vr, ar: ``(N, 3)`` reference position (m), velocity (m/s), acceleration (m/s²)
+            the controller tracks (at each drone's own clock).
         yaw: ``(3,)`` ψ_ref (rad), sin ψ_ref, cos ψ_ref.
         dist: ``(9,)`` disturbance signals at ``t_s``: accel (m/s²), wind (m/s), Δ2 (rad/s²).
-        t_s: Time of the step (s), for the RK4 stage disturbances.
+        t_s: Time of the step (s), for the RK4 stage disturbances and the battery sag.
         disturbance: The disturbance (drag coefficient, RK4 stages).
         params: What the controller believes (mass, inertia, rotors).
         plant: The true vehicle (differs under model mismatch).
         gains: Controller gains.
         dt_s: Step (s).
         integrator: ``"euler"`` (semi-implicit, the engines' default) or ``"rk4"``.
+        drone: ``(N, D_SIZE)`` per-drone constants of the error models (default: ideal ``plant``).
+        gnss: ``(N, 3)`` GNSS measurement error (m) when this step is a GNSS epoch, else None.
+        wind: ``(N, 3)`` wind at the drones (m/s) for the quadratic drag, or None.
+        errors: Which error-model parts are on (default: none).
 
     Returns:
-        ``(new_state, new_ctrl, telemetry (N, TEL_SIZE))``; telemetry is at ``t_s``.
+        ``(new_state, new_ctrl, telemetry (N, TEL_SIZE))``; telemetry is at ``t_s`` (its
+        e1 is filled in by the caller against the plan at the true time).
     """
+    sw = errors or ErrorSwitches()
     g = params.gravity_mps2
     m = params.mass_kg
     inertia = np.asarray(params.inertia_kgm2)
     pg, ag, fl = gains.position, gains.attitude, gains.filter
+    eps_p, eps_pq, eps_a, eps_aq = gains.switch_eps(dt_s)
     p, v, euler, omega = state[:, 0:3], state[:, 3:6], state[:, 6:9], state[:, 9:12]
     c = ctrl
+    d = drone if drone is not None else ideal_drone_constants(plant, p.shape[0])
+    nc = c.copy()
+
+    # --- what the controller sees: the estimate (GNSS + accelerometer) or the true state
+    if sw.gnss:
+        p_c, v_c = c[:, C_PHAT:C_PHAT + 3], c[:, C_VHAT:C_VHAT + 3]
+        if gnss is not None:  # a GNSS epoch: new innovation z - p̂, held until the next
+            nc[:, C_INNOV:C_INNOV + 3] = (p + gnss) - p_c
+        innov = nc[:, C_INNOV:C_INNOV + 3]
+    else:
+        p_c, v_c = p, v
 
     # --- position loop (spec 4)
-    e1, e2 = p - pr, v - vr
+    e1, e2 = p_c - pr, v_c - vr
     f = -ar.copy()
     f[:, 2] -= g
     u_n = ismc_nominal(e1, e2, f, k_a=pg.k1, k_b=pg.k2, r_a=pg.r1, r_b=pg.r2)
     s = e2 - c[:, C_E2_0:C_E2_0 + 3] - c[:, C_IPOS:C_IPOS + 3]
-    w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha)
+    w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha, eps=eps_p, eps_diff=eps_pq)
     u = u_n + c[:, C_UD:C_UD + 3]
+    u = u - pg.ki * c[:, C_IERR:C_IERR + 3]  # PID baseline's integral (0 for the ISMC)
+    u_wanted = u
+    u, limited = limit_thrust_accel(u, min_z=pg.min_thrust_accel_mps2, tan_tilt=float(np.tan(pg.max_tilt_rad)))
+    # While limited, s integrates the nominal law minus what the limiter took away, so that
+    # u_d does not learn the limiter as a disturbance (and wind up through it).
+    u_n_int = np.where(limited[:, None], u_n + (u - u_wanted), u_n)
     z_b = thrust_axis(euler)
     thrust_cmd = m * np.sum(u * z_b, axis=1)  # eq. 22: projection on the current body axis
 
@@ -165,18 +211,26 @@ def numpy_step(
     f_a = -np.einsum("nij,nj->ni", w_mat, gyro_acc) + w_dot_omega(euler, omega) - th_c_ddot
     u_na = ismc_nominal(e3, e4, f_a, k_a=ag.k3, k_b=ag.k4, r_a=ag.r3, r_b=ag.r4)
     s_a = e4 - c[:, C_E4_0:C_E4_0 + 3] - c[:, C_IATT:C_IATT + 3]
-    w_att = ismc_switching(s_a, c[:, C_SAPREV:C_SAPREV + 3], gain=ag.beta)
+    w_att = ismc_switching(s_a, c[:, C_SAPREV:C_SAPREV + 3], gain=ag.beta, eps=eps_a, eps_diff=eps_aq)
     u_a = u_na + c[:, C_UDA:C_UDA + 3]
     torque_cmd = inertia * np.einsum("nij,nj->ni", euler_rate_matrix_inverse(euler), u_a)
 
-    # --- rotors: mix, saturate, and what actually acts (the controller's k_F, k_M, d
-    # equal the plant's: mismatch is in mass and inertia only)
+    # --- rotors: mix, saturate (the command; anti-windup flag), the motors' lag, and what
+    # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
+    # are the nominal ones)
     omega_sq, saturated = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
+    saturated = saturated | limited
+    if sw.motor:
+        rotor = c[:, C_ROTOR:C_ROTOR + 4]
+        omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
+    nc[:, C_ROTOR:C_ROTOR + 4] = omega_sq
     thrust, torque = unmix(omega_sq, plant)
+    gain = d[:, D_THRUST] * (1.0 - d[:, D_SAG_RATE] * t_s)
+    thrust = thrust * gain
+    torque = torque * gain[:, None]
 
     # --- controller state update
-    nc = c.copy()
-    nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n + f)
+    nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n_int + f)
     nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
@@ -185,14 +239,21 @@ def numpy_step(
     nc[:, C_THC_DOT:C_THC_DOT + 3] = th_c_dot + dt_s * th_c_ddot
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]
     nc[:, C_LAST_THRUST] = thrust
+    lim = pg.integral_limit
+    grow = ~saturated[:, None] & (np.abs(e1) < pg.integral_zone)
+    nc[:, C_IERR:C_IERR + 3] = np.where(
+        grow, np.minimum(np.maximum(c[:, C_IERR:C_IERR + 3] + dt_s * e1, -lim), lim), c[:, C_IERR:C_IERR + 3],
+    )
 
     # --- plant
+    pmass = d[:, D_MASS]
+    pin = d[:, D_IX:D_IZ + 1]
     if integrator == "euler":
-        acc = (thrust / plant.mass_kg)[:, None] * z_b + dist[0:3] + disturbance.drag_per_s * (
-            dist[3:6] - v
-        )
+        acc = (thrust / pmass)[:, None] * z_b + dist[0:3] + disturbance.drag_per_s * (dist[3:6] - v)
+        if sw.drag:  # quadratic drag on the air-relative velocity
+            rel = v - (wind if wind is not None else 0.0)
+            acc = acc - d[:, D_DRAG:D_DRAG + 1] * np.sqrt(np.sum(rel * rel, axis=1))[:, None] * rel
         acc[:, 2] -= plant.gravity_mps2
-        pin = np.asarray(plant.inertia_kgm2)
         omega_dot = (torque - np.cross(omega, omega * pin)) / pin + np.einsum(
             "nij,nj->ni", euler_rate_matrix_inverse(euler), np.broadcast_to(dist[6:9], p.shape)
         )
@@ -201,18 +262,30 @@ def numpy_step(
         ns[:, 0:3] = p + dt_s * ns[:, 3:6]
         ns[:, 9:12] = omega + dt_s * omega_dot
         ns[:, 6:9] = euler + dt_s * np.einsum("nij,nj->ni", w_mat, ns[:, 9:12])
+        if sw.gnss:  # the estimator: predict with the accelerometer, correct with the held innovation
+            nc[:, C_VHAT:C_VHAT + 3] = v_c + dt_s * (acc + sw.est_kv * innov)
+            nc[:, C_PHAT:C_PHAT + 3] = p_c + dt_s * (nc[:, C_VHAT:C_VHAT + 3] + sw.est_kp * innov)
+        else:
+            nc[:, C_PHAT:C_PHAT + 3] = ns[:, 0:3]
+            nc[:, C_VHAT:C_VHAT + 3] = ns[:, 3:6]
     elif integrator == "rk4":
+        if not sw.ideal:
+            raise ValueError("the rk4 integrator flies ideal drones only (errors=ErrorModel())")
+        plant_n = plant
+
         def deriv(x: np.ndarray, t: float) -> np.ndarray:
             sig = disturbance.signals(np.array([t]))[0]
             d1 = sig[0:3] + disturbance.drag_per_s * (sig[3:6] - x[:, 3:6])
             d2 = np.broadcast_to(sig[6:9], (x.shape[0], 3))
-            return quadrotor_derivative(x, thrust, torque, d1, d2, plant)
+            return quadrotor_derivative(x, thrust, torque, d1, d2, plant_n)
 
         k1 = deriv(state, t_s)
         k2 = deriv(state + 0.5 * dt_s * k1, t_s + 0.5 * dt_s)
         k3 = deriv(state + 0.5 * dt_s * k2, t_s + 0.5 * dt_s)
         k4 = deriv(state + dt_s * k3, t_s + dt_s)
         ns = state + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        nc[:, C_PHAT:C_PHAT + 3] = ns[:, 0:3]
+        nc[:, C_VHAT:C_VHAT + 3] = ns[:, 3:6]
     else:
         raise ValueError(f"unknown integrator {integrator!r}")
 
@@ -227,14 +300,32 @@ def run_chunk_numpy(
     state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
     dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
-    opts: dict[str, Any],
+    opts: dict[str, Any], tables: ChunkTables | None = None,
 ) -> None:
-    """Advance ``len(times)`` steps in place (the numpy engine's chunk)."""
+    """Advance ``len(times)`` steps in place (the numpy engine's chunk).
+
+    ``opts`` may carry ``drone`` (``(N, D_SIZE)`` constants) and ``switches``
+    (:class:`ErrorSwitches`); ``tables`` the chunk's GNSS and wind tables (default: ideal).
+    """
     limit = opts["divergence_limit_m"]
+    sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
+    drone = opts.get("drone")
+    if drone is None:
+        drone = ideal_drone_constants(opts["plant"], state.shape[0])
     for j in range(times.size):
         k = step0 + j
         alive = dstep < 0
-        pr, vr, ar = ref.at_step(chunk, j)
+        pr, vr, ar = ref.at_step(chunk, j)  # the plan at the true time: the error is measured here
+        pc, vc, ac = ref.at_times(chunk, j, drone[:, D_CLOCK]) if sw.clock else (pr, vr, ar)
+        gnss = None
+        if sw.gnss and tables is not None and k % tables.gnss_every == 0:
+            gnss = tables.gnss[(k - tables.gnss_first) // tables.gnss_every]
+        wind = None
+        if sw.drag and tables is not None:
+            x = times[j] / tables.wind_dt_s
+            i0 = min(max(int(np.floor(x)) - tables.wind_k0, 0), tables.wind.shape[0] - 2)
+            fr = x - (tables.wind_k0 + i0)
+            wind = tables.wind[i0] + fr * (tables.wind[i0 + 1] - tables.wind[i0])
         with np.errstate(all="ignore"):
             err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
         runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
@@ -243,10 +334,12 @@ def run_chunk_numpy(
         alive &= ~runaway
         with np.errstate(all="ignore"):  # a diverging row may overflow; it is caught below
             ns, nc, trow = numpy_step(
-                state, ctrl, pr=pr, vr=vr, ar=ar, yaw=chunk.yaw[j], dist=dist[j], t_s=times[j],
+                state, ctrl, pr=pc, vr=vc, ar=ac, yaw=chunk.yaw[j], dist=dist[j], t_s=times[j],
                 disturbance=opts["disturbance"], params=opts["params"], plant=opts["plant"],
                 gains=opts["gains"], dt_s=opts["dt_s"], integrator=opts["integrator"],
+                drone=drone, gnss=gnss, wind=wind, errors=sw,
             )
+            trow[:, 0:3] = state[:, 0:3] - pr
         bad = alive & ~(np.all(np.isfinite(ns), axis=1) & np.all(np.isfinite(nc), axis=1))
         dstep[bad] = k
         dreason[bad] = DIVERGED_NONFINITE

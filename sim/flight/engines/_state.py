@@ -19,8 +19,10 @@ from sim.plan._trajectory import DEGREE, Trajectories
 
 __all__ = [
     "CTRL_SIZE",
+    "D_SIZE",
     "DIVERGED_NONFINITE",
     "DIVERGED_REASONS",
+    "ErrorSwitches",
     "DIVERGED_RUNAWAY",
     "STATS_SIZE",
     "TELEMETRY_FIELDS",
@@ -36,7 +38,20 @@ C_E2_0, C_IPOS, C_UD, C_SPREV = 0, 3, 6, 9  # position ISMC: ė(0), ∫(u_n+f), 
 C_E4_0, C_IATT, C_UDA, C_SAPREV = 12, 15, 18, 21  # attitude ISMC, same order
 C_THC, C_THC_DOT = 24, 27  # command filter state Θ_c, Θ̇_c
 C_LAST_THRUST = 30  # τ_f of the previous step (N), for the continuity metric
-CTRL_SIZE = 31
+C_IERR = 31  # ∫e1 dt of the PID baseline (m·s)
+C_PHAT, C_VHAT = 34, 37  # estimator: p̂ (m), v̂ (m/s) (the true p, v when GNSS is off)
+C_INNOV = 40  # GNSS innovation z - p̂ held since the last epoch (m)
+C_ROTOR = 43  # squared rotor speeds acting (rad²/s²), the motor-lag state (4)
+CTRL_SIZE = 47
+
+# Per-drone constants of the error models (rows of ``drone``, built by engines._tables).
+D_MASS, D_IX, D_IY, D_IZ = 0, 1, 2, 3  # the true plant's mass (kg) and inertia (kg·m²)
+D_THRUST = 4  # rotor thrust-gain factor at t = 0 (dimensionless)
+D_SAG_RATE = 5  # thrust-gain loss per second of flight (1/s)
+D_CLOCK = 6  # show-clock offset δ (s): the drone flies the reference at t + δ
+D_MOTOR = 7  # motor-lag blend 1 - exp(-dt/τ) per step (1: no lag)
+D_DRAG = 8  # quadratic drag over mass c / m (1/m)
+D_SIZE = 9
 
 # Per-drone statistics: Σ||e1||² (m²), max ||e1|| (m), max |Δτ_f| (N), steps counted.
 STAT_SUMSQ, STAT_MAX, STAT_DTHRUST, STAT_COUNT = 0, 1, 2, 3
@@ -55,6 +70,32 @@ TELEMETRY_FIELDS = (
     "saturated",  # 1 when a rotor was clipped
 )
 TEL_SIZE = len(TELEMETRY_FIELDS)
+
+
+@dataclass(frozen=True)
+class ErrorSwitches:
+    """Which parts of the error models an engine runs (all off: the ideal, exact path).
+
+    Attributes:
+        gnss: The controller sees the GNSS/accelerometer estimate (p̂, v̂).
+        motor: First-order motor lag.
+        drag: Quadratic drag against the wind tables.
+        clock: Per-drone clock offsets.
+        est_kp: Estimator position gain on the held innovation (1/s).
+        est_kv: Estimator velocity gain on the held innovation (1/s²).
+    """
+
+    gnss: bool = False
+    motor: bool = False
+    drag: bool = False
+    clock: bool = False
+    est_kp: float = 0.0
+    est_kv: float = 0.0
+
+    @property
+    def ideal(self) -> bool:
+        """True when no switch is on."""
+        return not (self.gnss or self.motor or self.drag or self.clock)
 
 
 def _constant_motion(points_m: np.ndarray, duration_s: float) -> Trajectories:
@@ -151,6 +192,29 @@ class TrackingReference:
         d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
         vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1 + off[3:6]
         acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2 + off[6:9]
+        return pos, vel, acc
+
+    def at_times(self, chunk: RefChunk, j: int, clock_s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Like :meth:`at_step` with each drone's own motion at ``chunk.times[j] + clock_s`` ``(N,)``.
+
+        The shared offset and yaw stay at the chunk's time (they are the tests' and
+        scenarios' shared motions; a show's reference is its drones' own pieces).
+        """
+        m = self.motion
+        t = float(chunk.times[j]) + np.asarray(clock_s, dtype=np.float64)
+        inside = (m.start_s <= t) & (t <= m.end_s)
+        tc = np.minimum(np.maximum(t, m.start_s), m.end_s)
+        rows = np.arange(m.drone_count)
+        # The last piece starting at or before tc (the later piece at a break), as piece_index.
+        idx = np.minimum(np.sum(m.breaks_s[:, 1:-1] <= tc[:, None], axis=1), m.piece_count - 1)
+        c = m.coeffs_m[rows, idx]  # (N, 3, 6)
+        u = (tc - m.breaks_s[rows, idx])[:, None]
+        c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
+        off = chunk.offset[j]
+        pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0 + off[0:3]
+        d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
+        vel = np.where(inside[:, None], (((d5 * u + d4) * u + d3) * u + d2) * u + c1, 0.0) + off[3:6]
+        acc = np.where(inside[:, None], ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2, 0.0) + off[6:9]
         return pos, vel, acc
 
     # -- simple references for tests and scenarios ------------------------------------

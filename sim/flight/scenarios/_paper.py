@@ -121,7 +121,7 @@ class PaperRun:
 
 def run_paper_scenario(
     *, controller: str = "ismc", engine: str = "numba", duration_s: float = PAPER_DURATION_S,
-    integrator: str = "euler",
+    integrator: str = "euler", switching: str = "sign",
 ) -> PaperRun:
     """Fly the scenario of docs/method.md §7 with the paper's gains (or the baseline PD) and record every step.
 
@@ -130,13 +130,15 @@ def run_paper_scenario(
         engine: ``"numba"`` or ``"numpy"``.
         duration_s: Length (s), default 20 s as in the paper.
         integrator: ``"euler"`` (both engines) or ``"rk4"`` (numpy engine only).
+        switching: the ISMC's switching law, ``"sign"`` (the paper's, default) or ``"boundary"``.
     """
     if controller not in CONTROLLERS:
         raise ValueError(f"unknown controller {controller!r} (expected {' or '.join(CONTROLLERS)})")
     x0 = np.zeros((1, 12))
     x0[0, 0:3] = PAPER_P0_M
     x0[0, 6:9] = PAPER_THETA0_RAD
-    gains = BaselineGains() if controller == "baseline" else IsmcGains()
+    # The paper's controllers exactly: the discontinuous switching law and a PD comparison.
+    gains = BaselineGains.paper() if controller == "baseline" else IsmcGains.paper(switching=switching)
     res = simulate(
         TrackingReference.paper(), duration_s=duration_s, initial_state=x0, gains=gains,
         disturbance="paper", output_every=1, telemetry=True, engine=engine, integrator=integrator,
