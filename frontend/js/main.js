@@ -80,7 +80,14 @@ const renderReport = report.render.bind(report);
 report.render = () => { renderReport(); music.draw(); };
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
-const effects = new EffectsPanel($("effects-body"), state, { redraw: () => view.redraw(), toast });
+const effects = new EffectsPanel($("effects-body"), state, {
+  redraw: () => view.redraw(), toast,
+  plan: () => (report.result ? report.result.plan : null),
+  viewerToken: () => { const v = preview.viewerState(); return v ? v.token : null; },
+});
+// The 3D preview paints the editor's unsaved effects: sent after each edit, and to a new viewer page
+// (a reload or a fresh preview has a new token) within a second.
+window.setInterval(() => { if (preview.isOpen && !document.hidden) effects.sendToViewer(); }, 1000);
 view.colorOverride = (f, base) => effects.colorsFor(f, base);
 
 // ---- page state ------------------------------------------------------------------------------
