@@ -342,4 +342,7 @@ def install(app: FastAPI) -> None:
 #: Alias matching the brief's name.
 install_viewer = install
 
-__all__ = ["LightsOut", "LightsRequest", "PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install", "install_viewer", "playback_router"]
+__all__ = [
+    "LightsOut", "LightsRequest", "PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install",
+    "install_viewer", "playback_router",
+]
