@@ -265,6 +265,7 @@ export class EffectsPanel {
   /** @param {number} t */
   seek(t) {
     this.time = Math.max(0, t);
+    this.$time.max = String(this.duration);
     this.$time.value = String(this.time);
     this.$timeOut.textContent = `${this.time.toFixed(1)} s`;
     if (!this.previewing) this.setPreview(true);
