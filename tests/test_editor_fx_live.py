@@ -93,8 +93,8 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
     page.get_by_role("button", name="3D preview").click()
     first = _wait("the viewer's colours", lambda: (v := _viewer(page)) and len(v["rgb"]) == 9 and v)
     assert first["rgb"] == ["#ffffff"] * 9
-    page.get_by_label("Effect colour").fill("#ff0000")
-    page.get_by_label("Effect colour").dispatch_event("change")
+    page.locator("input[aria-label='Effect colour']").fill("#ff0000")
+    page.locator("input[aria-label='Effect colour']").dispatch_event("change")
     assert ui.state("s.dirty") is True
     _wait("red in the 3D view", lambda: (v := _viewer(page)) and v["rgb"] == ["#ff0000"] * 9)
 
