@@ -45,7 +45,8 @@ def _viewer(page) -> dict | None:
     """The preview page's state element (token, effect revision, LED colours of the first drones)."""
     return page.evaluate("""() => { const f = document.getElementById('preview-frame');
         const el = f && f.contentDocument && f.contentDocument.getElementById('swarmshow-viewer');
-        return el && el.dataset.token ? {lights: Number(el.dataset.lights), rgb: (el.dataset.rgb || '').split(' ')} : null; }""")
+        if (!el || !el.dataset.token) return null;
+        return {lights: Number(el.dataset.lights), rgb: (el.dataset.rgb || '').split(' ')}; }""")
 
 
 def _wait(what: str, fn, timeout_s: float = 60.0):
