@@ -161,8 +161,13 @@ def test_planned_preview_matches_the_server_on_the_drones_holding_a_formation() 
          "effect": {"kind": "sweep", "colors": ["#ff0000", "#0000ff"], "axis": [1, 0, 0], "length_m": 7.0}},
     ]
     doc = _show_doc(effects, groups={"g": [1, 2, 3, 8]})
-    # Far-apart formations so that the plan's assignment is not the identity.
-    doc["formations"][1]["points"] = [[p[0] * -1.0, p[1], p[2]] for p in doc["formations"][1]["points"]][::-1]
+    # B lies flat (one height: its own z order is the drone index), listed so that the assignment is not the identity.
+    doc["formations"][1]["points"] = [[x * 4.0 - 4.0, 5.0 + y * 4.0, 25.0] for y in range(3) for x in range(3)][::-1]
+    plan = plan_show(parse_show(doc))
+    # A chase along z that starts in A's hold: ranked by where the plan put the drones in A, also later in B.
+    a_hold = plan.formation_segments()[0][1]
+    doc["lights"]["effects"].append({"start_s": a_hold.start_s + 1.0, "end_s": 60.0, "blend": "add", "effect": {
+        "kind": "chase", "color": "#404040", "order": "z", "period_s": 2.5, "width": 0.4}})
     show = parse_show(doc)
     plan = plan_show(show)
     summary = json.loads(json.dumps(plan_summary(plan)))

@@ -71,9 +71,10 @@ export function envelope(fx, t) {
  * @param {number} t show time, seconds
  * @param {(fx: any) => (Array<{w: number, h: number, data: Uint8ClampedArray}>|null)} [images] decoded image
  *   frames of an image effect (RGBA bytes; for a video, the frame at this time), or null while they load
- * @param {{active: (name: string) => boolean, pointRows: (formation: string, indices: number[]) => (Set<number>|null)}}
- *   [ctx] with a plan: whether a formation target applies at t, and the rows (drones) that fly to some points
- *   of a formation (default: only the formation on screen, its points as rows)
+ * @param {{active: (name: string) => boolean, pointRows: (formation: string, indices: number[]) => (Set<number>|null),
+ *   positionsAt?: (t: number) => (number[][]|null)}} [ctx] with a plan: whether a formation target applies at t,
+ *   the rows (drones) that fly to some points of a formation (default: only the formation on screen, its points
+ *   as rows), and the rows' positions at another time when known (chase orders rank by them)
  * @returns {number[][]} (n, 3) colours in [0, 1]
  */
 export function evaluateColors(show, formationName, points, base, t, images, ctx) {
@@ -113,7 +114,9 @@ export function evaluateColors(show, formationName, points, base, t, images, ctx
       if (order === "index") ranks = points.map((_, i) => i / drones);
       else {
         const ax = "xyz".indexOf(order);
-        const idx = points.map((_, i) => i).sort((i, j) => points[i][ax] - points[j][ax] || i - j);
+        // Ranked where the drones are when the chase starts (the plan's, when known and resting then).
+        const at = (ctx && ctx.positionsAt && ctx.positionsAt(fx.start_s)) || points;
+        const idx = points.map((_, i) => i).sort((i, j) => at[i][ax] - at[j][ax] || i - j);
         ranks = new Array(n);
         idx.forEach((i, r) => { ranks[i] = r / n; });
       }
@@ -249,6 +252,14 @@ export function evaluatePlanned(show, k, points, base, t, plan, images) {
             .filter((/** @type {number} */ d) => d >= 0)));
       }
       return rowsCache.get(key) || null;
+    },
+    // During a hold every drone rests on its planned point; elsewhere (flying) the preview does not know.
+    positionsAt: (/** @type {number} */ s) => {
+      const holds = plan.segments.filter((/** @type {any} */ g) => g.kind === "hold");
+      const j = holds.findIndex((/** @type {any} */ g) => s >= g.start_s && s <= g.start_s + g.duration_s);
+      const f = j >= 0 ? show.formations[j] : null;
+      if (!f || !Array.isArray(f.points) || f.points.length < Math.max(...plan.assignment[j]) + 1) return null;
+      return plan.assignment[j].map((/** @type {number} */ p) => f.points[p]);
     },
   };
   const rows = evaluateColors(show, names[k], goal.map((/** @type {number} */ p) => points[p]),
