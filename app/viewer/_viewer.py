@@ -250,16 +250,18 @@ class _Playback:
 
     def _link_html(self, colors_rgb: np.ndarray | None = None) -> str:
         """The hidden element naming this playback and its playhead (time, and the formation it is in or going to),
-        the effect stacks it was given and the LED colours of its first drones (``data-rgb``, hex, at most
-        :data:`LINK_COLORS`) in the frame on screen."""
+        the effect stack it paints (its revision, 0: the saved show's) and the LED colours of its first drones
+        (``data-rgb``, hex, at most :data:`LINK_COLORS`) in the frame on screen."""
         seg_kind, formation = self._phase(self._time_s)
+        # 0 while the saved effects show (a new load drops the editor's): the editor then sends its own again.
+        lights = self.lights_rev if self._lights_override is not None else 0
         rgb = ""
         if colors_rgb is not None:
             c = np.clip(np.round(np.asarray(colors_rgb[:LINK_COLORS]) * 255.0), 0, 255).astype(int)
             rgb = " ".join(f"#{r:02x}{g:02x}{b:02x}" for r, g, b in c)
         return (f'<span id="swarmshow-viewer" hidden data-token="{html.escape(self.token)}" '
                 f'data-time="{self._time_s:.2f}" data-phase="{seg_kind}" data-formation="{formation}" '
-                f'data-playing="{int(self._playing)}" data-lights="{self.lights_rev}" data-rgb="{rgb}"></span>')
+                f'data-playing="{int(self._playing)}" data-lights="{lights}" data-rgb="{rgb}"></span>')
 
     def _phase(self, t: float) -> tuple[str, int]:
         """(segment kind, formation index) at ``t``: the hold's formation, or the one a transition leads into."""

@@ -65,9 +65,9 @@ export class EffectsPanel {
    * @param {HTMLElement} root the panel's body
    * @param {import("./state.js").EditorState} state
    * @param {{redraw: () => void, toast?: (msg: string, opts?: any) => void, plan?: () => any,
-   *   viewerToken?: () => (string|null)}} hooks `plan`: the last fresh check's plan summary (its assignment
-   *   places the drones in the preview); `viewerToken`: the open 3D preview's page token (unsaved effects
-   *   are painted there)
+   *   viewer?: () => ({token: string, lights: number}|null)}} hooks `plan`: the last fresh check's plan summary (its assignment
+   *   places the drones in the preview); `viewer`: the open 3D preview page's token and the revision of the
+   *   effects it paints (unsaved effects are painted there)
    */
   constructor(root, state, hooks) {
     this.root = root;
@@ -81,7 +81,12 @@ export class EffectsPanel {
     this.images = new Map();
     /** @type {Map<string, {el: HTMLVideoElement, frame: any, busy: boolean}>} preview videos by data URL */
     this.videos = new Map();
-    this._sentLights = "";
+    this._sentVersion = -1;
+    this._sentRev = 0;
+    /** @type {any} */
+    this._sentShow = null;
+    /** @type {{plan: any, show: any, version: number, out: any}|null} the last fit of the check's plan */
+    this._planFit = null;
     /** @type {string|null} */
     this._sentToken = null;
     this._sendTimer = 0;
@@ -91,7 +96,6 @@ export class EffectsPanel {
         if (e.detail.kind === "selection") this._renderGroups();
         return;
       }
-      if (e.detail.kind === "load") this._sentLights = "";
       this.render();
       this.scheduleViewer();
     });
@@ -101,7 +105,16 @@ export class EffectsPanel {
   get plan() {
     const s = this.state.show;
     const plan = this.hooks.plan ? this.hooks.plan() : null;
-    return s && planUsable(plan, s.drones, s.formations.length) ? plan : null;
+    if (!s || !planUsable(plan, s.drones, s.formations.length)) return null;
+    const c = this._planFit;
+    if (c && c.plan === plan && c.show === s && c.version === this.state.version) return c.out;
+    // A check of an older version still places the drones while its formations are these (names, enough
+    // points); after a formation is renamed, added or cut down the preview is approximate until the next check.
+    const holds = plan.segments.filter((/** @type {any} */ g) => g.kind === "hold");
+    const fits = s.formations.every((/** @type {any} */ f, /** @type {number} */ k) => holds[k] && holds[k].label === f.name
+      && plan.assignment[k].every((/** @type {number} */ p) => p < f.points.length));
+    this._planFit = { plan, show: s, version: this.state.version, out: fits ? plan : null };
+    return this._planFit.out;
   }
 
   /** Send the effects to the 3D preview shortly (edits in a burst send once). */
@@ -116,20 +129,28 @@ export class EffectsPanel {
    * @returns {Promise<boolean>} whether the viewer took them
    */
   async sendToViewer(force = false) {
-    const token = this.hooks.viewerToken ? this.hooks.viewerToken() : null;
+    const v = this.hooks.viewer ? this.hooks.viewer() : null;
     const s = this.state.show;
-    if (!token || !s) return false;
-    const body = JSON.stringify({ lights: s.lights || null });
-    if (!force && body === this._sentLights && this._sentToken === token) return false;
+    if (!v || !s) return false;
+    const token = v.token;
+    // Unchanged since the last send (the version moves with every edit; a new viewer page has a new token; a
+    // reloaded show paints its saved effects, revision 0, until it is sent these again).
+    const version = this.state.version;
+    if (!force && version === this._sentVersion && s === this._sentShow && this._sentToken === token
+      && (v.lights !== 0 || this._sentRev === 0)) return false;
+    this._sentVersion = version;
+    this._sentShow = s;
+    this._sentToken = token;
     try {
-      await api.request("POST", `/api/viewer/${encodeURIComponent(token)}/lights`,
+      const res = await api.request("POST", `/api/viewer/${encodeURIComponent(token)}/lights`,
         { json: { lights: s.lights || null } });
-      this._sentLights = body;
-      this._sentToken = token;
+      this._sentRev = res.revision;
       setError("lights", "");
       return true;
     } catch (err) {
+      // A refused design waits for the next edit; anything else (the page reloading, the show switching) retries.
       if (err instanceof api.ApiError && err.status === 422) setError("lights", `The 3D view cannot show these effects: ${err.message}`);
+      else this._sentVersion = -1;
       return false;
     }
   }

@@ -84,7 +84,7 @@ new HistoryPanel($("history-body"), state);
 const effects = new EffectsPanel($("effects-body"), state, {
   redraw: () => view.redraw(), toast,
   plan: () => (report.result ? report.result.plan : null),
-  viewerToken: () => { const v = preview.viewerState(); return v ? v.token : null; },
+  viewer: () => preview.viewerState(),
 });
 // The 3D preview paints the editor's unsaved effects: sent after each edit, and to a new viewer page
 // (a reload or a fresh preview has a new token) within a second.
