@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import time
 
+import httpx
 import numpy as np
 import pytest
 import soundfile as sf
@@ -129,5 +130,17 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
     colors = page.evaluate("() => { const {state, effects} = window.swarmshow; const f = state.formation;"
                            " return effects.colorsFor(f, f.colors); }")
     assert [i for i, c in enumerate(colors) if c == "#ff0000"] == [0, 4, 8]
+    assert ui.state("s.dirty") is True
+    # The music lane's playhead moves the canvas preview.
+    page.evaluate("() => window.swarmshow.music.seek(3.25)")
+    assert page.evaluate("() => window.swarmshow.effects.time") == pytest.approx(3.25)
+    # The saved show loaded into the viewer again (as another tab's preview does) drops the editor's effects
+    # there; the editor sends its own (still unsaved) again.
+    rev = _viewer(page)["lights"]
+    assert rev > 0
+    r = httpx.post(f"{ui.base}/api/shows/{ui.state('s.meta.id')}/playback", json={}, timeout=120)
+    assert r.status_code == 200, r.text
+    _wait("the group in the reloaded 3D view", lambda: (v := _viewer(page)) and v["lights"] > rev
+          and [i for i, c in enumerate(v["rgb"]) if c == "#ff0000"] == want)
     assert ui.state("s.dirty") is True
     ui.shot("issue18-fx-live")

@@ -91,6 +91,10 @@ export class EffectsPanel {
     this._sentToken = null;
     this._sendTimer = 0;
     this._build();
+    // The music lane's playhead (scrub or play, with the sound) moves the preview while it is on.
+    state.addEventListener("playhead", (/** @type {any} */ e) => {
+      if (this.previewing && !this.playing) this.seek(e.detail.time_s);
+    });
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "live" || e.detail.kind === "selection") {
         if (e.detail.kind === "selection") this._renderGroups();
