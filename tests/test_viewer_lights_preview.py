@@ -88,3 +88,25 @@ def test_bad_designs_are_422_naming_the_field_and_change_nothing(client, page, l
 
 def test_unknown_page_is_404(client):
     assert client.post("/api/viewer/nope/lights", json={"lights": None}).status_code == 404
+
+
+def test_a_design_is_bounded_like_a_show_file(tmp_path, small_show):
+    """The body may be a show's worth (images and videos are large), not more: 413 naming the limit."""
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1, max_show_bytes=3_000_000))
+    with TestClient(app, base_url="http://127.0.0.1") as client:
+        r = client.post("/api/shows", content=small_show.model_dump_json(),
+                        headers={"content-type": "application/json"})
+        show_id = r.json()["id"]
+        viewer = client.app.state.viewer
+        pb = viewer._main
+        viewer._clients[999] = pb
+        assert client.post(f"/api/shows/{show_id}/playback", json={}).status_code == 200
+        # 1.9 MB of groups (more than the 1 MB default of other requests): taken.
+        groups = {f"g{k}": [k % 16] * 19_000 for k in range(50)}
+        r = client.post(f"/api/viewer/{pb.token}/lights", json={"lights": {"groups": groups, "effects": [
+            _fx({"kind": "group", "group": "g1"})]}})
+        assert r.status_code == 200, r.text[:300]
+        assert np.allclose(_ring_hold_colors(pb)[1], [0, 0, 1]) and np.allclose(_ring_hold_colors(pb)[0], [1, 0, 0])
+        groups = {f"g{k}": [k % 16] * 19_000 for k in range(90)}
+        r = client.post(f"/api/viewer/{pb.token}/lights", json={"lights": {"groups": groups, "effects": []}})
+        assert r.status_code == 413 and "lights" in r.text

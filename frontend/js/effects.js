@@ -153,7 +153,9 @@ export class EffectsPanel {
       return true;
     } catch (err) {
       // A refused design waits for the next edit; anything else (the page reloading, the show switching) retries.
-      if (err instanceof api.ApiError && err.status === 422) setError("lights", `The 3D view cannot show these effects: ${err.message}`);
+      if (err instanceof api.ApiError && (err.status === 422 || err.status === 413)) {
+        setError("lights", `The 3D view cannot show these effects: ${err.message}`);
+      }
       else this._sentVersion = -1;
       return false;
     }
