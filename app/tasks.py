@@ -306,7 +306,9 @@ def _path_loc(path: str) -> list[str | int]:
 
 
 def plan_summary(plan: Any) -> dict[str, Any]:
-    """The plan's timeline: duration and every segment (kind, label, start, duration)."""
+    """The plan's timeline: duration and every segment (kind, label, start, duration), and its assignment:
+    for each formation in show order, the point each drone flies to (the editor's light preview places
+    drone i on point ``assignment[k][i]`` of formation k, as the server's evaluator does)."""
     return {
         "drones": plan.drone_count,
         "duration_s": plan.duration_s,
@@ -314,6 +316,7 @@ def plan_summary(plan: Any) -> dict[str, Any]:
             {"index": s.index, "kind": s.kind, "label": s.label, "start_s": s.start_s, "duration_s": s.duration_s}
             for s in plan.segments
         ],
+        "assignment": [tr.goal_index.tolist() for tr in plan.transitions[: len(plan.formation_segments())]],
     }
 
 

@@ -12,6 +12,7 @@ from formations._demo import demo_show as demo_show
 from formations._demo import load_demo_show as load_demo_show
 from formations._effects import LightEffect as LightEffect
 from formations._effects import Lights as Lights
+from formations._effects import lights_problem as lights_problem
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
@@ -56,4 +57,5 @@ __all__ = [
     "plain_path",
     "rgb_to_hex",
     "show_json_schema",
+    "lights_problem",
 ]

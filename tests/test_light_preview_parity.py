@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from formations import parse_show
-from sim.light import LightStack
+from sim.light import LightStack, show_colors
 from sim.plan import plan_show
 from tests.test_light_effects import _png_url, _show_doc
 
@@ -121,3 +121,71 @@ def test_browser_preview_of_a_points_target() -> None:
     want[[1, 3]] = [1.0, 0.0, 1.0]
     np.testing.assert_allclose(out[0], want, atol=1e-9)
     np.testing.assert_allclose(out[1], base, atol=1e-9)
+
+
+_PLANNED_RUNNER = """
+import { evaluatePlanned } from %s;
+let text = "";
+process.stdin.on("data", (d) => { text += d; });
+process.stdin.on("end", () => {
+  const c = JSON.parse(text);
+  const out = c.cases.map((x) => evaluatePlanned(c.show, x.k, x.points, x.base, x.t, c.plan));
+  process.stdout.write(JSON.stringify(out));
+});
+"""
+
+
+@pytest.mark.skipif(NODE is None, reason="node is not installed")
+def test_planned_preview_matches_the_server_on_the_drones_holding_a_formation() -> None:
+    """With a check's plan summary (app.tasks.plan_summary: its assignment and segments) the editor paints each
+    formation's points with the colour the server gives the drone the plan sends there: drone indices, groups,
+    sparkle seeds, index chases, points targets of any formation and formation targets in their planned windows."""
+    from app.tasks import plan_summary
+
+    effects = [
+        {"start_s": 0.0, "end_s": 60.0, "effect": {"kind": "ramp", "colors": ["#200000", "#0040ff"]}, "opacity": 0.5},
+        {"start_s": 0.0, "end_s": 60.0, "target": {"kind": "drones", "indices": [0, 4]},
+         "effect": {"kind": "solid", "color": "#00ff00"}},
+        {"start_s": 0.0, "end_s": 60.0, "target": {"kind": "group", "group": "g"}, "blend": "add",
+         "effect": {"kind": "solid", "color": "#000080"}},
+        {"start_s": 0.0, "end_s": 60.0, "target": {"kind": "points", "formation": "B", "indices": [2, 6]},
+         "effect": {"kind": "solid", "color": "#ff00ff"}},
+        {"start_s": 0.0, "end_s": 60.0, "target": {"kind": "formation", "formation": "A"}, "blend": "multiply",
+         "effect": {"kind": "solid", "color": "#80ff80"}},
+        {"start_s": 1.0, "end_s": 60.0, "blend": "add", "effect": {"kind": "chase", "color": "#ffffff",
+                                                                   "period_s": 3.0, "width": 0.3}},
+        {"start_s": 0.0, "end_s": 60.0, "blend": "max", "effect": {"kind": "sparkle", "color": "#ffffff",
+                                                                    "density": 0.4, "seed": 5, "flash_s": 0.5}},
+        {"start_s": 0.0, "end_s": 60.0, "blend": "max", "target": {"kind": "box", "min_m": [-5, -1, 19],
+                                                                    "max_m": [3, 6, 26]},
+         "effect": {"kind": "sweep", "colors": ["#ff0000", "#0000ff"], "axis": [1, 0, 0], "length_m": 7.0}},
+    ]
+    doc = _show_doc(effects, groups={"g": [1, 2, 3, 8]})
+    # B lies flat (one height: its own z order is the drone index), listed so that the assignment is not the identity.
+    doc["formations"][1]["points"] = [[x * 4.0 - 4.0, 5.0 + y * 4.0, 25.0] for y in range(3) for x in range(3)][::-1]
+    plan = plan_show(parse_show(doc))
+    # A chase along z that starts in A's hold: ranked by where the plan put the drones in A, also later in B.
+    a_hold = plan.formation_segments()[0][1]
+    doc["lights"]["effects"].append({"start_s": a_hold.start_s + 1.0, "end_s": 60.0, "blend": "add", "effect": {
+        "kind": "chase", "color": "#404040", "order": "z", "period_s": 2.5, "width": 0.4}})
+    show = parse_show(doc)
+    plan = plan_show(show)
+    summary = json.loads(json.dumps(plan_summary(plan)))
+    assignment = np.array(summary["assignment"])
+    assert assignment.shape == (2, 9) and (assignment != np.arange(9)).any()
+    cases, want = [], []
+    for k, (_, hold) in enumerate(plan.formation_segments()):
+        f = show.formations[k]
+        for t in np.linspace(hold.start_s + 0.01, hold.end_s - 0.01, 7):
+            cases.append({"k": k, "t": float(t), "points": f.points_m.tolist(), "base": f.colors_rgb.tolist()})
+            drones = show_colors(show, plan, [t])[0]  # the server: drone i's colour
+            per_point = np.empty((9, 3))
+            per_point[assignment[k]] = drones
+            want.append(per_point)
+    assert NODE is not None
+    proc = subprocess.run([NODE, "--input-type=module", "-e", _PLANNED_RUNNER % json.dumps(LIGHTEVAL.as_uri())],
+                          input=json.dumps({"show": doc, "plan": summary, "cases": cases}),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    got = np.array(json.loads(proc.stdout))
+    np.testing.assert_allclose(got, np.array(want), atol=2e-5)

@@ -169,6 +169,8 @@ class PlanSummary(BaseModel):
     drones: int
     duration_s: float
     segments: list[SegmentOut]
+    assignment: list[list[int]] | None = Field(None, description=(
+        "For each formation in show order: the point index each drone flies to (drone i -> point assignment[k][i])."))
 
 
 class CheckOut(BaseModel):

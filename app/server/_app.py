@@ -124,6 +124,8 @@ def _body_limits(settings: AppSettings) -> tuple[list[BodyLimit], BodyLimit]:
         limit(r"/api/formations/svg/?", settings.max_svg_bytes, "an SVG file"),
         limit(r"/api/formations/mesh/?", settings.max_mesh_bytes, "a mesh or point file"),
         limit(r"/api/shows/[^/]+/audio/?", settings.max_audio_bytes, "an audio file ('file')"),
+        # The editor's unsaved light design (images and videos included) for its 3D preview: a show's worth.
+        limit(r"/api/viewer/[^/]+/lights/?", settings.max_show_bytes, "a show's lights"),
     ]
     return limits, BodyLimit(re.compile(""), 1024 * 1024, "this request", 1024 * 1024)
 

@@ -21,6 +21,7 @@ from app.viewer._clock import clock_router
 from app.viewer._marks import check_report_json
 from app.viewer._relay import viewer_router
 from app.viewer._viewer import MAX_SHOWS, Viewer
+from formations import Lights, lights_problem
 
 Source = Literal["planned", "simulated"]
 log = logging.getLogger("swarmshow.viewer")
@@ -43,6 +44,21 @@ class SeekRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
     time_s: float | None = Field(None, ge=0, le=1e6, description="Show time, seconds (clamped to the show).")
     formation: int | None = Field(None, ge=0, le=100_000, description="Jump to the start of this formation's hold.")
+
+
+class LightsRequest(BaseModel):
+    """Body of ``POST /api/viewer/{token}/lights``: the editor's current (unsaved) light design."""
+
+    model_config = ConfigDict(extra="forbid")
+    lights: Lights | None = Field(None, description="Groups and effect stack as in the show file (None: no effects).")
+
+
+class LightsOut(BaseModel):
+    """What that browser's playback now paints."""
+
+    show: str | None
+    effects: int = Field(description="Effects painted (enabled, with some opacity).")
+    revision: int = Field(description="How many effect stacks this playback has been given.")
 
 
 class SeekOut(BaseModel):
@@ -249,6 +265,43 @@ def playback_router() -> APIRouter:
             pb.seek(float(body.time_s or 0.0))
         return SeekOut(time_s=pb.time_s, show=pb.current)
 
+    @router.post(
+        "/viewer/{token}/lights",
+        response_model=LightsOut,
+        summary="Preview an unsaved light design in one browser's 3D playback",
+        responses=error_responses(404, 413, 422, 503),
+    )
+    async def preview_lights(request: Request, token: str, body: LightsRequest) -> LightsOut:
+        """Paint ``lights`` over the show on screen in the viewer page carrying ``token``, instead of the saved
+        effects, until the show is loaded again (issue 18: effects previewed live in the 3D view while editing).
+        The design is checked against the plan on screen like a show file's (422 naming the field under
+        ``lights``); its size is the show file's limits (effects, images, videos), so its cost is bounded."""
+        from app.api.errors import ApiError
+        from sim.light import LightStack
+
+        viewer: Viewer | None = getattr(request.app.state, "viewer", None)
+        if viewer is None:
+            raise ApiError(503, "the 3D viewer is not running")
+        pb = viewer.playback_by_token(token[:64])
+        if pb is None:
+            raise ApiError(404, "no viewer page with this token (reload the preview)")
+        plan = pb.plan()
+        if plan is None:
+            raise ApiError(422, "no show on screen in this viewer page (open the preview first)", field="token")
+        lights = body.lights
+        if lights is not None:
+            names = [seg.label for _, seg in plan.formation_segments()]
+            problem = lights_problem(lights, plan.drone_count, names)
+            if problem is not None:
+                path = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in ("lights", *problem[0]))
+                raise ApiError(422, [{"loc": ["body", "lights", *problem[0]], "path": path.replace(".[", "["),
+                                      "msg": problem[1]}])
+        # Decoding images and videos is real work: off the event loop.
+        stack = await asyncio.to_thread(LightStack, lights, plan) if lights is not None else None
+        if not pb.set_lights(plan, stack):
+            raise ApiError(409, "the show on screen changed meanwhile; send the effects again")
+        return LightsOut(show=pb.current, effects=stack.effect_count if stack else 0, revision=pb.lights_rev)
+
     return router
 
 
@@ -289,4 +342,7 @@ def install(app: FastAPI) -> None:
 #: Alias matching the brief's name.
 install_viewer = install
 
-__all__ = ["PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install", "install_viewer", "playback_router"]
+__all__ = [
+    "LightsOut", "LightsRequest", "PlaybackOut", "PlaybackRequest", "SeekOut", "SeekRequest", "install",
+    "install_viewer", "playback_router",
+]

@@ -70,6 +70,8 @@ class _Entry:
     lights: Any = None  # the show's light effects (sim.light.LightStack), painted over the colours
 
 
+#: How many drones' colours the page's hidden state element carries (a test hook; small to keep frames light).
+LINK_COLORS = 64
 #: Eye height of the audience camera, metres.
 AUDIENCE_EYE_M = 1.7
 CAMERAS = ("free", "audience")
@@ -127,6 +129,11 @@ class _Playback:
         self.frames_rendered = 0
         #: Names this playback to the editor of the same browser tab (read from the page, see _setup_gui).
         self.token = secrets.token_urlsafe(12)
+        #: The editor's unsaved effect stack for this tab (``POST /api/viewer/{token}/lights``), painted
+        #: instead of the saved one until another show (or a new version of this one) is loaded.
+        self._lights_override: tuple[Any] | None = None
+        #: Counts the effect stacks this playback has been given (the editor reads it from the page).
+        self.lights_rev = 0
         self._problems: list[Problem] = []
         self._plan_track: PlanTrack | None = None
         #: (K, 2, 3) the violation marks drawn in the last frame, metres.
@@ -241,12 +248,20 @@ class _Playback:
         for cb in (self._targets_cb, self._trails_cb, self._pair_cb, self._homes_cb, self._problems_cb, self._gap_cb):
             cb.on_update(lambda _ev: self._invalidate())
 
-    def _link_html(self) -> str:
-        """The hidden element naming this playback and its playhead (time, and the formation it is in or going to)."""
+    def _link_html(self, colors_rgb: np.ndarray | None = None) -> str:
+        """The hidden element naming this playback and its playhead (time, and the formation it is in or going to),
+        the effect stack it paints (its revision, 0: the saved show's) and the LED colours of its first drones
+        (``data-rgb``, hex, at most :data:`LINK_COLORS`) in the frame on screen."""
         seg_kind, formation = self._phase(self._time_s)
+        # 0 while the saved effects show (a new load drops the editor's): the editor then sends its own again.
+        lights = self.lights_rev if self._lights_override is not None else 0
+        rgb = ""
+        if colors_rgb is not None:
+            c = np.clip(np.round(np.asarray(colors_rgb[:LINK_COLORS]) * 255.0), 0, 255).astype(int)
+            rgb = " ".join(f"#{r:02x}{g:02x}{b:02x}" for r, g, b in c)
         return (f'<span id="swarmshow-viewer" hidden data-token="{html.escape(self.token)}" '
                 f'data-time="{self._time_s:.2f}" data-phase="{seg_kind}" data-formation="{formation}" '
-                f'data-playing="{int(self._playing)}"></span>')
+                f'data-playing="{int(self._playing)}" data-lights="{lights}" data-rgb="{rgb}"></span>')
 
     def _phase(self, t: float) -> tuple[str, int]:
         """(segment kind, formation index) at ``t``: the hold's formation, or the one a transition leads into."""
@@ -357,6 +372,7 @@ class _Playback:
     def _activate(self, name: str, source: Source) -> None:
         with self.viewer._lock:
             entry = self.viewer._shows[name]
+            self._lights_override = None
             self._track = make_track(entry.plan, entry.flight, source, entry.lights)
             self._current, self._source = name, source
             self._time_s = 0.0
@@ -463,7 +479,7 @@ class _Playback:
                 self._set_gui(self._source_dd, "value", self._source)
                 return
             t = self._time_s
-            self._track = make_track(entry.plan, entry.flight, source, entry.lights)
+            self._track = make_track(entry.plan, entry.flight, source, self._lights_of(entry))
             self._source = source
             self._set_gui(self._source_dd, "value", source)
             self._set_gui(self._slider, "max", max(float(self._track.duration_s), 0.05))
@@ -498,6 +514,29 @@ class _Playback:
             self.pause()
         else:
             self.play()
+
+    def _lights_of(self, entry: _Entry) -> Any:
+        return entry.lights if self._lights_override is None else self._lights_override[0]
+
+    def plan(self) -> ShowPlan | None:
+        """The plan of the show on screen, None when there is none."""
+        with self.viewer._lock:
+            return None if self._current is None else self.viewer._shows[self._current].plan
+
+    def set_lights(self, plan: ShowPlan, lights: Any) -> bool:
+        """Paint ``lights`` (a ``sim.light.LightStack`` over ``plan``, or None: no effects) instead of the
+        saved show's effects, keeping the time. False (and nothing changes) when ``plan`` is no longer on screen."""
+        with self.viewer._lock:
+            if self._current is None:
+                return False
+            entry = self.viewer._shows[self._current]
+            if entry.plan is not plan:
+                return False
+            self._lights_override = (lights if lights else None,)
+            self.lights_rev += 1
+            self._track = make_track(entry.plan, entry.flight, self._source, self._lights_override[0])
+            self._invalidate()
+            return True
 
     def seek(self, time_s: float) -> None:
         """Jump to ``time_s`` (seconds, clamped); the next tick renders it."""
@@ -615,7 +654,7 @@ class _Playback:
                     + self._problem_text(near) + self._deviation_text()
                 )
                 self._set_gui(self._slider, "value", round(t / 0.05) * 0.05)
-                self._set_gui(self._link, "content", self._link_html())
+                self._set_gui(self._link, "content", self._link_html(frame.colors_rgb))
             self.last_frame = frame
             self.frames_rendered += 1
             self._dirty = False

@@ -2,7 +2,12 @@
 // The light-effects panel: add, edit, reorder and remove the show's effects (show.lights.effects,
 // bottom of the stack first), and preview them on the canvas at a show time (scrub or play).
 
-import { evaluateColors, hexToRgb, rgbToHex } from "./lighteval.js";
+import * as api from "./api.js";
+import { setError } from "./errors.js";
+import { evaluateColors, evaluatePlanned, hexToRgb, planUsable, rgbToHex } from "./lighteval.js";
+
+/** Quiet time after the last edit before the 3D view is sent the effects, milliseconds. */
+const VIEWER_DEBOUNCE_MS = 250;
 
 export const KINDS = ["solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image", "video"];
 /** Widest a video frame is kept for the preview, pixels (as the server keeps it). */
@@ -59,7 +64,10 @@ export class EffectsPanel {
   /**
    * @param {HTMLElement} root the panel's body
    * @param {import("./state.js").EditorState} state
-   * @param {{redraw: () => void, toast?: (msg: string, opts?: any) => void}} hooks
+   * @param {{redraw: () => void, toast?: (msg: string, opts?: any) => void, plan?: () => any,
+   *   viewer?: () => ({token: string, lights: number}|null)}} hooks `plan`: the last fresh check's plan summary (its assignment
+   *   places the drones in the preview); `viewer`: the open 3D preview page's token and the revision of the
+   *   effects it paints (unsaved effects are painted there)
    */
   constructor(root, state, hooks) {
     this.root = root;
@@ -73,11 +81,84 @@ export class EffectsPanel {
     this.images = new Map();
     /** @type {Map<string, {el: HTMLVideoElement, frame: any, busy: boolean}>} preview videos by data URL */
     this.videos = new Map();
+    this._sentVersion = -1;
+    this._sentRev = 0;
+    /** @type {any} */
+    this._sentShow = null;
+    /** @type {{plan: any, show: any, version: number, out: any}|null} the last fit of the check's plan */
+    this._planFit = null;
+    /** @type {string|null} */
+    this._sentToken = null;
+    this._sendTimer = 0;
     this._build();
-    state.addEventListener("change", (/** @type {any} */ e) => {
-      if (e.detail.kind === "live" || e.detail.kind === "selection") return;
-      this.render();
+    // The music lane's playhead (scrub or play, with the sound) moves the preview while it is on.
+    state.addEventListener("playhead", (/** @type {any} */ e) => {
+      if (this.previewing && !this.playing) this.seek(e.detail.time_s);
     });
+    state.addEventListener("change", (/** @type {any} */ e) => {
+      if (e.detail.kind === "live" || e.detail.kind === "selection") {
+        if (e.detail.kind === "selection") this._renderGroups();
+        return;
+      }
+      this.render();
+      this.scheduleViewer();
+    });
+  }
+
+  /** The last fresh check's plan summary when its assignment fits the show, else null. */
+  get plan() {
+    const s = this.state.show;
+    const plan = this.hooks.plan ? this.hooks.plan() : null;
+    if (!s || !planUsable(plan, s.drones, s.formations.length)) return null;
+    const c = this._planFit;
+    if (c && c.plan === plan && c.show === s && c.version === this.state.version) return c.out;
+    // A check of an older version still places the drones while its formations are these (names, enough
+    // points); after a formation is renamed, added or cut down the preview is approximate until the next check.
+    const holds = plan.segments.filter((/** @type {any} */ g) => g.kind === "hold");
+    const fits = s.formations.every((/** @type {any} */ f, /** @type {number} */ k) => holds[k] && holds[k].label === f.name
+      && plan.assignment[k].every((/** @type {number} */ p) => p < f.points.length));
+    this._planFit = { plan, show: s, version: this.state.version, out: fits ? plan : null };
+    return this._planFit.out;
+  }
+
+  /** Send the effects to the 3D preview shortly (edits in a burst send once). */
+  scheduleViewer() {
+    clearTimeout(this._sendTimer);
+    this._sendTimer = window.setTimeout(() => { this.sendToViewer(); }, VIEWER_DEBOUNCE_MS);
+  }
+
+  /**
+   * Paint the current (maybe unsaved) effects in this tab's 3D preview (POST /api/viewer/{token}/lights).
+   * @param {boolean} [force] send even when unchanged since the last send
+   * @returns {Promise<boolean>} whether the viewer took them
+   */
+  async sendToViewer(force = false) {
+    const v = this.hooks.viewer ? this.hooks.viewer() : null;
+    const s = this.state.show;
+    if (!v || !s) return false;
+    const token = v.token;
+    // Unchanged since the last send (the version moves with every edit; a new viewer page has a new token; a
+    // reloaded show paints its saved effects, revision 0, until it is sent these again).
+    const version = this.state.version;
+    if (!force && version === this._sentVersion && s === this._sentShow && this._sentToken === token
+      && (v.lights !== 0 || this._sentRev === 0)) return false;
+    this._sentVersion = version;
+    this._sentShow = s;
+    this._sentToken = token;
+    try {
+      const res = await api.request("POST", `/api/viewer/${encodeURIComponent(token)}/lights`,
+        { json: { lights: s.lights || null } });
+      this._sentRev = res.revision;
+      setError("lights", "");
+      return true;
+    } catch (err) {
+      // A refused design waits for the next edit; anything else (the page reloading, the show switching) retries.
+      if (err instanceof api.ApiError && (err.status === 422 || err.status === 413)) {
+        setError("lights", `The 3D view cannot show these effects: ${err.message}`);
+      }
+      else this._sentVersion = -1;
+      return false;
+    }
   }
 
   /** @returns {any[]} the effect stack of the open show (read-only view). */
@@ -86,10 +167,13 @@ export class EffectsPanel {
     return (s && s.lights && s.lights.effects) || [];
   }
 
-  /** Rough show length for the time slider: holds plus a guess per transition, at least the last effect's end. */
+  /** Show length for the time slider: the planned length when a check is known, else holds plus a guess per
+   * transition; at least the last effect's end. */
   get duration() {
     const s = this.state.show;
     if (!s) return 60;
+    const plan = this.hooks.plan ? this.hooks.plan() : null;
+    if (plan && plan.duration_s > 0) return Math.ceil(Math.max(plan.duration_s, ...this.effects.map((e) => e.end_s || 0)));
     const holds = s.formations.reduce((acc, f) => acc + (f.hold_s || 0) + (f.transition_s || 15), 30);
     return Math.ceil(Math.max(holds, ...this.effects.map((e) => e.end_s || 0)));
   }
@@ -99,7 +183,11 @@ export class EffectsPanel {
       <div class="row"><label class="inline"><input type="checkbox" id="fx-preview" aria-label="Preview the light effects on the canvas"> Preview at</label>
         <input id="fx-time" type="range" min="0" max="60" step="0.04" value="0" aria-label="Preview time, seconds">
         <output id="fx-time-out" for="fx-time">0.0 s</output>
-        <button id="fx-play" type="button" aria-label="Play the effect preview">▶</button></div>
+        <button id="fx-play" type="button" aria-label="Play the effect preview">▶</button>
+        <span id="fx-approx" class="hint" hidden title="Check the show to preview with the planned assignment">approximate: drones on points in order</span></div>
+      <div class="row"><input id="fx-group-name" type="text" maxlength="200" placeholder="group name" aria-label="New drone group name">
+        <button id="fx-group-add" type="button" aria-label="Make a drone group from the selection">Group from selection</button></div>
+      <ul id="fx-groups" class="fx-list" aria-label="Drone groups"></ul>
       <div class="row"><select id="fx-kind" aria-label="Kind of effect to add">${KINDS.map((k) => `<option value="${k}">${k}</option>`).join("")}</select>
         <button id="fx-add" type="button" aria-label="Add a light effect">Add effect</button></div>
       <ol id="fx-list" class="fx-list" aria-label="Light effects, bottom of the stack first"></ol>
@@ -116,6 +204,81 @@ export class EffectsPanel {
     q("#fx-play").addEventListener("click", () => (this.playing ? this.pause() : this.play()));
     this.$play = q("#fx-play");
     q("#fx-add").addEventListener("click", () => this.add(q("#fx-kind").value));
+    this.$approx = q("#fx-approx");
+    this.$groups = q("#fx-groups");
+    this.$groupName = q("#fx-group-name");
+    this.$groupAdd = q("#fx-group-add");
+    this.$groupAdd.addEventListener("click", () => this.groupFromSelection(this.$groupName.value));
+  }
+
+  /** The drones flying to the selected points of the formation on screen (the plan's, else drone i on point i). */
+  selectedDrones() {
+    const st = this.state;
+    if (!st.show || !st.selection.size) return [];
+    const sel = [...st.selection];
+    const plan = this.plan;
+    if (plan) {
+      const want = new Set(sel);
+      return plan.assignment[st.current].map((/** @type {number} */ p, /** @type {number} */ d) => (want.has(p) ? d : -1))
+        .filter((/** @type {number} */ d) => d >= 0);
+    }
+    return sel.filter((i) => i < st.show.drones).sort((a, b) => a - b);
+  }
+
+  /**
+   * Store the selection's drones as the named group `name` in lights.groups (one undo step) and, when an
+   * effect is selected, target it.
+   * @param {string} name
+   */
+  groupFromSelection(name) {
+    const s = this.state.show;
+    name = String(name || "").trim();
+    const drones = this.selectedDrones();
+    if (!s || !name) { this.hooks.toast?.("Name the group first", { error: true }); return; }
+    if (!drones.length) { this.hooks.toast?.("Select the points whose drones form the group", { error: true }); return; }
+    const k = this.selected;
+    this.state.edit(`Group "${name}" (${drones.length} drones)`, () => {
+      s.lights = { groups: {}, effects: [], ...(s.lights || {}) };
+      s.lights.groups = { ...(s.lights.groups || {}), [name]: drones };
+      if (k >= 0 && s.lights.effects[k]) {
+        const list = [...s.lights.effects];
+        list[k] = { ...list[k], target: { kind: "group", group: name } };
+        s.lights.effects = list;
+      }
+    });
+    this.$groupName.value = "";
+  }
+
+  /** @param {string} name */
+  removeGroup(name) {
+    const s = this.state.show;
+    if (!s || !s.lights || !s.lights.groups || !(name in s.lights.groups)) return;
+    if (s.lights.effects.some((/** @type {any} */ fx) => fx.target && fx.target.kind === "group" && fx.target.group === name)) {
+      this.hooks.toast?.(`Group "${name}" is the target of an effect`, { error: true });
+      return;
+    }
+    this.state.edit(`Remove group "${name}"`, () => {
+      const g = { ...s.lights.groups };
+      delete g[name];
+      s.lights.groups = g;
+    });
+  }
+
+  _renderGroups() {
+    const s = this.state.show;
+    const groups = (s && s.lights && s.lights.groups) || {};
+    this.$groupAdd.disabled = !this.state.selection.size;
+    this.$groups.replaceChildren(...Object.entries(groups).map(([name, idx]) => {
+      const li = document.createElement("li");
+      li.textContent = `${name} · ${idx.length} drones `;
+      const b = document.createElement("button");
+      b.type = "button";
+      b.textContent = "×";
+      b.setAttribute("aria-label", `Remove group ${name}`);
+      b.addEventListener("click", () => this.removeGroup(name));
+      li.append(b);
+      return li;
+    }));
   }
 
   /** Turn the canvas preview on or off. @param {boolean} on */
@@ -129,6 +292,7 @@ export class EffectsPanel {
   /** @param {number} t */
   seek(t) {
     this.time = Math.max(0, t);
+    this.$time.max = String(this.duration);
     this.$time.value = String(this.time);
     this.$timeOut.textContent = `${this.time.toFixed(1)} s`;
     if (!this.previewing) this.setPreview(true);
@@ -169,6 +333,13 @@ export class EffectsPanel {
    */
   colorsFor(f, base) {
     if (!this.previewing || !this.state.show) return null;
+    const k = this.state.show.formations.indexOf(f);
+    const plan = this.plan;
+    this.$approx.hidden = !!plan;
+    if (plan && k >= 0) {
+      const out = evaluatePlanned(this.state.show, k, f.points, base.map(hexToRgb), this.time, plan, (fx) => this._frames(fx));
+      return out.map(rgbToHex);
+    }
     const n = Math.min(f.points.length, this.state.show.drones);
     const pts = f.points.slice(0, n);
     const rgb = base.slice(0, n).map(hexToRgb);
@@ -322,6 +493,8 @@ export class EffectsPanel {
       return li;
     }));
     this._renderForm();
+    this._renderGroups();
+    this.$approx.hidden = !!this.plan;
     if (this.previewing) this.hooks.redraw();
   }
 

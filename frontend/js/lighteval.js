@@ -71,9 +71,13 @@ export function envelope(fx, t) {
  * @param {number} t show time, seconds
  * @param {(fx: any) => (Array<{w: number, h: number, data: Uint8ClampedArray}>|null)} [images] decoded image
  *   frames of an image effect (RGBA bytes; for a video, the frame at this time), or null while they load
+ * @param {{active: (name: string) => boolean, pointRows: (formation: string, indices: number[]) => (Set<number>|null),
+ *   positionsAt?: (t: number) => (number[][]|null)}} [ctx] with a plan: whether a formation target applies at t,
+ *   the rows (drones) that fly to some points of a formation (default: only the formation on screen, its points
+ *   as rows), and the rows' positions at another time when known (chase orders rank by them)
  * @returns {number[][]} (n, 3) colours in [0, 1]
  */
-export function evaluateColors(show, formationName, points, base, t, images) {
+export function evaluateColors(show, formationName, points, base, t, images, ctx) {
   const out = base.map((c) => [c[0], c[1], c[2]]);
   const lights = show && show.lights;
   if (!lights || !Array.isArray(lights.effects)) return out;
@@ -83,14 +87,16 @@ export function evaluateColors(show, formationName, points, base, t, images) {
     const fx = { fade_in_s: 0, fade_out_s: 0, blend: "replace", opacity: 1, enabled: true, ...raw };
     if (!fx.enabled || fx.opacity <= 0 || !(t >= fx.start_s && t < fx.end_s)) continue;
     const tg = fx.target || { kind: "all" };
-    if (tg.kind === "formation" && tg.formation !== formationName) continue;
-    // Points of another formation: the drones that fly there are not known here (the plan assigns them).
-    if (tg.kind === "points" && tg.formation !== formationName) continue;
+    if (tg.kind === "formation" && !(ctx ? ctx.active(tg.formation) : tg.formation === formationName)) continue;
+    // Points of another formation: without a plan the drones that fly there are not known here.
+    if (!ctx && tg.kind === "points" && tg.formation !== formationName) continue;
     const a0 = envelope(fx, t) * fx.opacity;
     const e = fx.effect || {};
     const since = t - fx.start_s;
     let only = null;
-    if (tg.kind === "drones" || tg.kind === "points") only = new Set(tg.indices || []);
+    if (tg.kind === "drones" || (tg.kind === "points" && !ctx)) only = new Set(tg.indices || []);
+    if (tg.kind === "points" && ctx) only = ctx.pointRows(tg.formation, tg.indices || []);
+    if (tg.kind === "points" && ctx && !only) continue;
     if (tg.kind === "group") only = new Set((lights.groups || {})[tg.group] || []);
     let color = e.color ? hexToRgb(e.color) : [1, 1, 1];
     let frameAlpha = a0;
@@ -108,7 +114,9 @@ export function evaluateColors(show, formationName, points, base, t, images) {
       if (order === "index") ranks = points.map((_, i) => i / drones);
       else {
         const ax = "xyz".indexOf(order);
-        const idx = points.map((_, i) => i).sort((i, j) => points[i][ax] - points[j][ax] || i - j);
+        // Ranked where the drones are when the chase starts (the plan's, when known and resting then).
+        const at = (ctx && ctx.positionsAt && ctx.positionsAt(fx.start_s)) || points;
+        const idx = points.map((_, i) => i).sort((i, j) => at[i][ax] - at[j][ax] || i - j);
         ranks = new Array(n);
         idx.forEach((i, r) => { ranks[i] = r / n; });
       }
@@ -177,5 +185,86 @@ export function evaluateColors(show, formationName, points, base, t, images) {
       for (let ch = 0; ch < 3; ch++) o[ch] = blend(fx.blend, o[ch], c[ch], alpha);
     }
   }
+  return out;
+}
+
+
+/**
+ * Formation name -> [[start, end)] windows in which a formation target applies: from the start of the
+ * transition into it to the end of its hold (as sim.light's _formation_windows).
+ * @param {{segments: {kind: string, label: string, start_s: number, duration_s: number}[]}} plan
+ * @returns {Map<string, number[][]>}
+ */
+export function formationWindows(plan) {
+  /** @type {Map<string, number[][]>} */
+  const out = new Map();
+  let start = null;
+  for (const seg of plan.segments) {
+    if (seg.kind === "transition") start = seg.start_s;
+    else if (seg.kind === "hold") {
+      const list = out.get(seg.label) || [];
+      list.push([start == null ? seg.start_s : start, seg.start_s + seg.duration_s]);
+      out.set(seg.label, list);
+      start = null;
+    }
+  }
+  return out;
+}
+
+/**
+ * Whether a plan summary carries a usable assignment for a show of `drones` drones and `formations` formations.
+ * @param {any} plan @param {number} drones @param {number} formations
+ */
+export function planUsable(plan, drones, formations) {
+  return !!(plan && Array.isArray(plan.assignment) && plan.assignment.length === formations
+    && plan.drones === drones && plan.assignment.every((/** @type {number[]} */ a) => a.length === drones));
+}
+
+/**
+ * Colours of formation `k`'s points at show time `t` with the planned assignment: drone i rests on point
+ * `plan.assignment[k][i]` and is painted as drone i (its index, groups, sparkle seed), formation targets
+ * apply in their planned windows and points targets reach the drones the plan sends there, as the
+ * server's evaluator does for a drone holding the formation.
+ * @param {any} show the show document
+ * @param {number} k the formation on screen
+ * @param {number[][]} points (m, 3) its points, metres
+ * @param {number[][]} base (m, 3) its points' colours in [0, 1]
+ * @param {number} t show time, seconds
+ * @param {any} plan a plan summary with `assignment` and `segments` (see planUsable)
+ * @param {(fx: any) => any} [images] as for evaluateColors
+ * @returns {number[][]} (m, 3) colours per point (points no drone flies to keep their base colour)
+ */
+export function evaluatePlanned(show, k, points, base, t, plan, images) {
+  const goal = plan.assignment[k];
+  const names = show.formations.map((/** @type {any} */ f) => f.name);
+  const windows = formationWindows(plan);
+  /** @type {Map<string, Set<number>|null>} */
+  const rowsCache = new Map();
+  const ctx = {
+    active: (/** @type {string} */ name) => (windows.get(name) || []).some(([a, b]) => t >= a && t < b),
+    pointRows: (/** @type {string} */ formation, /** @type {number[]} */ indices) => {
+      const key = `${formation}\u0000${indices.join(",")}`;
+      if (!rowsCache.has(key)) {
+        const j = names.indexOf(formation);
+        const want = new Set(indices);
+        rowsCache.set(key, j < 0 ? null
+          : new Set(plan.assignment[j].map((/** @type {number} */ p, /** @type {number} */ d) => (want.has(p) ? d : -1))
+            .filter((/** @type {number} */ d) => d >= 0)));
+      }
+      return rowsCache.get(key) || null;
+    },
+    // During a hold every drone rests on its planned point; elsewhere (flying) the preview does not know.
+    positionsAt: (/** @type {number} */ s) => {
+      const holds = plan.segments.filter((/** @type {any} */ g) => g.kind === "hold");
+      const j = holds.findIndex((/** @type {any} */ g) => s >= g.start_s && s <= g.start_s + g.duration_s);
+      const f = j >= 0 ? show.formations[j] : null;
+      if (!f || !Array.isArray(f.points) || f.points.length < Math.max(...plan.assignment[j]) + 1) return null;
+      return plan.assignment[j].map((/** @type {number} */ p) => f.points[p]);
+    },
+  };
+  const rows = evaluateColors(show, names[k], goal.map((/** @type {number} */ p) => points[p]),
+    goal.map((/** @type {number} */ p) => base[p]), t, images, ctx);
+  const out = base.map((c) => [c[0], c[1], c[2]]);
+  goal.forEach((/** @type {number} */ p, /** @type {number} */ d) => { out[p] = rows[d]; });
   return out;
 }

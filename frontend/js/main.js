@@ -7,6 +7,7 @@ import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./col
 import { askText, toast } from "./dialogs.js";
 import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
 import { EffectsPanel } from "./effects.js";
+import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
 import { HistoryPanel } from "./history.js";
 import { MusicLane } from "./music.js";
@@ -80,7 +81,18 @@ const renderReport = report.render.bind(report);
 report.render = () => { renderReport(); music.draw(); };
 const shows = new ShowsDialog(state, persist, opened);
 new HistoryPanel($("history-body"), state);
-const effects = new EffectsPanel($("effects-body"), state, { redraw: () => view.redraw(), toast });
+const effects = new EffectsPanel($("effects-body"), state, {
+  redraw: () => view.redraw(), toast,
+  plan: () => (report.result ? report.result.plan : null),
+  viewer: () => preview.viewerState(),
+});
+// The 3D preview paints the editor's unsaved effects: sent after each edit, and to a new viewer page
+// (a reload or a fresh preview has a new token) within a second.
+window.setInterval(() => { if (preview.isOpen && !document.hidden) effects.sendToViewer(); }, 1000);
+// Effect bars on the music lane's time axis, redrawn with it (playhead, span).
+const fxLane = new EffectLane(state, music, effects);
+const drawMusic = music.draw.bind(music);
+music.draw = () => { drawMusic(); fxLane.draw(); };
 view.colorOverride = (f, base) => effects.colorsFor(f, base);
 
 // ---- page state ------------------------------------------------------------------------------
@@ -467,5 +479,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects, fxLane, report };
 start();

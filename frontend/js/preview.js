@@ -65,7 +65,8 @@ export class Preview {
   /**
    * The preview's own viewer playback, read from its page (same origin): the token that names it to
    * the server and where its playhead is. Null while the preview is closed or still connecting.
-   * @returns {{token: string, time_s: number, phase: string, formation: number, playing: boolean}|null}
+   * and which effect stack it paints (`lights`: the revision the lights endpoint answered, 0: the saved show's).
+   * @returns {{token: string, time_s: number, phase: string, formation: number, playing: boolean, lights: number}|null}
    */
   viewerState() {
     if (!this.isOpen) return null;
@@ -82,6 +83,7 @@ export class Preview {
       phase: el.dataset.phase || "none",
       formation: Number(el.dataset.formation),
       playing: el.dataset.playing === "1",
+      lights: Number(el.dataset.lights || 0),
     };
   }
 

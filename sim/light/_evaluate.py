@@ -224,6 +224,11 @@ class LightStack:
         return bool(self._effects)
 
     @property
+    def effect_count(self) -> int:
+        """How many effects are painted (enabled, with some opacity)."""
+        return len(self._effects)
+
+    @property
     def needs_positions(self) -> bool:
         """Whether some effect reads drone positions (box / plane targets, sweeps, images)."""
         return any(_needs_positions(p.fx) for p in self._effects)
