@@ -112,7 +112,8 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
 
     # The 3D preview plays with the sound: the lane's Play starts the audio and drives the viewer.
     page.get_by_role("button", name="3D preview").click()
-    clock = _clock(ui.base, show_id, lambda c: c["show"] is not None)  # the viewer shows it
+    # The viewer plans the show in a worker first: on a busy CI machine that takes a while.
+    clock = _clock(ui.base, show_id, lambda c: c["show"] is not None, timeout_s=120.0)  # the viewer shows it
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     page.wait_for_function("() => { const a = document.getElementById('music-audio'); "
                            "return !a.paused && a.currentTime > 0.5 && a.readyState >= 2; }", timeout=20_000)

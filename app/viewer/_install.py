@@ -201,6 +201,20 @@ def _lights(show_json: Any, plan: Any) -> Any:
     return stack if stack else None
 
 
+def _viewer_page(request: Request, token: str) -> Any:
+    """The playback of the viewer page carrying ``token``, or a 404.
+
+    With the viewer switched off there is no viewer page at all, so the answer is the same 404 as
+    for an unknown token (not a 503: nothing is wrong with the server, the page does not exist)."""
+    from app.api.errors import ApiError
+
+    viewer: Viewer | None = getattr(request.app.state, "viewer", None)
+    pb = None if viewer is None else viewer.playback_by_token(token[:64])
+    if pb is None:
+        raise ApiError(404, "no viewer page with this token (open or reload the 3D preview)")
+    return pb
+
+
 def playback_router() -> APIRouter:
     """``POST /shows/{show_id}/playback`` (include with prefix ``/api``)."""
     from app.api.models import error_responses
@@ -243,19 +257,14 @@ def playback_router() -> APIRouter:
         "/viewer/{token}/seek",
         response_model=SeekOut,
         summary="Move one browser's 3D playback (the editor's shared playhead)",
-        responses=error_responses(404, 422, 503),
+        responses=error_responses(404, 422),
     )
     async def seek(request: Request, token: str, body: SeekRequest) -> SeekOut:
         """Seek the playback of the viewer page carrying ``token`` (the editor reads it from its preview
         pane): to ``time_s``, or to the start of ``formation``'s hold. Other browsers are not touched."""
         from app.api.errors import ApiError
 
-        viewer: Viewer | None = getattr(request.app.state, "viewer", None)
-        if viewer is None:
-            raise ApiError(503, "the 3D viewer is not running")
-        pb = viewer.playback_by_token(token[:64])
-        if pb is None:
-            raise ApiError(404, "no viewer page with this token (reload the preview)")
+        pb = _viewer_page(request, token)
         if (body.time_s is None) == (body.formation is None):
             raise ApiError(422, "give exactly one of time_s and formation", field="body")
         if body.formation is not None:
@@ -269,7 +278,7 @@ def playback_router() -> APIRouter:
         "/viewer/{token}/lights",
         response_model=LightsOut,
         summary="Preview an unsaved light design in one browser's 3D playback",
-        responses=error_responses(404, 413, 422, 503),
+        responses=error_responses(404, 413, 422),
     )
     async def preview_lights(request: Request, token: str, body: LightsRequest) -> LightsOut:
         """Paint ``lights`` over the show on screen in the viewer page carrying ``token``, instead of the saved
@@ -279,12 +288,7 @@ def playback_router() -> APIRouter:
         from app.api.errors import ApiError
         from sim.light import LightStack
 
-        viewer: Viewer | None = getattr(request.app.state, "viewer", None)
-        if viewer is None:
-            raise ApiError(503, "the 3D viewer is not running")
-        pb = viewer.playback_by_token(token[:64])
-        if pb is None:
-            raise ApiError(404, "no viewer page with this token (reload the preview)")
+        pb = _viewer_page(request, token)
         plan = pb.plan()
         if plan is None:
             raise ApiError(422, "no show on screen in this viewer page (open the preview first)", field="token")
