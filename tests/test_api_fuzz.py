@@ -51,7 +51,9 @@ def _fuzz(op, examples: int, failures: list[tuple], calls: list[int]) -> None:
     def call(case) -> None:
         calls[0] += 1
         try:
-            case.call_and_validate(checks=CHECKS)
+            # A formation request runs in a worker process that may first have to start (numba imports):
+            # seconds on a busy machine, so the read timeout is generous (a hang still fails the test).
+            case.call_and_validate(checks=CHECKS, timeout=60)
         except (Exception, BaseExceptionGroup) as exc:  # schemathesis's FailureGroup is a BaseExceptionGroup
             failures.append((op.method, op.path, type(exc).__name__, str(exc)[:500]))
 
