@@ -470,21 +470,22 @@ def _kernel(
             iaz = ia2 + dt * (unaz + faz)
             ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
             ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
-            # Anti-windup (as the numpy step): the PID integral frozen while the command is
-            # limited or a rotor clips, both u_d only while a rotor clips.
+            # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
+            # while the command is limited or a rotor clips, the attitude u_d only while a
+            # rotor clips.
             if sat:
+                udx, udy, udz = ud0, ud1, ud2
                 nie0, nie1, nie2 = ie0, ie1, ie2
             else:
                 nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
                 nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
                 nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
-            if clipped:
-                udx, udy, udz = ud0, ud1, ud2
-                uadx, uady, uadz = uda0, uda1, uda2
-            else:
                 udx = ud0 + dt * wpx
                 udy = ud1 + dt * wpy
                 udz = ud2 + dt * wpz
+            if clipped:
+                uadx, uady, uadz = uda0, uda1, uda2
+            else:
                 uadx = uda0 + dt * wax
                 uady = uda1 + dt * way
                 uadz = uda2 + dt * waz

@@ -219,12 +219,11 @@ def numpy_step(
     # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
     # are the nominal ones)
     omega_sq, rotor_clipped = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
-    # Anti-windup (docs/method.md §4.2): both u_d freeze while a rotor clips (the thrust and
-    # torque that act are not what the loops commanded); the PID integral also while the
-    # command is limited. The u_d keep learning through the thrust/tilt limiter: s integrates
-    # the limited command (u_n_int), so u_d converges to the true disturbance and no further.
-    # (Freezing them there let s wind up by the unmatched wind for as long as a strong wind
-    # held the tilt at its limit, tens of m/s, and the loops ran away after; issue 20.)
+    # Anti-windup (docs/method.md §4.1): the position loop's u_d and PID integral freeze while
+    # its command is limited or a rotor clips; the attitude loop's u_d only while a rotor
+    # clips. (The thrust/tilt limiter is the position loop's own: freezing the attitude u_d
+    # with it left the attitude loop unable to follow its reference for as long as a strong
+    # wind held the tilt at the limit; its s wound up and it ran away after; issue 20.)
     saturated = rotor_clipped | limited
     if sw.motor:
         rotor = c[:, C_ROTOR:C_ROTOR + 4]
@@ -237,7 +236,7 @@ def numpy_step(
 
     # --- controller state update
     nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n_int + f)
-    nc[:, C_UD:C_UD + 3] += np.where(rotor_clipped[:, None], 0.0, dt_s * w_pos)
+    nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
     nc[:, C_UDA:C_UDA + 3] += np.where(rotor_clipped[:, None], 0.0, dt_s * w_att)
