@@ -67,3 +67,16 @@ def test_cache_key_separates_what_changes_the_flight() -> None:
     assert len(keys) == 8
     custom = Disturbance.none()
     assert FlightOptions(disturbance=custom).cache_key() != base.cache_key()
+
+
+def test_colours_are_only_evaluated_when_asked_for() -> None:
+    # The Monte-Carlo runs fly with colors=False: the same flight, no colour arrays.
+    plan = plan_show(benchmark_show(8, formations=2))
+    with_colours = fly_show(plan, FlightOptions(output_hz=10.0, seed=1))
+    without = fly_show(plan, FlightOptions(output_hz=10.0, seed=1, colors=False))
+    assert without.colors_rgb.shape == (0, plan.drone_count, 3)
+    np.testing.assert_array_equal(without.positions_m, with_colours.positions_m)
+    # The colours asked for are the plan's own at the frame times.
+    np.testing.assert_allclose(with_colours.colors_rgb,
+                               plan.evaluate(with_colours.times_s).colors_rgb.astype(np.float32), atol=1e-7)
+    assert FlightOptions(colors=False).cache_key() != FlightOptions().cache_key()

@@ -276,7 +276,8 @@ def reduce_flight(
 def _run_options(options: FlightOptions, seed: int) -> FlightOptions:
     """A run's options: its seed, the local kernel, no flown-distance pass (the reduction does it)."""
     engine = "numba" if options.engine == "dask" else options.engine
-    return options.with_(engine=engine, seed=int(seed), scheduler=None, shards=None, flown_distance=False)
+    return options.with_(engine=engine, seed=int(seed), scheduler=None, shards=None, flown_distance=False,
+                         colors=False)
 
 
 def fly_run(

@@ -30,7 +30,8 @@ class FlightResult:
     Attributes:
         times_s: ``(T,)`` output frame times (s).
         positions_m: ``(T, N, 3)`` flown positions, float32 (m).
-        colors_rgb: ``(T, N, 3)`` LED colours from the plan, float32 in [0, 1].
+        colors_rgb: ``(T, N, 3)`` LED colours from the plan, float32 in [0, 1]; ``(0, N, 3)``
+            when the flight was asked not to evaluate them (``FlightOptions.colors``).
         drone_ids: ``(N,)`` index of each flown drone in the plan.
         tracking_rms_m: ``(N,)`` RMS of ||p - p_ref|| over every 1 ms step (m).
         tracking_max_m: ``(N,)`` maximum ||p - p_ref|| (m).

@@ -121,9 +121,10 @@ def fly_local(
     )
     wall = time.perf_counter() - start
 
-    colors = np.empty((n_frames, n, 3), dtype=np.float32)
+    # Only when asked for (options.colors): the Monte-Carlo runs never read them.
+    colors = np.empty((n_frames if options.colors else 0, n, 3), dtype=np.float32)
     block = max(1, 2_000_000 // max(n, 1))  # bounded temporaries of plan.evaluate
-    for f0 in range(0, n_frames, block):
+    for f0 in range(0, colors.shape[0], block):
         colors[f0:f0 + block] = plan.evaluate(times[f0:f0 + block], drones=ids).colors_rgb
 
     pair = ordered_pair(best)

@@ -405,8 +405,9 @@ def _kernel(
             o2 = base + roll - yw
             o3 = base + pitch + yw
             o4 = base - roll - yw
-            sat = (limited or o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
-                   or o3 < 0.0 or o3 > wmax2 or o4 < 0.0 or o4 > wmax2)
+            clipped = (o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
+                       or o3 < 0.0 or o3 > wmax2 or o4 < 0.0 or o4 > wmax2)
+            sat = limited or clipped
             o1 = min(max(o1, 0.0), wmax2)
             o2 = min(max(o2, 0.0), wmax2)
             o3 = min(max(o3, 0.0), wmax2)
@@ -469,9 +470,11 @@ def _kernel(
             iaz = ia2 + dt * (unaz + faz)
             ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
             ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
-            if sat:  # anti-windup: u_d (and the PID integral) frozen while a rotor is clipped
+            # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
+            # while the command is limited or a rotor clips, the attitude u_d only while a
+            # rotor clips.
+            if sat:
                 udx, udy, udz = ud0, ud1, ud2
-                uadx, uady, uadz = uda0, uda1, uda2
                 nie0, nie1, nie2 = ie0, ie1, ie2
             else:
                 nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
@@ -480,6 +483,9 @@ def _kernel(
                 udx = ud0 + dt * wpx
                 udy = ud1 + dt * wpy
                 udz = ud2 + dt * wpz
+            if clipped:
+                uadx, uady, uadz = uda0, uda1, uda2
+            else:
                 uadx = uda0 + dt * wax
                 uady = uda1 + dt * way
                 uadz = uda2 + dt * waz

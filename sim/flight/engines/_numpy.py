@@ -218,8 +218,13 @@ def numpy_step(
     # --- rotors: mix, saturate (the command; anti-windup flag), the motors' lag, and what
     # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
     # are the nominal ones)
-    omega_sq, saturated = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
-    saturated = saturated | limited
+    omega_sq, rotor_clipped = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
+    # Anti-windup (docs/method.md §4.1): the position loop's u_d and PID integral freeze while
+    # its command is limited or a rotor clips; the attitude loop's u_d only while a rotor
+    # clips. (The thrust/tilt limiter is the position loop's own: freezing the attitude u_d
+    # with it left the attitude loop unable to follow its reference for as long as a strong
+    # wind held the tilt at the limit; its s wound up and it ran away after; issue 20.)
+    saturated = rotor_clipped | limited
     if sw.motor:
         rotor = c[:, C_ROTOR:C_ROTOR + 4]
         omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
@@ -234,7 +239,7 @@ def numpy_step(
     nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
-    nc[:, C_UDA:C_UDA + 3] += np.where(saturated[:, None], 0.0, dt_s * w_att)
+    nc[:, C_UDA:C_UDA + 3] += np.where(rotor_clipped[:, None], 0.0, dt_s * w_att)
     nc[:, C_SAPREV:C_SAPREV + 3] = s_a
     nc[:, C_THC_DOT:C_THC_DOT + 3] = th_c_dot + dt_s * th_c_ddot
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]
