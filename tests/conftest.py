@@ -181,3 +181,28 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         name = item.originalname if isinstance(item, pytest.Function) else item.name
         if module in INTEGRATION_MODULES or name in INTEGRATION_TESTS:
             item.add_marker(pytest.mark.integration)
+
+
+# -- browser tests -------------------------------------------------------------------------------
+# Every browser test module starts its own Chromium (module scope: a crash stays in its module) and
+# defines its own `server` fixture (its data directory and viewer switch); `ui` is a fresh editor
+# page on that server. The imports are lazy so that collecting the fast suite never loads Playwright.
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's Chromium through Playwright (see tests/live_server.py)."""
+    from tests.live_server import chromium_browser
+
+    with chromium_browser() as b:
+        yield b
+
+
+@pytest.fixture
+def ui(browser, server, tmp_path):
+    """The editor open in a new page of ``browser`` on the module's ``server``."""
+    from tests.test_editor_browser import Page
+
+    p = Page(browser, server, tmp_path)
+    yield p
+    p.close()

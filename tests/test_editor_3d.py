@@ -11,7 +11,7 @@ import math
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page, _create_show, _type_points
 
 pytestmark = BROWSER_MARKS
@@ -27,19 +27,6 @@ GRID = [(x, 0.0, z) for z in (35.0, 40.0, 45.0) for x in (-5.0, 0.0, 5.0)]
 def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("edit3d-data")) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _saved_points(ui: Page) -> list[list[float]]:

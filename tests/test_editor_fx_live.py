@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page, _create_show
 from tests.test_media_audio import click_track
 
@@ -27,19 +27,6 @@ expect = sync_api.expect
 def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("fx-live-data"), viewer=True) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _viewer(page) -> dict | None:

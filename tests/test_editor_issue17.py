@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -19,19 +19,6 @@ def server(tmp_path_factory):
     """`swarmshow serve` (viewer on) on a free loopback port with an empty store."""
     with running_server(tmp_path_factory.mktemp("issue17-data"), viewer=True) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _two_formations(ui: Page, name: str, drones: int = 9) -> None:

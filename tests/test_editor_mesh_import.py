@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -20,19 +20,6 @@ sync_api = pytest.importorskip("playwright.sync_api")
 def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("mesh-data"), viewer=False) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def test_import_glb_surface_with_vertex_colours(ui: Page):

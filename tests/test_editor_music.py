@@ -35,13 +35,6 @@ def browser():
         yield b
 
 
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
-
-
 def _clock(base: str, show_id: str, ok, timeout_s: float = 30.0) -> dict:
     """The viewer's clock for the show once ``ok(clock)`` holds (polled)."""
     import time

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, SHOTS, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -29,12 +29,6 @@ def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("session-data"), viewer=True, workers=2,
                         env={"SWARMSHOW_TASK_TIMEOUT_S": "900"}) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
 
 
 def _open(ui: Page, summary: str) -> None:

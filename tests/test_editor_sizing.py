@@ -9,7 +9,7 @@ import math
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -23,19 +23,6 @@ DRONES = 80
 def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("sizing-data")) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _min_distance(points: list[list[float]]) -> float:

@@ -11,7 +11,7 @@ import httpx
 import pytest
 
 from tests.conftest import make_show, ring
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, running_server
 from tests.test_editor_browser import Page
 
 pytestmark = BROWSER_MARKS
@@ -23,19 +23,6 @@ expect = sync_api.expect
 def server(tmp_path_factory):
     with running_server(tmp_path_factory.mktemp("viewer-editor-data"), viewer=True) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _wait_until(what: str, fn, timeout_s: float = 60.0):
