@@ -100,6 +100,18 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token
     Returns:
         The shard's :class:`~sim.flight._result.FlightResult` (without the flown distance).
     """
+    with _ENGINE_LOCK:
+        return fly_local(plan, options, drones=drones, progress=task_progress(token, shard, "shard"))
+
+
+def task_progress(token: str, index: int, what: str) -> Callable[[float], None]:
+    """A progress callback for the Dask task running now (shard or Monte-Carlo run ``index``).
+
+    It logs ``[token, index, fraction]`` as a scheduler event at most every
+    :data:`EVENT_INTERVAL_S` (and at 1.0), and raises :class:`ShardCancelledError` once the
+    task's future was released or cancelled: the worker moves such a task to "cancelled" (or
+    forgets it), and stopping here frees the worker within one chunk.
+    """
     from distributed import get_worker
 
     worker = get_worker()
@@ -107,18 +119,15 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token
     last = [-1.0]
 
     def progress(fraction: float) -> None:
-        # The worker moves a task whose future was released or cancelled to "cancelled"
-        # (or forgets it); stopping here frees the worker within one chunk.
         ts = worker.state.tasks.get(key)
         if ts is None or ts.state in ("cancelled", "released", "forgotten"):
-            raise ShardCancelledError(f"shard {shard} cancelled")
+            raise ShardCancelledError(f"{what} {index} cancelled")
         now = time.monotonic()
         if fraction >= 1.0 or now - last[0] >= EVENT_INTERVAL_S:
             last[0] = now
-            worker.log_event(PROGRESS_TOPIC, [token, int(shard), float(fraction)])
+            worker.log_event(PROGRESS_TOPIC, [token, int(index), float(fraction)])
 
-    with _ENGINE_LOCK:
-        return fly_local(plan, options, drones=drones, progress=progress)
+    return progress
 
 
 def dask_setup(worker: Any) -> None:

@@ -631,25 +631,10 @@ class _Monotone:
 # ----------------------------------------------------------------------------------------
 def _dask_run(plan: ShowPlan, options: FlightOptions, run: int, seed: int, max_bins: int, token: str) -> RunStats:
     """Fly and reduce one run on a worker, reporting progress as scheduler events."""
-    from distributed import get_worker
-
-    from sim.flight._dask import _ENGINE_LOCK, EVENT_INTERVAL_S, PROGRESS_TOPIC, ShardCancelledError
-
-    worker = get_worker()
-    key = worker.get_current_task()
-    last = [-1.0]
-
-    def progress(fraction: float) -> None:
-        ts = worker.state.tasks.get(key)
-        if ts is None or ts.state in ("cancelled", "released", "forgotten"):
-            raise ShardCancelledError(f"run {run} cancelled")
-        now = time.monotonic()
-        if fraction >= 1.0 or now - last[0] >= EVENT_INTERVAL_S:
-            last[0] = now
-            worker.log_event(PROGRESS_TOPIC, [token, int(run), float(fraction)])
+    from sim.flight._dask import _ENGINE_LOCK, task_progress
 
     with _ENGINE_LOCK:
-        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=progress)
+        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=task_progress(token, run, "run"))
 
 
 def _fly_dask(
