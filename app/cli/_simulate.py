@@ -157,8 +157,7 @@ def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
 
 
 def _montecarlo(args: argparse.Namespace) -> int:
-    from sim import PlanError, cached_plan_show
-    from sim.flight import SchedulerUnreachableError, connect_scheduler, monte_carlo
+    from sim.flight import monte_carlo
 
     dask = _dask_options(args)
     show = load_show_arg(args.show)
@@ -166,15 +165,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
     if report_path is not None and not report_path.parent.is_dir():
         raise CliError(f"{report_path}: cannot write: no such directory {str(report_path.parent)!r}")
     with contextlib.ExitStack() as stack:
-        if dask:
-            try:
-                dask["scheduler"] = stack.enter_context(connect_scheduler(dask["scheduler"], dask["connect_timeout_s"]))
-            except SchedulerUnreachableError as exc:
-                raise CliError(" ".join(str(exc).split())) from None
-        try:
-            plan = cached_plan_show(show)
-        except PlanError as exc:
-            raise CliError(f"{args.show}: {exc}") from exc
+        plan = _connect_and_plan(args, stack, dask, show)
         with progress_bar(f"monte-carlo x{args.runs}") as update:
             result = monte_carlo(
                 plan, _flight_options(args, dask), runs=args.runs, seed0=args.seed,
@@ -257,23 +248,12 @@ def _engine(args: argparse.Namespace) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim import PlanError, cached_plan_show
-    from sim.flight import SchedulerUnreachableError, connect_scheduler, fly_show
+    from sim.flight import fly_show
 
     dask = _dask_options(args)
     show = load_show_arg(args.show)
     with contextlib.ExitStack() as stack:
-        if dask:
-            # Connect before planning so that an unreachable cluster fails in seconds, not
-            # after a large show has been planned.
-            try:
-                dask["scheduler"] = stack.enter_context(connect_scheduler(dask["scheduler"], dask["connect_timeout_s"]))
-            except SchedulerUnreachableError as exc:
-                raise CliError(" ".join(str(exc).split())) from None
-        try:
-            plan = cached_plan_show(show)
-        except PlanError as exc:
-            raise CliError(f"{args.show}: {exc}") from exc
+        plan = _connect_and_plan(args, stack, dask, show)
         with progress_bar("simulate") as update:
             result = fly_show(plan, _flight_options(args, dask), progress=update)
     summary = result.summary()
@@ -357,3 +337,24 @@ def format_paper(r: dict) -> str:
         "OK: meets the paper scenario's thresholds" if r["meets_thresholds"]
         else "FAILED: misses the paper scenario's thresholds",
     ])
+
+
+def _connect_and_plan(args: argparse.Namespace, stack: contextlib.ExitStack, dask: dict[str, Any] | None,
+                      show: Any) -> Any:
+    """Connect to the Dask cluster (kept open by ``stack``) when asked, then plan ``show``.
+
+    Connecting comes first so that an unreachable cluster fails in seconds, not after a large show
+    has been planned. Both failures are one-line :class:`CliError` (exit 2).
+    """
+    from sim import PlanError, cached_plan_show
+    from sim.flight import SchedulerUnreachableError, connect_scheduler
+
+    if dask:
+        try:
+            dask["scheduler"] = stack.enter_context(connect_scheduler(dask["scheduler"], dask["connect_timeout_s"]))
+        except SchedulerUnreachableError as exc:
+            raise CliError(" ".join(str(exc).split())) from None
+    try:
+        return cached_plan_show(show)
+    except PlanError as exc:
+        raise CliError(f"{args.show}: {exc}") from exc

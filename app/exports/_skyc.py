@@ -67,6 +67,7 @@ from app.exports._archive import ZipBuilder, safe_stem
 from app.exports._core import ExportContext, ExportResult, require_planned
 from app.exports._frames import skybrush_orientation_deg
 from app.exports._ledctrl import show_light_programs
+from app.exports._ledctrl import varuint as _varuint
 from app.exports._media import add_skyc_audio
 from sim.plan import horner
 
@@ -133,18 +134,6 @@ def subdivisions(coeffs_m: np.ndarray, duration_s: np.ndarray, tolerance_m: floa
         if not len(fewer):
             return m
         m[fewer] -= 1
-
-
-def _varuint(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte = value & 0x7F
-        value >>= 7
-        if value:
-            out.append(byte | 0x80)
-        else:
-            out.append(byte)
-            return bytes(out)
 
 
 def light_program(frames: np.ndarray, colors: np.ndarray) -> bytes:
