@@ -366,14 +366,7 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     """
     progress = Progress(job_id, queue, cancel)
     progress.started()
-    from sim import PlanError, plan_show
-
-    show = _show(show_text)
-    try:
-        plan = plan_show(show, progress=progress.scaled(0.0, PLAN_SHARE))
-    except PlanError as exc:
-        raise _plan_failure(exc) from None
-    progress.check_cancelled(force=True)
+    plan = _plan_job(show_text, progress)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
     fly_show = _fly_show()
     try:
@@ -391,6 +384,19 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
         raise
     progress(1.0)
     return {"plan": plan_summary(plan), "flight": result.summary()}
+
+
+def _plan_job(show_text: str, progress: Progress) -> Any:
+    """Plan a job's show, the first :data:`PLAN_SHARE` of its progress; a show that cannot be
+    planned is a :class:`TaskFailure` (``_plan_failure``), a cancellation stops here."""
+    from sim import PlanError, plan_show
+
+    try:
+        plan = plan_show(_show(show_text), progress=progress.scaled(0.0, PLAN_SHARE))
+    except PlanError as exc:
+        raise _plan_failure(exc) from None
+    progress.check_cancelled(force=True)
+    return plan
 
 
 def montecarlo_task(
@@ -411,15 +417,9 @@ def montecarlo_task(
     """
     progress = Progress(job_id, queue, cancel)
     progress.started()
-    from sim import PlanError, plan_show
     from sim.flight import FlightOptions, monte_carlo, options_for_preset
 
-    show = _show(show_text)
-    try:
-        plan = plan_show(show, progress=progress.scaled(0.0, PLAN_SHARE))
-    except PlanError as exc:
-        raise _plan_failure(exc) from None
-    progress.check_cancelled(force=True)
+    plan = _plan_job(show_text, progress)
     runs = int(options["runs"])
     check_output_samples(plan.drone_count, plan.duration_s, 25.0)
     work = plan.drone_count * plan.duration_s * runs
@@ -448,7 +448,7 @@ def montecarlo_task(
         raise
     progress(1.0)
     report = result.to_json()
-    report["show"] = show.name
+    report["show"] = plan.show_name
     return {"plan": plan_summary(plan), "montecarlo": report}
 
 

@@ -104,6 +104,16 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token
         return fly_local(plan, options, drones=drones, progress=task_progress(token, shard, "shard"))
 
 
+def route_progress(client: Any, token: str, on_event: Callable[[int, float], None]) -> None:
+    """Send the progress events that tasks tagged ``token`` log (:func:`task_progress`) to
+    ``on_event(index, fraction)``, through the one topic handler this client subscribes."""
+    with _ROUTES_LOCK:
+        _ROUTES[token] = on_event
+    # Subscribing again would replace the same handler (and log it): once per client is enough.
+    if getattr(client, "_event_handlers", {}).get(PROGRESS_TOPIC) is not _route_event:
+        client.subscribe_topic(PROGRESS_TOPIC, _route_event)
+
+
 def task_progress(token: str, index: int, what: str) -> Callable[[float], None]:
     """A progress callback for the Dask task running now (shard or Monte-Carlo run ``index``).
 
@@ -313,11 +323,7 @@ def _run_shards(
         events.put((shard, fraction))
         wake.set()
 
-    with _ROUTES_LOCK:
-        _ROUTES[token] = on_event
-    # Subscribing again would replace the same handler (and log it): once per client is enough.
-    if getattr(client, "_event_handlers", {}).get(PROGRESS_TOPIC) is not _route_event:
-        client.subscribe_topic(PROGRESS_TOPIC, _route_event)
+    route_progress(client, token, on_event)
     futures: list[Any] = []
     try:
         plan_future = client.submit(_hold_plan, plan, key=f"swarmshow-plan-{token}", pure=False)

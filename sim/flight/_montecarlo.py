@@ -642,7 +642,7 @@ def _fly_dask(
     on_run: Callable[[float], None],
 ) -> None:
     """Submit one task per run, fold each result as it arrives, report the summed run fractions."""
-    from sim.flight._dask import _ROUTES, _ROUTES_LOCK, PROGRESS_TOPIC, _hold_plan, _route_event, connect_scheduler
+    from sim.flight._dask import _ROUTES, _ROUTES_LOCK, _hold_plan, connect_scheduler, route_progress
 
     token = uuid.uuid4().hex
     events: queue.SimpleQueue[tuple[int, float]] = queue.SimpleQueue()
@@ -653,10 +653,7 @@ def _fly_dask(
         wake.set()
 
     with connect_scheduler(options.scheduler, options.connect_timeout_s) as client:
-        with _ROUTES_LOCK:
-            _ROUTES[token] = on_event
-        if getattr(client, "_event_handlers", {}).get(PROGRESS_TOPIC) is not _route_event:
-            client.subscribe_topic(PROGRESS_TOPIC, _route_event)
+        route_progress(client, token, on_event)
         futures: list[Any] = []
         try:
             plan_future = client.submit(_hold_plan, plan, key=f"swarmshow-mc-plan-{token}", pure=False)
