@@ -19,6 +19,11 @@ from formations._show import SHOW_FORMAT as SHOW_FORMAT
 from formations._show import Formation as Formation
 from formations._show import Geofence as Geofence
 from formations._show import GeoPlacement as GeoPlacement
+from formations._launch import HomeCsvError as HomeCsvError
+from formations._launch import LaunchBoxes as LaunchBoxes
+from formations._launch import home_points_from_csv as home_points_from_csv
+from formations._launch import home_points_to_csv as home_points_to_csv
+from formations._show import HomeFromBoxes as HomeFromBoxes
 from formations._show import HomeFromGrid as HomeFromGrid
 from formations._show import HomeFromPoints as HomeFromPoints
 from formations._show import HomeGrid as HomeGrid
@@ -40,9 +45,12 @@ __all__ = [
     "Formation",
     "GeoPlacement",
     "Geofence",
+    "HomeCsvError",
+    "HomeFromBoxes",
     "HomeFromGrid",
     "HomeFromPoints",
     "HomeGrid",
+    "LaunchBoxes",
     "LightEffect",
     "Lights",
     "Settings",
@@ -51,6 +59,8 @@ __all__ = [
     "demo_show",
     "dump_show",
     "hex_to_rgb",
+    "home_points_from_csv",
+    "home_points_to_csv",
     "load_demo_show",
     "load_show",
     "parse_show",

@@ -33,6 +33,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from formations._effects import KINDS, TARGETS, Lights, lights_problem
+from formations._launch import LaunchBoxes, boxes_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -275,6 +276,13 @@ class HomeFromPoints(BaseModel):
     points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_FORMATION_POINTS)]
 
 
+class HomeFromBoxes(BaseModel):
+    """``{"boxes": {...}}``: launch boxes of several drones each (:mod:`formations._launch`)."""
+
+    model_config = _CONFIG
+    boxes: LaunchBoxes
+
+
 class Formation(_ArrayCachingModel):
     """One formation of the timeline: points (metres), colours, hold time (seconds).
 
@@ -374,9 +382,11 @@ def hex_to_rgb(colors: list[str]) -> np.ndarray:
 
 def _home_kind(value: Any) -> str | None:
     if isinstance(value, dict):
-        return "grid" if "grid" in value else ("points" if "points" in value else None)
+        return next((k for k in ("grid", "points", "boxes") if k in value), None)
     if isinstance(value, HomeFromGrid):
         return "grid"
+    if isinstance(value, HomeFromBoxes):
+        return "boxes"
     return "points" if isinstance(value, HomeFromPoints) else None
 
 
@@ -410,13 +420,14 @@ class ShowFile(_ArrayCachingModel):
     name: Name
     drones: int = Field(ge=1, le=MAX_DRONES, description=f"Number of drones (at most {MAX_DRONES}).")
     home: Annotated[
-        Annotated[HomeFromGrid, Tag("grid")] | Annotated[HomeFromPoints, Tag("points")],
+        Annotated[HomeFromGrid, Tag("grid")] | Annotated[HomeFromPoints, Tag("points")]
+        | Annotated[HomeFromBoxes, Tag("boxes")],
         Discriminator(
             _home_kind,
             custom_error_type="home_kind",
-            custom_error_message="home must be {\"grid\": {...}} or {\"points\": [...]}",
+            custom_error_message="home must be {\"grid\": {...}}, {\"points\": [...]} or {\"boxes\": {...}}",
         ),
-    ] = Field(description="Ground start positions: a grid or explicit points (metres).")
+    ] = Field(description="Ground start positions: a grid, explicit points or launch boxes (metres).")
     settings: Settings = Field(default_factory=Settings)
     formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
     # Issue 18: light effects over the base colours (None, left out of the file, keeps older shows' hashes).
@@ -445,10 +456,22 @@ class ShowFile(_ArrayCachingModel):
         """Every home position (landing may use any of them), (H, 3) metres (read-only)."""
         if isinstance(self.home, HomeFromGrid):
             pts = self.home.grid.positions_m()
+        elif isinstance(self.home, HomeFromBoxes):
+            pts = self.home.boxes.positions_m()
         else:
             pts = np.array(self.home.points, dtype=np.float64)
         pts.setflags(write=False)
         return pts
+
+    @cached_property
+    def all_home_boxes(self) -> np.ndarray:
+        """(H,) the launch box of every home position; -1 for a loose one (grid and points layouts)."""
+        if isinstance(self.home, HomeFromBoxes):
+            ids = self.home.boxes.box_ids()
+        else:
+            ids = np.full(len(self.all_home_positions_m), -1, dtype=np.int64)
+        ids.setflags(write=False)
+        return ids
 
     def canonical_json(self) -> str:
         """Compact, key-sorted JSON of the show: identical for identical content."""
@@ -508,6 +531,10 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
             return ("home", "grid", "spacing_m"), (
                 f"spacing {g.spacing_m} m is less than settings.min_distance_m {s.min_distance_m} m"
             )
+    elif isinstance(show.home, HomeFromBoxes):
+        problem = _boxes_problem(show.home.boxes, n, slots, s)
+        if problem is not None:
+            return problem
     else:
         pts = np.asarray(show.home.points, dtype=np.float64)
         if len(pts) < n:
@@ -567,6 +594,28 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
     return _pin_order_problem(show)
 
 
+def _boxes_problem(boxes: LaunchBoxes, n: int, slots: int, s: Settings
+                   ) -> tuple[tuple[str | int, ...], str] | None:
+    """Counts, show area and the spacing rule of :mod:`formations._launch` for a boxes layout."""
+    total = boxes.box_count * boxes.per_box
+    where = ("home", "boxes", "grid") if boxes.grid is not None else ("home", "boxes", "centers")
+    if total < n:
+        return where, (f"{boxes.box_count} boxes of {boxes.per_box} = {total} home positions is fewer than "
+                       f"drones = {n}")
+    if total > slots:
+        return where, (f"{boxes.box_count} boxes of {boxes.per_box} = {total} home positions is more than {slots} "
+                       f"(at most {HOME_SLOTS_PER_DRONE} per drone)")
+    outside = _outside_area(boxes.positions_m(), s.horizontal_extent_m)
+    if outside is not None:
+        box = outside[0] // boxes.per_box
+        return ((*where, "spacing_m") if boxes.grid is not None else (*where, box)), (
+            f"box {box}: {outside[2]}")
+    problem = boxes_problem(boxes, s.min_distance_m, s.downwash_axes_m[0])
+    if problem is not None:
+        return ("home", "boxes", *problem[0]), problem[1]
+    return None
+
+
 def _pin_order_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str] | None:
     """Cue times must increase along the timeline (each later than every pin before it)."""
     last: tuple[float, str] | None = None
@@ -621,7 +670,7 @@ _EFFECT_TAGS = {("effect", k) for k in KINDS} | {("target", k) for k in TARGETS}
 def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
     for i in range(len(loc) - 2):
-        if loc[i] == "home" and loc[i + 1] in ("grid", "points") and loc[i + 2] == loc[i + 1]:
+        if loc[i] == "home" and loc[i + 1] in ("grid", "points", "boxes") and loc[i + 2] == loc[i + 1]:
             return loc[: i + 1] + loc[i + 2 :]
     # Light effects: lights.effects[k].effect.<kind>.field -> lights.effects[k].effect.field (and target).
     if loc[:1] == ("lights",):

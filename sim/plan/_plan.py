@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from formations import Settings, ShowFile
+from formations import HomeFromBoxes, Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
 from sim.plan._cues import earliest_window, fit_transition
@@ -44,6 +44,7 @@ from sim.plan._schedule import (
     synchronised,
 )
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
+from sim.plan._waves import Waves, takeoff_waves
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
 #: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
@@ -128,6 +129,23 @@ class TransitionInfo:
         return float(min(self.start_spacing_m, self.goal_spacing_m) / np.sqrt(2.0))
 
 
+@dataclass(frozen=True)
+class LaunchInfo:
+    """Launch boxes and takeoff / landing waves of a plan (:mod:`sim.plan._waves`).
+
+    ``start_box`` / ``end_box`` (N,): the launch box of each drone's takeoff / landing home
+    (-1: a loose home); ``box_clearance_m``: how far (horizontally) an airborne drone stays from a
+    parked drone of its own box (half the box spacing: never over it); ``takeoff`` / ``landing``:
+    the waves, None when everybody climbs (descends) at once.
+    """
+
+    start_box: np.ndarray = field(repr=False)
+    end_box: np.ndarray = field(repr=False)
+    box_clearance_m: float
+    takeoff: Waves | None = None
+    landing: Waves | None = None
+
+
 class PlanSample(NamedTuple):
     """Plan state at T times for N drones: (T, N, 3) arrays in m, m/s, m/s²; colours in [0, 1]."""
 
@@ -150,6 +168,8 @@ class ShowPlan:
     settings: Settings
     show_name: str = ""
     trajectories: Trajectories | None = field(default=None, repr=False)
+    #: Launch boxes and waves (None: loose homes, everybody takes off and lands at once).
+    launch: LaunchInfo | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.trajectories is None:
@@ -417,20 +437,33 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             )
         return f.leave_at_s - arrived
 
-    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
-    # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
+    # Vertical takeoff: a rigid translation, so every pair keeps its ground distance; when the home
+    # layout is too dense for that (launch boxes), in waves to altitude layers (sim.plan._waves).
     # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
     # into the spread grid instead (a similarity plus a common lift: distances only grow).
-    up = home + lift
+    boxes = show.all_home_boxes
+    dw = s.downwash_axes_m
+    box_spacing = float(show.home.boxes.spacing_m) if isinstance(show.home, HomeFromBoxes) else 0.0
+    waves_up = takeoff_waves(home, lim, min_distance_m=s.min_distance_m, downwash_m=dw,
+                             base_m=s.takeoff_altitude_m)
     first = show.formations[0]
-    tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
-    if first.arrive_at_s is None:
-        tp, up = fold_first(tp, home)
+    if waves_up is not None:
+        up = waves_up.schedule.b_m
+        tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+        if first.arrive_at_s is not None:
+            tp = pin_arrival(tp, 0, waves_up.window_s)
+        fly((waves_up.schedule,))
+        add("takeoff", "takeoff", waves_up.window_s, up, colors[-1])
     else:
-        # A pinned first formation: the takeoff's length must be known before the transition is fitted
-        # (folding would change it), so the takeoff climbs to the lifted grid.
-        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
-    add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
+        up = home + lift
+        tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+        if first.arrive_at_s is None:
+            tp, up = fold_first(tp, home)
+        else:
+            # A pinned first formation: the takeoff's length must be known before the transition is fitted
+            # (folding would change it), so the takeoff climbs to the lifted grid.
+            tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
+        add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
 
@@ -455,15 +488,42 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
-    tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
-    down = homes_up[tp.goal_index] - lift
-    tp, _ = fold_last(tp, down)
-    end, info = commit(tp, previous, "landing", homes_up)
-    seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
-    transitions.append(TransitionInfo(segment=seg, **info))
-    add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
+    tp_any: TransitionPlan | None = None
+    if own is not None:
+        land_index = own
+    elif np.any(boxes >= 0):
+        land_index = assign(positions[-1], homes_up).goal_index
+    else:  # loose homes, any home: CAPT inside the transition planner, as before waves existed
+        tp_any = prepare(positions[-1], previous, "landing", homes_up, None, "landing")
+        land_index = tp_any.goal_index
+    waves_down = takeoff_waves(show.all_home_positions_m[land_index], lim, min_distance_m=s.min_distance_m,
+                               downwash_m=dw, base_m=s.takeoff_altitude_m, landing=True)
+    if waves_down is None:
+        tp = tp_any or prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
+        down = homes_up[tp.goal_index] - lift
+        tp, _ = fold_last(tp, down)
+        end, info = commit(tp, previous, "landing", homes_up)
+        seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
+        transitions.append(TransitionInfo(segment=seg, **info))
+        add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
+    else:
+        # Into the layers over the landing homes (each drone's home fixed), then down in waves.
+        layered = homes_up.copy()
+        layered[land_index] = waves_down.schedule.a_m
+        tp = prepare(positions[-1], previous, "landing", layered, None, "landing", goal_index=land_index)
+        end, info = commit(tp, previous, "landing", layered)
+        seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
+        transitions.append(TransitionInfo(segment=seg, **info))
+        fly((waves_down.schedule,))
+        add("landing", "landing", waves_down.window_s, waves_down.schedule.b_m, np.zeros_like(end))
     if progress:
         progress(1.0)
+
+    launch = None
+    if waves_up is not None or waves_down is not None or np.any(boxes >= 0):
+        end_index = tp.goal_index
+        launch = LaunchInfo(start_box=boxes[: len(home)].copy(), end_box=boxes[end_index].copy(),
+                            box_clearance_m=min(box_spacing / 2.0, dw[0]), takeoff=waves_up, landing=waves_down)
 
     return ShowPlan(
         knot_times_s=np.array(times),
@@ -474,10 +534,12 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         settings=s,
         show_name=show.name,
         trajectories=builder.build(end_s=times[-1]),
+        launch=launch,
     )
 
 
 __all__ = [
+    "LaunchInfo",
     "PlanError",
     "PlanSample",
     "Segment",
