@@ -54,6 +54,7 @@ from sim.plan._trajectory import Trajectories
 from sim.verify import _poly, _sweep
 from sim.verify._bounds import check_bounds
 from sim.verify._downwash import DOWNWASH_SEGMENTS, scaled_motion
+from sim.verify._parked import airborne_span, clearance, restrict
 from sim.verify._violation import Violation
 
 #: Relative tolerance on the limits, so that a value equal to its limit passes despite rounding.
@@ -411,6 +412,12 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
         radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
         pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds, method=candidates)
+        span = airborne_span(plan, seg)
+        if span is not None and len(pairs.dist_m):
+            # Launch boxes: a pair of one box keeps its distance only while both fly (sim.verify._parked).
+            d_r, t_r = restrict(motion, span, pairs.i, pairs.j, pairs.dist_m, pairs.time_s, radius)
+            keep = d_r <= radius
+            pairs = ClosePairs(pairs.i[keep], pairs.j[keep], d_r[keep], t_r[keep])
         if len(pairs.dist_m):
             m = int(np.argmin(pairs.dist_m))
             seg_min[k] = (float(pairs.dist_m[m]), (int(pairs.i[m]), int(pairs.j[m])), float(pairs.time_s[m]))
@@ -502,21 +509,35 @@ def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[
     bounds = speed_bounds(motion)
     out: list[Violation] = []
     total = 0
+    clear_r = plan.launch.box_clearance_m if plan.launch is not None else 0.0
+    clear_motion = scaled_motion(plan.motion, clear_r, c) if clear_r > 0 else None
     for seg in segs:
         pairs = window_close_pairs(motion, seg.start_s, seg.end_s, 1.0, bounds=bounds)
-        bad = np.flatnonzero(pairs.dist_m < 1.0 - _TOL)
+        span = airborne_span(plan, seg)
+        value = pairs.dist_m
+        times = pairs.time_s
+        rule = np.zeros(len(value), dtype=np.int64)  # 0: downwash, 1: clearance over a parked box mate
+        if span is not None and len(value):
+            value, times = restrict(motion, span, pairs.i, pairs.j, value, times, 1.0)
+            if clear_motion is not None:
+                cv, ct = clearance(clear_motion, span, seg, pairs.i, pairs.j)
+                worse = cv < value
+                value, times, rule = np.where(worse, cv, value), np.where(worse, ct, times), worse.astype(np.int64)
+        bad = np.flatnonzero(value < 1.0 - _TOL)
         total += len(bad)
-        bad = bad[np.argsort(pairs.dist_m[bad], kind="stable")]
+        bad = bad[np.argsort(value[bad], kind="stable")]
         for q in bad[: max(0, max_listed - len(out))]:
-            i, j, t = int(pairs.i[q]), int(pairs.j[q]), float(pairs.time_s[q])
+            i, j, t = int(pairs.i[q]), int(pairs.j[q]), float(times[q])
             p = plan.motion.evaluate([t], derivatives=0).positions_m[0]
             upper, lower = (i, j) if p[i, 2] >= p[j, 2] else (j, i)
             dz = float(p[upper, 2] - p[lower, 2])
             dxy = float(np.hypot(*(p[upper, :2] - p[lower, :2])))
+            what = (f"drone {lower} is in drone {upper}'s downwash" if not rule[q] else
+                    f"drone {upper} passes over its parked box mate {lower} (clearance {clear_r:g} m)")
             out.append(Violation(
-                kind="downwash", drones=[upper, lower], time_s=t, value=float(pairs.dist_m[q]), limit=1.0,
+                kind="downwash", drones=[upper, lower], time_s=t, value=float(value[q]), limit=1.0,
                 segment=seg.index,
-                message=f"drone {lower} is in drone {upper}'s downwash during {seg.kind} at t = {t:.2f} s: "
+                message=f"{what} during {seg.kind} at t = {t:.2f} s: "
                 f"{dz:.2f} m below it and {dxy:.2f} m to the side (ellipsoid {r:g} m wide, {c:g} m high)",
             ))
     return out, total
