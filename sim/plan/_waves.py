@@ -86,7 +86,8 @@ def conflict_pairs(homes_m: np.ndarray, need_m: float) -> np.ndarray:
     """(E, 2) pairs of homes closer than ``need_m`` horizontally (i < j)."""
     if len(homes_m) < 2:
         return np.zeros((0, 2), dtype=np.int64)
-    return cKDTree(homes_m[:, :2]).query_pairs(need_m * (1 - 1e-9), output_type="ndarray").astype(np.int64)
+    pairs: np.ndarray = cKDTree(homes_m[:, :2]).query_pairs(need_m * (1 - 1e-9), output_type="ndarray")
+    return pairs.astype(np.int64)
 
 
 def colour_waves(n: int, pairs: np.ndarray) -> np.ndarray:
@@ -144,7 +145,8 @@ def plan_waves(homes_m: np.ndarray, wave: np.ndarray, lim: Limits, base_m: float
     dep = _offsets(dur, curves, gap_m)
     window = round_up(float(np.max(dep + dur)))
     if landing:  # time reverse: wave k descends during [window - dep_k - T_k, window - dep_k]
-        dep = window - dep - dur
+        # (a nanosecond early, so that summed piece durations never end past the window)
+        dep = np.maximum(window - dep - dur - 1e-9, 0.0)
     layer = heights[wave]
     top = homes_m + np.column_stack([np.zeros((len(wave), 2)), layer])
     a, b = (top, homes_m) if landing else (homes_m, top)

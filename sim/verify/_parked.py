@@ -96,7 +96,8 @@ def _minima(motion: Trajectories, i: np.ndarray, j: np.ndarray, lo: np.ndarray, 
 def same_box(span: tuple[np.ndarray, np.ndarray, np.ndarray], i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """(m,) True where pair (i, j) is two drones of one launch box."""
     box = span[0]
-    return (box[i] >= 0) & (box[i] == box[j])
+    out: np.ndarray = (box[i] >= 0) & (box[i] == box[j])
+    return out
 
 
 def both_airborne(span: tuple[np.ndarray, np.ndarray, np.ndarray], i: np.ndarray, j: np.ndarray
