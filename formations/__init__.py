@@ -13,6 +13,7 @@ from formations._demo import load_demo_show as load_demo_show
 from formations._effects import LightEffect as LightEffect
 from formations._effects import Lights as Lights
 from formations._effects import lights_problem as lights_problem
+from formations._launch import MAX_HOME_CSV_BYTES as MAX_HOME_CSV_BYTES
 from formations._launch import HomeCsvError as HomeCsvError
 from formations._launch import LaunchBoxes as LaunchBoxes
 from formations._launch import home_points_from_csv as home_points_from_csv
@@ -39,6 +40,7 @@ from formations._show import rgb_to_hex as rgb_to_hex
 from formations._show import show_json_schema as show_json_schema
 
 __all__ = [
+    "MAX_HOME_CSV_BYTES",
     "MAX_DRONES",
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",

@@ -13,21 +13,27 @@ import pytest
 
 from app.exports import export_show
 from sim import plan_show
+from tests.skybrush_readers import LibskybrushPlayer, server_binary_trajectory, show_format_positions
 
 # The export tests themselves, collected again in this module with its `show` and `plan` fixtures.
-from tests.test_exports_qgc import test_formation_holds_match_the_show  # noqa: F401
-from tests.test_exports_qgc import test_wpl_replay_keeps_min_distance_or_names_the_pairs  # noqa: F401
-from tests.test_exports_qgc import test_plan_json_structure  # noqa: F401
-from tests.test_exports_qgc import test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates  # noqa: F401
-from tests.test_exports_sampled import test_skybrush_csv_resampled_at_high_fps_matches_the_plan_within_1mm  # noqa: F401
-from tests.test_exports_sampled import test_skybrush_csv_rows_are_the_plan  # noqa: F401
-from tests.test_exports_sampled import test_skybrush_studio_importer_accepts_the_archive  # noqa: F401
-from tests.test_exports_sampled import test_waypoints_csv_planned  # noqa: F401
-from tests.test_exports_trajectories import test_crazyswarm_pieces_are_the_plan  # noqa: F401
-from tests.test_exports_trajectories import test_skyc_lights_replay_the_plan_colours  # noqa: F401
-from tests.test_exports_trajectories import test_skyc_passes_the_rules_and_evaluates_to_the_plan  # noqa: F401
+from tests.test_exports_qgc import (
+    test_formation_holds_match_the_show,  # noqa: F401
+    test_plan_json_structure,  # noqa: F401
+    test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates,  # noqa: F401
+    test_wpl_replay_keeps_min_distance_or_names_the_pairs,  # noqa: F401
+)
+from tests.test_exports_sampled import (
+    test_skybrush_csv_resampled_at_high_fps_matches_the_plan_within_1mm,  # noqa: F401
+    test_skybrush_csv_rows_are_the_plan,  # noqa: F401
+    test_skybrush_studio_importer_accepts_the_archive,  # noqa: F401
+    test_waypoints_csv_planned,  # noqa: F401
+)
+from tests.test_exports_trajectories import (
+    test_crazyswarm_pieces_are_the_plan,  # noqa: F401
+    test_skyc_lights_replay_the_plan_colours,  # noqa: F401
+    test_skyc_passes_the_rules_and_evaluates_to_the_plan,  # noqa: F401
+)
 from tests.test_launch import boxes_show
-from tests.skybrush_readers import LibskybrushPlayer, server_binary_trajectory, show_format_positions
 
 
 @pytest.fixture(scope="module")

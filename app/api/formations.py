@@ -1,4 +1,5 @@
-"""``POST /api/formations/{shape|text|image|svg|mesh}``: formation points and colours from a source."""
+"""``POST /api/formations/{shape|text|image|svg|mesh}``: formation points and colours from a source;
+``POST /api/formations/home-csv``: home positions from a CSV file."""
 
 from __future__ import annotations
 
@@ -6,12 +7,15 @@ import math
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, File, Form, Request, UploadFile
+from starlette.concurrency import run_in_threadpool
 
 from app import tasks
 from app.api import deps
 from app.api.errors import ApiError
-from app.api.models import FormationPoints, Plane, ShapeRequest, TextRequest, error_responses
+from app.api.models import FormationPoints, HomePoints, Plane, ShapeRequest, TextRequest, error_responses
 from app.web import BodyTooLarge
+from formations import MAX_HOME_CSV_BYTES, HomeCsvError, home_points_from_csv
+from formations.sources import nearest_pair_distance
 
 router = APIRouter(prefix="/formations", tags=["formations"])
 
@@ -136,3 +140,20 @@ async def mesh(
     params = {"n": n, "file_type": file_type, "mode": mode, "size_m": size_m, "center_m": _center(center_m),
               "min_spacing_m": min_spacing_m, "up": up, "color": color}
     return await deps.run(request, tasks.formation_task, "mesh", params, data)
+
+
+@router.post("/home-csv", response_model=HomePoints, summary="Home positions from a CSV file",
+             responses=_UPLOAD_ERRORS)
+async def home_csv(
+    file: Annotated[UploadFile, File(description="Skybrush-style 'Name,x,y,z' rows or plain 'x,y[,z]' rows "
+                                     "(metres; an optional header row). At most 4 MB, 100,000 rows.")],
+) -> dict[str, Any]:
+    """Home positions for ``home.points`` (the show file then validates their spacing). A line that
+    cannot be read is a 422 naming ``file`` and the line."""
+    data = await _read(file, limit=MAX_HOME_CSV_BYTES, what="a home CSV")
+    try:
+        points, names = await run_in_threadpool(home_points_from_csv, data)
+    except HomeCsvError as exc:
+        raise ApiError(422, [{"loc": ["body", "file"], "path": "file", "msg": str(exc)}]) from exc
+    d = nearest_pair_distance(points) if len(points) > 1 else None
+    return {"points": points, "names": names, "count": len(points), "min_spacing_m": d}

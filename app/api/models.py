@@ -291,6 +291,15 @@ class TextRequest(_FormationBase):
         {"text": "HELLO", "n": 120, "height_m": 12.0, "center_m": [0, 0, 40], "color": "#00aaff"}]})
 
 
+class HomePoints(BaseModel):
+    """Home positions read from a CSV (``Name,x,y,z`` or ``x,y[,z]`` rows), metres, for ``home.points``."""
+
+    points: list[list[float]]
+    names: list[str] = Field(description="The Name column ('' where the file has none).")
+    count: int
+    min_spacing_m: float | None = Field(description="Nearest-pair distance, m (null for one point).")
+
+
 class FormationPoints(BaseModel):
     """Formation points (metres, ENU) and their LED colours."""
 

@@ -26,6 +26,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "app.cli._simulate",
     "app.cli._bench",
     "app.cli._formation",
+    "app.cli._home",
     "app.cli._export",
     "app.cli._serve",
 )
@@ -40,6 +41,7 @@ _COMMANDS: dict[str, str] = {
     "simulate": "app.cli._simulate",
     "bench": "app.cli._bench",
     "formation": "app.cli._formation",
+    "home": "app.cli._home",
     "export": "app.cli._export",
     "serve": "app.cli._serve",
     "demo": "app.cli._serve",

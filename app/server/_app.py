@@ -41,6 +41,7 @@ from app.server._limits import ENVELOPE_BYTES, BodyLimit, BodyLimitMiddleware
 from app.settings import AppSettings
 from app.store import ShowStore
 from app.version import __version__
+from formations import MAX_HOME_CSV_BYTES
 
 log = logging.getLogger("swarmshow.server")
 
@@ -123,6 +124,7 @@ def _body_limits(settings: AppSettings) -> tuple[list[BodyLimit], BodyLimit]:
         limit(r"/api/formations/image/?", settings.max_image_bytes, "an image"),
         limit(r"/api/formations/svg/?", settings.max_svg_bytes, "an SVG file"),
         limit(r"/api/formations/mesh/?", settings.max_mesh_bytes, "a mesh or point file"),
+        limit(r"/api/formations/home-csv/?", MAX_HOME_CSV_BYTES, "a home CSV"),
         limit(r"/api/shows/[^/]+/audio/?", settings.max_audio_bytes, "an audio file ('file')"),
         # The editor's unsaved light design (images and videos included) for its 3D preview: a show's worth.
         limit(r"/api/viewer/[^/]+/lights/?", settings.max_show_bytes, "a show's lights"),
