@@ -226,10 +226,14 @@ export class Timeline {
     const dur = groups.reduce((a, g) => a + g.duration_s, 0);
     const stagger = groups.reduce((a, g) => a + (g.stagger_s || 0), 0);
     const bad = groups.filter((g) => !g.ok);
+    // Launch boxes: takeoff / landing in waves (one drone of each box per wave), how many and how long.
+    const waves = groups.reduce((a, g) => Math.max(a, g.waves || 0), 0);
+    const waved = groups.filter((g) => (g.waves || 0) > 0).reduce((a, g) => a + g.duration_s, 0);
+    const wavesText = waves > 0 ? ` · ${waves} waves` : "";
     li.classList.toggle("unsafe", bad.length > 0);
-    li.textContent = `${label} ${dur.toFixed(1)} s${stagger > 0 ? ` +${stagger.toFixed(1)} s stagger` : ""}${bad.length ? " ⚠" : ""}`;
+    li.textContent = `${label} ${dur.toFixed(1)} s${wavesText}${stagger > 0 ? ` +${stagger.toFixed(1)} s stagger` : ""}${bad.length ? " ⚠" : ""}`;
     const fixes = bad.flatMap((g) => g.fixes || []);
-    li.title = `${label.slice(2)}: ${dur.toFixed(2)} s${bad.length ? `; ${bad.reduce((a, g) => a + g.violations_total, 0)} violation(s)` : ""}${fixes.length ? `; would fix it: ${fixes.join("; ")}` : ""}`;
+    li.title = `${label.slice(2)}: ${dur.toFixed(2)} s${waves > 0 ? `; ${waves} waves over ${waved.toFixed(1)} s (drones of a launch box leave one after another)` : ""}${bad.length ? `; ${bad.reduce((a, g) => a + g.violations_total, 0)} violation(s)` : ""}${fixes.length ? `; would fix it: ${fixes.join("; ")}` : ""}`;
     return li;
   }
 

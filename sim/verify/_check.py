@@ -132,6 +132,8 @@ class TransitionCheck(BaseModel):
     violations: list[Violation] = Field(description="Worst first (smallest distance), at most 50.")
     unresolved: list[FixHint] = Field(description="What the planner could not make safe, and what would fix it.")
     fixes: list[str] = Field(description="Changes to the show that would remove these violations.")
+    waves: int = Field(0, description="Takeoff / landing: the drones leave (land) in this many waves, one after "
+                       "another (0: all at once).")
 
 
 class CheckReport(BaseModel):
@@ -596,8 +598,17 @@ def _by_transition(plan: ShowPlan, violations: list[Violation],
             min_distance_pair=list(dmin[1]) if dmin else [], min_distance_time_s=dmin[2] if dmin else seg.start_s,
             violations_total=len(vs), violations=vs[:MAX_LISTED_PER_TRANSITION], unresolved=unresolved,
             fixes=_fixes(seg.kind, formation, src, dst, vs, tr, unresolved, s.min_distance_m),
+            waves=_waves(plan, seg.kind),
         ))
     return out
+
+
+def _waves(plan: ShowPlan, kind: str) -> int:
+    """Number of takeoff / landing waves of the plan (0: everybody at once, or not such a segment)."""
+    launch = plan.launch
+    w = None if launch is None else launch.takeoff if kind == "takeoff" else launch.landing if kind == "landing" \
+        else None
+    return 0 if w is None else int(w.count)
 
 
 def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], tr: Any,
