@@ -5,6 +5,7 @@
 
 import { OrbitCamera } from "./camera.js";
 import { VIEW_AXES } from "./geometry.js";
+import { homePositions } from "./launch.js";
 import { formationColors } from "./state.js";
 
 const NICE_STEPS = [0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000];
@@ -541,16 +542,7 @@ export class CanvasView {
   }
 
   _drawHome(show) {
-    const g = show.home && show.home.grid;
-    let pts = [];
-    if (g) {
-      const c = g.center_m || [0, 0];
-      for (let r = 0; r < g.rows && pts.length < show.drones; r++) {
-        for (let k = 0; k < g.cols && pts.length < show.drones; k++) {
-          pts.push([(k - (g.cols - 1) / 2) * g.spacing_m + c[0], (r - (g.rows - 1) / 2) * g.spacing_m + c[1], 0]);
-        }
-      }
-    } else if (show.home && show.home.points) pts = show.home.points;
+    const pts = homePositions(show).points.slice(0, show.drones);
     const { xy, depth } = this.project(pts);
     this.ctx.fillStyle = "#3a4a6b";
     for (let i = 0; i < pts.length; i++) {

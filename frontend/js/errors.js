@@ -59,7 +59,8 @@ export function showShowErrors(problems, fallback) {
       parts.pop();
     }
     if (shown) {
-      const panel = /** @type {HTMLDetailsElement|null} */ (document.getElementById("settings-panel"));
+      const panel = /** @type {HTMLDetailsElement|null} */ (
+        document.getElementById(path.startsWith("home.boxes") ? "launch-panel" : "settings-panel"));
       if (panel && path !== "formations") panel.open = true;
     } else {
       fallback(path ? `${path}: ${p.msg}` : p.msg);

@@ -17,6 +17,7 @@ import { Preview } from "./preview.js";
 import { Playhead } from "./playhead.js";
 import { ReportPanel } from "./report.js";
 import { SettingsForm } from "./settings.js";
+import { LaunchPanel } from "./launch.js";
 import { installShortcuts, renderHelp } from "./shortcuts.js";
 import { ShowsDialog } from "./shows.js";
 import { SimulatePanel } from "./simulate.js";
@@ -64,6 +65,7 @@ const tools = new Tools(view, state, {
   onError: (msg) => status(msg, true),
 });
 const settingsForm = new SettingsForm(/** @type {HTMLFormElement} */ ($("form-settings")), state);
+new LaunchPanel(/** @type {HTMLElement} */ ($("launch-body")), state);
 const sources = new Sources(state, view);
 settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
