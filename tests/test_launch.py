@@ -7,6 +7,8 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import sim.plan._plan as plan_module
 from formations import (
@@ -307,3 +309,25 @@ def test_waves_leaving_together_are_caught(monkeypatch):
     must = {tuple(sorted(map(int, p))) for p in np.argwhere(np.triu(brute["wash"] < 1 - 1e-6, 1))}
     near = {tuple(sorted(map(int, p))) for p in np.argwhere(np.triu(brute["wash"] < 1 + 1e-3, 1))}
     assert must and must <= found <= near and total == len(listed)
+
+
+@settings(max_examples=6, deadline=None)
+@given(per_box=st.integers(2, 8), spacing=st.floats(0.4, 1.5), rows=st.integers(1, 2), cols=st.integers(1, 3),
+       law=st.sampled_from(["min_time", "quintic"]), landing=st.sampled_from(["any_home", "own_home"]))
+def test_random_box_layouts_plan_and_pass_the_exact_check(per_box, spacing, rows, cols, law, landing):
+    """Any box pattern and placement the show file accepts plans to 0 violations (waves when needed)."""
+    pattern_cols = max(1, int(np.ceil(np.sqrt(per_box))))
+    extent = (pattern_cols - 1) * spacing
+    n = per_box * rows * cols
+    show = parse_show({
+        "format": "swarmshow/1", "name": "random boxes", "drones": n,
+        "home": {"boxes": {"per_box": per_box, "spacing_m": round(spacing, 3),
+                           "grid": {"rows": rows, "cols": cols, "spacing_m": round(extent + 3.5, 3)}}},
+        "settings": {"time_law": law, "landing": landing},
+        "formations": [{"name": "ring", "hold_s": 2.0, "points": np.round(ring(n, max(6.0, 0.6 * n)), 6).tolist()}],
+    })
+    plan = plan_show(show)
+    report = check_plan(plan)
+    assert report.violations_total == 0, [v.message for v in report.violations[:3]]
+    conflicts = len(_waves.conflict_pairs(show.home_positions_m, 3.0))
+    assert (plan.launch.takeoff is not None) == (conflicts > 0)

@@ -159,14 +159,14 @@ def plan_parts(plan, drone, start, duration, n: int, names: list[str]) -> np.nda
     to the last candidate it can reach. Raises :class:`ExportError` naming the drones
     that need more than PART_MAX_PIECES pieces between two candidates.
     """
-    candidates = [s.start_s + s.duration_s / 2 for s in plan.segments if s.kind == "hold" and s.duration_s > 0]
+    rests = [s.start_s + s.duration_s / 2 for s in plan.segments if s.kind == "hold" and s.duration_s > 0]
     launch = getattr(plan, "launch", None)
     if launch is not None and (launch.takeoff is not None or launch.landing is not None):
         # Takeoff / landing in waves (sim.plan._waves) add rests and pieces before the first hold: the end of
         # the takeoff and the start of the landing are instants where every drone rests too.
-        candidates += [s.end_s for s in plan.segments if s.kind == "takeoff"]
-        candidates += [s.start_s for s in plan.segments if s.kind == "landing"]
-    candidates = np.sort(np.array(candidates))
+        rests += [s.end_s for s in plan.segments if s.kind == "takeoff"]
+        rests += [s.start_s for s in plan.segments if s.kind == "landing"]
+    candidates = np.sort(np.array(rests))
     end = start + duration
 
     def pieces_in(a: float, b: float) -> np.ndarray:

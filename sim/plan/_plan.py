@@ -44,7 +44,7 @@ from sim.plan._schedule import (
     synchronised,
 )
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
-from sim.plan._waves import Waves, takeoff_waves
+from sim.plan._waves import Waves, home_waves, layer_heights, plan_waves, takeoff_waves, wave_gap
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
 #: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
@@ -488,18 +488,26 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
-    tp_any: TransitionPlan | None = None
+    # With dense homes, into the layers over the landing homes: own homes fixed, or any home chosen by
+    # CAPT among the layers over every home (each home's layer from a colouring of all homes).
+    waves_down: Waves | None = None
+    tp_layers: TransitionPlan | None = None
     if own is not None:
-        land_index = own
-    elif np.any(boxes >= 0):
-        land_index = assign(positions[-1], homes_up).goal_index
-    else:  # loose homes, any home: CAPT inside the transition planner, as before waves existed
-        tp_any = prepare(positions[-1], previous, "landing", homes_up, None, "landing")
-        land_index = tp_any.goal_index
-    waves_down = takeoff_waves(show.all_home_positions_m[land_index], lim, min_distance_m=s.min_distance_m,
-                               downwash_m=dw, base_m=s.takeoff_altitude_m, landing=True)
+        waves_down = takeoff_waves(show.all_home_positions_m[own], lim, min_distance_m=s.min_distance_m,
+                                   downwash_m=dw, base_m=s.takeoff_altitude_m, landing=True)
+    else:
+        all_wave = home_waves(show.all_home_positions_m, min_distance_m=s.min_distance_m, downwash_radius_m=dw[0])
+        if all_wave is not None:
+            count = int(all_wave.max()) + 1
+            heights = layer_heights(count, s.takeoff_altitude_m, wave_gap(s.min_distance_m, dw))
+            layered_all = np.array(show.all_home_positions_m)
+            layered_all[:, 2] += heights[all_wave]
+            tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing")
+            land_index = tp_layers.goal_index
+            waves_down = plan_waves(show.all_home_positions_m[land_index], all_wave[land_index], lim,
+                                    s.takeoff_altitude_m, wave_gap(s.min_distance_m, dw), landing=True, count=count)
     if waves_down is None:
-        tp = tp_any or prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
+        tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
         down = homes_up[tp.goal_index] - lift
         tp, _ = fold_last(tp, down)
         end, info = commit(tp, previous, "landing", homes_up)
@@ -507,10 +515,13 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         transitions.append(TransitionInfo(segment=seg, **info))
         add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     else:
-        # Into the layers over the landing homes (each drone's home fixed), then down in waves.
-        layered = homes_up.copy()
-        layered[land_index] = waves_down.schedule.a_m
-        tp = prepare(positions[-1], previous, "landing", layered, None, "landing", goal_index=land_index)
+        # Into the layers over the landing homes, then down in waves.
+        if tp_layers is not None:
+            tp, layered = tp_layers, layered_all
+        else:
+            layered = homes_up.copy()
+            layered[own] = waves_down.schedule.a_m
+            tp = prepare(positions[-1], previous, "landing", layered, None, "landing", goal_index=own)
         end, info = commit(tp, previous, "landing", layered)
         seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
         transitions.append(TransitionInfo(segment=seg, **info))

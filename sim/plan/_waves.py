@@ -135,12 +135,31 @@ def _offsets(dur_s: np.ndarray, curves_m: np.ndarray, gap_m: float) -> np.ndarra
     return out
 
 
+def layer_heights(count: int, base_m: float, gap_m: float) -> np.ndarray:
+    """(count,) hover altitude above the home of each wave, metres: wave 0 highest, the last at ``base_m``."""
+    return base_m + (count - 1 - np.arange(count)) * gap_m * LAYER_FACTOR
+
+
+def wave_gap(min_distance_m: float, downwash_m: tuple[float, float]) -> float:
+    """Vertical distance a wave keeps below the one before it, metres."""
+    return max(min_distance_m, downwash_m[1])
+
+
+def home_waves(homes_m: np.ndarray, *, min_distance_m: float, downwash_radius_m: float) -> np.ndarray | None:
+    """(H,) wave of every home (DSatur), or None when all may climb at once."""
+    pairs = conflict_pairs(homes_m, required_horizontal_m(min_distance_m, downwash_radius_m))
+    return colour_waves(len(homes_m), pairs) if len(pairs) else None
+
+
 def plan_waves(homes_m: np.ndarray, wave: np.ndarray, lim: Limits, base_m: float, gap_m: float, *,
-               landing: bool) -> Waves:
-    """The wave schedule of homes (N, 3) with waves (N,): climb (or descend) between home and layer."""
-    count = int(wave.max()) + 1
-    layer_spacing = gap_m * LAYER_FACTOR
-    heights = base_m + (count - 1 - np.arange(count)) * layer_spacing  # wave 0 highest
+               landing: bool, count: int | None = None) -> Waves:
+    """The wave schedule of homes (N, 3) with waves (N,): climb (or descend) between home and layer.
+
+    ``count``: the number of layers (default: ``wave.max() + 1``; more when ``wave`` is a subset of a
+    colouring whose layers are already placed, e.g. the homes CAPT picked for landing).
+    """
+    count = int(wave.max()) + 1 if count is None else count
+    heights = layer_heights(count, base_m, gap_m)
     dur, curves, prof = _climb_curves(heights, lim, descend=landing)
     dep = _offsets(dur, curves, gap_m)
     window = round_up(float(np.max(dep + dur)))
@@ -173,13 +192,11 @@ def takeoff_waves(homes_m: np.ndarray, lim: Limits, *, min_distance_m: float, do
         base_m: the lowest layer's altitude above the homes (the takeoff altitude), metres.
         landing: descend from the layers instead of climbing to them.
     """
-    need = required_horizontal_m(min_distance_m, downwash_m[0])
-    pairs = conflict_pairs(homes_m, need)
-    if not len(pairs):
+    wave = home_waves(homes_m, min_distance_m=min_distance_m, downwash_radius_m=downwash_m[0])
+    if wave is None:
         return None
-    wave = colour_waves(len(homes_m), pairs)
-    return plan_waves(homes_m, wave, lim, base_m, max(min_distance_m, downwash_m[1]), landing=landing)
+    return plan_waves(homes_m, wave, lim, base_m, wave_gap(min_distance_m, downwash_m), landing=landing)
 
 
-__all__ = ["LAYER_FACTOR", "Waves", "colour_waves", "conflict_pairs", "plan_waves", "required_horizontal_m",
-           "takeoff_waves"]
+__all__ = ["LAYER_FACTOR", "Waves", "colour_waves", "conflict_pairs", "home_waves", "layer_heights", "plan_waves",
+           "required_horizontal_m", "takeoff_waves", "wave_gap"]

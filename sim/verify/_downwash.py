@@ -20,10 +20,12 @@ The check itself is :func:`sim.verify._check.downwash_violations`.
 **Where.** During the ``takeoff`` and ``landing`` segments, where drones climb and sink
 through each other's wash. (Formations may stack drones vertically at the minimum
 distance by design, e.g. a filled ball, so holds and transitions are not checked.)
-The planner's takeoff and landing move every drone on one shared profile with a common
-vertical component (a vertical lift, possibly with a horizontal similarity): at every
-instant all drones are at one altitude, so dz = 0 and the condition reduces to a
-horizontal distance >= r, which the home grid gives whenever its spacing is >= r.
+On a sparse home layout the planner's takeoff and landing move every drone on one shared
+profile with a common vertical component: at every instant all drones are at one altitude,
+so dz = 0 and the condition reduces to a horizontal distance >= r, which the home grid gives
+whenever its spacing is >= r. Denser layouts (launch boxes) take off and land in waves to
+altitude layers (:mod:`sim.plan._waves`), each wave at least the ellipsoid's half-height below
+the one before; pairs with a drone parked on its home follow :mod:`sim.verify._parked`.
 """
 
 from __future__ import annotations
