@@ -490,22 +490,36 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
     # With dense homes, into the layers over the landing homes: own homes fixed, or any home chosen by
     # CAPT among the layers over every home (each home's layer from a colouring of all homes).
+    # The colours may go to the layers in any order (the lowest layer lands first whatever its colour):
+    # orders are tried until the approach is certified (drones from high up to high layers first).
     waves_down: Waves | None = None
     tp_layers: TransitionPlan | None = None
-    if own is not None:
-        waves_down = takeoff_waves(show.all_home_positions_m[own], lim, min_distance_m=s.min_distance_m,
-                                   downwash_m=dw, base_m=s.takeoff_altitude_m, landing=True)
-    else:
-        all_wave = home_waves(show.all_home_positions_m, min_distance_m=s.min_distance_m, downwash_radius_m=dw[0])
-        if all_wave is not None:
-            count = int(all_wave.max()) + 1
-            heights = layer_heights(count, s.takeoff_altitude_m, wave_gap(s.min_distance_m, dw))
-            layered_all = np.array(show.all_home_positions_m)
-            layered_all[:, 2] += heights[all_wave]
-            tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing")
-            land_index = tp_layers.goal_index
-            waves_down = plan_waves(show.all_home_positions_m[land_index], all_wave[land_index], lim,
-                                    s.takeoff_altitude_m, wave_gap(s.min_distance_m, dw), landing=True, count=count)
+    cand = show.all_home_positions_m if own is None else show.all_home_positions_m[own]
+    colour = home_waves(cand, min_distance_m=s.min_distance_m, downwash_radius_m=dw[0])
+    if colour is not None:
+        count = int(colour.max()) + 1
+        gap = wave_gap(s.min_distance_m, dw)
+        heights = layer_heights(count, s.takeoff_altitude_m, gap)
+        orders = [np.arange(count), np.arange(count)[::-1]]
+        if own is not None:  # by the altitude the drones come from: the highest-coming colour to the top layer
+            z_from = np.bincount(colour, weights=positions[-1][:, 2], minlength=count) / np.maximum(
+                np.bincount(colour, minlength=count), 1)
+            orders.insert(0, np.argsort(np.argsort(-z_from, kind="stable"), kind="stable"))
+        for order in orders:
+            layer_of = order[colour]
+            layered_all = np.array(cand)
+            layered_all[:, 2] += heights[layer_of]
+            if own is None:
+                tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing")
+            else:
+                tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing",
+                                    goal_index=np.arange(len(home)))
+            if not tp_layers.unresolved:
+                break
+        assert tp_layers is not None
+        land_index = tp_layers.goal_index if own is None else own
+        waves_down = plan_waves(show.all_home_positions_m[land_index], layer_of[tp_layers.goal_index], lim,
+                                s.takeoff_altitude_m, gap, landing=True, count=count)
     if waves_down is None:
         tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
         down = homes_up[tp.goal_index] - lift
@@ -516,13 +530,9 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     else:
         # Into the layers over the landing homes, then down in waves.
-        if tp_layers is not None:
-            tp, layered = tp_layers, layered_all
-        else:
-            layered = homes_up.copy()
-            layered[own] = waves_down.schedule.a_m
-            tp = prepare(positions[-1], previous, "landing", layered, None, "landing", goal_index=own)
-        end, info = commit(tp, previous, "landing", layered)
+        assert tp_layers is not None
+        tp = tp_layers
+        end, info = commit(tp, previous, "landing", layered_all)
         seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
         transitions.append(TransitionInfo(segment=seg, **info))
         fly((waves_down.schedule,))
@@ -532,7 +542,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
 
     launch = None
     if waves_up is not None or waves_down is not None or np.any(boxes >= 0):
-        end_index = tp.goal_index
+        end_index = tp.goal_index if waves_down is None else land_index
         launch = LaunchInfo(start_box=boxes[: len(home)].copy(), end_box=boxes[end_index].copy(),
                             box_clearance_m=min(box_spacing / 2.0, dw[0]), takeoff=waves_up, landing=waves_down)
 
