@@ -72,6 +72,11 @@ def test_boxes_lay_out_each_box_at_its_spacing_and_boxes_apart(boxed):
     ({"boxes": {"per_box": 4, "spacing_m": 0.8, "grid": {"rows": 2, "cols": 3, "spacing_m": 6.0}}},
      "home.boxes.grid"),
     ({"boxes": {"per_box": 8, "spacing_m": 0.8}}, "home.boxes"),
+    # hostile: 64 x 20,000 x 20,000 homes are refused by count before any position is computed
+    ({"boxes": {"per_box": 64, "spacing_m": 0.8, "grid": {"rows": 20000, "cols": 20000, "spacing_m": 6.0}}},
+     "home.boxes.grid"),
+    ({"boxes": {"per_box": 8, "spacing_m": 0.8, "grid": {"rows": 1, "cols": 6, "spacing_m": 900.0}}},
+     "home.boxes.grid.spacing_m"),
     ({"boxes": {"per_box": 0, "spacing_m": 0.8, "grid": {"rows": 2, "cols": 3, "spacing_m": 6.0}}},
      "home.boxes.per_box"),
     ({"boxes": {"per_box": 8, "spacing_m": 0.8, "grid": {"rows": 2, "cols": 3, "spacing_m": 6.0},
