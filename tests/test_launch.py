@@ -336,3 +336,10 @@ def test_random_box_layouts_plan_and_pass_the_exact_check(per_box, spacing, rows
     assert report.violations_total == 0, [v.message for v in report.violations[:3]]
     conflicts = len(_waves.conflict_pairs(show.home_positions_m, 3.0))
     assert (plan.launch.takeoff is not None) == (conflicts > 0)
+
+
+def test_too_many_waves_for_the_ceiling_is_a_plan_error_naming_the_field():
+    show = boxes_show(drones=16, rows=1, cols=2, downwash_height_m=20.0)  # 8 layers 22 m apart: up to 164 m
+    with pytest.raises(plan_module.PlanError) as err:
+        plan_show(show)
+    assert err.value.path == "home.boxes.per_box" and "8 takeoff waves" in str(err.value)

@@ -447,6 +447,13 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     waves_up = takeoff_waves(home, lim, min_distance_m=s.min_distance_m, downwash_m=dw,
                              base_m=s.takeoff_altitude_m)
     first = show.formations[0]
+    if waves_up is not None and float(waves_up.schedule.b_m[:, 2].max()) > s.max_altitude_m:
+        path = "home.boxes.per_box" if isinstance(show.home, HomeFromBoxes) else "home"
+        raise PlanError(
+            f"{path}: the home layout needs {waves_up.count} takeoff waves, stacked in altitude layers up to "
+            f"{float(waves_up.schedule.b_m[:, 2].max()):.1f} m, above max_altitude_m {s.max_altitude_m:g} m; "
+            "use fewer drones per box (or space them at least settings.min_distance_m apart), a lower "
+            "takeoff_altitude_m or a higher max_altitude_m", path=path)
     if waves_up is not None:
         up = waves_up.schedule.b_m
         tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
