@@ -33,6 +33,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from formations._effects import KINDS, TARGETS, Lights, lights_problem
+from formations._motion import Motion, motion_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -309,6 +310,13 @@ class Formation(_ArrayCachingModel):
         description="Show time at which the drones leave this formation (its hold ends; hold_s is then unused), "
         "seconds.",
     )
+    # Issue 21: keyframed rotation, translation and scale of the whole formation during its hold
+    # (formations._motion). The transition into it ends at the first key's pose, the one out of it
+    # starts at the last key's.
+    motion: Motion | None = Field(
+        None, description="Keyframed similarity transform of the formation over its hold (rotate, translate, "
+        "scale about a pivot); None: the formation holds still.",
+    )
 
     @field_validator("name")
     @classmethod
@@ -559,6 +567,18 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+        if f.motion is not None:
+            g = s.geofence
+            descent = s.max_descent_speed_mps if s.max_descent_speed_mps is not None else s.max_speed_z_mps
+            problem = motion_problem(
+                f.motion, pts, f.hold_s if f.leave_at_s is None else None, min_distance_m=s.min_distance_m,
+                closest_m=closest_pair(pts)[2] if len(pts) > 1 else float("inf"), floor_m=s.min_altitude_m,
+                ceiling_m=s.max_altitude_m, extent_m=extent,
+                fence=None if g is None else (g.x_min_m, g.x_max_m, g.y_min_m, g.y_max_m),
+                v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, v_down=descent, a_max=s.max_accel_mps2,
+            )
+            if problem is not None:
+                return ("formations", k, "motion", *problem[0]), problem[1]
     if show.lights is not None:
         problem = lights_problem(show.lights, n, [f.name for f in show.formations],
                                  [len(f.points) for f in show.formations])
