@@ -113,7 +113,8 @@ def pivot_of(motion: Motion, points_m: np.ndarray) -> np.ndarray:
     """(3,) the pivot: ``pivot_m`` or the centroid of ``points_m`` (M, 3)."""
     if motion.pivot_m is not None:
         return np.asarray(motion.pivot_m, dtype=np.float64)
-    return np.asarray(points_m, dtype=np.float64).mean(axis=0)
+    centroid: np.ndarray = np.asarray(points_m, dtype=np.float64).mean(axis=0)
+    return centroid
 
 
 def channels(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -339,22 +340,22 @@ def motion_problem(
             f"least {need:.3f}"
         )
     lo, lo_t, hi, hi_t = reach(motion, points_m)
-    reasons = (
+    reasons: list[tuple[bool, int, float, float, str]] = [
         (hi[2] > ceiling_m + 1e-9, 2, hi[2], hi_t[2], f"above max_altitude_m {ceiling_m:g} m"),
         (lo[2] < floor_m - 1e-9, 2, lo[2], lo_t[2], f"below min_altitude_m {floor_m:g} m"),
         (max(-lo[0], hi[0]) > extent_m, 0, lo[0] if -lo[0] > hi[0] else hi[0], lo_t[0] if -lo[0] > hi[0] else hi_t[0],
          f"outside the show area +-{extent_m:g} m (settings.max_horizontal_extent_m)"),
         (max(-lo[1], hi[1]) > extent_m, 1, lo[1] if -lo[1] > hi[1] else hi[1], lo_t[1] if -lo[1] > hi[1] else hi_t[1],
          f"outside the show area +-{extent_m:g} m (settings.max_horizontal_extent_m)"),
-    )
+    ]
     if fence is not None:
         x0, x1, y0, y1 = fence
-        reasons += (
+        reasons += [
             (lo[0] < x0 - 1e-9, 0, lo[0], lo_t[0], f"outside the geofence (x_min_m {x0:g} m)"),
             (hi[0] > x1 + 1e-9, 0, hi[0], hi_t[0], f"outside the geofence (x_max_m {x1:g} m)"),
             (lo[1] < y0 - 1e-9, 1, lo[1], lo_t[1], f"outside the geofence (y_min_m {y0:g} m)"),
             (hi[1] > y1 + 1e-9, 1, hi[1], hi_t[1], f"outside the geofence (y_max_m {y1:g} m)"),
-        )
+        ]
     for bad, axis, value, when, what in reasons:
         if bad:
             return ("keys",), (

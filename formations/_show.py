@@ -568,13 +568,13 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
         if f.motion is not None:
-            g = s.geofence
+            fence = s.geofence
             descent = s.max_descent_speed_mps if s.max_descent_speed_mps is not None else s.max_speed_z_mps
             problem = motion_problem(
                 f.motion, pts, f.hold_s if f.leave_at_s is None else None, min_distance_m=s.min_distance_m,
                 closest_m=closest_pair(pts)[2] if len(pts) > 1 else float("inf"), floor_m=s.min_altitude_m,
                 ceiling_m=s.max_altitude_m, extent_m=extent,
-                fence=None if g is None else (g.x_min_m, g.x_max_m, g.y_min_m, g.y_max_m),
+                fence=None if fence is None else (fence.x_min_m, fence.x_max_m, fence.y_min_m, fence.y_max_m),
                 v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, v_down=descent, a_max=s.max_accel_mps2,
             )
             if problem is not None:

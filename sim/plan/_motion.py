@@ -127,7 +127,8 @@ def hold_pieces(motion: Motion, formation_points_m: np.ndarray, drone_points_m: 
 def start_pose_points(motion: Motion, formation_points_m: np.ndarray) -> np.ndarray:
     """(M, 3) the formation's points at the first key's pose (where the transition into it ends)."""
     pts = np.asarray(formation_points_m, dtype=np.float64)
-    return apply(pose(motion, np.array([motion.start_s])), pivot_of(motion, pts), pts)[0][0]
+    at_start: np.ndarray = apply(pose(motion, np.array([motion.start_s])), pivot_of(motion, pts), pts)[0][0]
+    return at_start
 
 
 __all__ = ["FIT_TOLERANCE_M", "fit_error", "hermite_quintic", "hold_pieces", "sample_count", "start_pose_points"]
