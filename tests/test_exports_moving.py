@@ -114,11 +114,10 @@ def test_waypoint_missions_refuse_a_moving_hold_naming_the_field(moving, fmt):
 
 def test_a_box_light_follows_the_moving_points():
     """A box target on the right half: after the quarter turn the drones in it are others."""
+    effect = {"start_s": 0.0, "end_s": 10_000.0, "effect": {"kind": "solid", "color": "#ff0000"},
+              "target": {"kind": "box", "min_m": [5.0, -100.0, 0.0], "max_m": [100.0, 100.0, 200.0]}}
     show = _moving_show()
-    show = show.model_validate({**show.model_dump(exclude_none=True), "lights": {"effects": [{"start_s": 0.0, "end_s": 10_000.0,
-                                             "target": {"kind": "box", "min_m": [5.0, -100.0, 0.0],
-                                                        "max_m": [100.0, 100.0, 200.0]},
-                                             "effect": {"kind": "solid", "color": "#ff0000"}}]}})
+    show = show.model_validate({**show.model_dump(exclude_none=True), "lights": {"effects": [effect]}})
     plan = plan_show(show)
     seg = next(s for s in plan.segments if s.kind == "hold")
     t = np.array([seg.start_s + 0.01, seg.end_s - 0.01])
