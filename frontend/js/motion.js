@@ -155,25 +155,26 @@ export class MotionPanel {
     document.getElementById("btn-motion-clear").toggleAttribute("disabled", !motion);
     if (this._frame == null) this.info.textContent = motion ? `${motion.keys.length} keys over the hold` : "holds still";
     if (!motion) return;
-    const head = document.createElement("tr");
-    for (const h of ["t (s)", "translate x y z (m)", "rotate x y z (°)", "scale", "easing", ""]) {
-      const th = document.createElement("th");
-      th.textContent = h;
-      head.append(th);
-    }
-    this.table.append(head);
     motion.keys.forEach((key, i) => {
-      const tr = document.createElement("tr");
-      const cell = (/** @type {HTMLElement[]} */ ...els) => {
+      // One block per key: time, scale, easing and delete; then the translation; then the rotation.
+      const body = document.createElement("tbody");
+      body.className = "motion-key";
+      body.setAttribute("aria-label", `Motion key ${i + 1}`);
+      const line = (/** @type {string} */ label, /** @type {(HTMLElement|Text)[]} */ ...els) => {
+        const tr = document.createElement("tr");
+        const th = document.createElement("th");
+        th.textContent = label;
         const td = document.createElement("td");
         td.append(...els);
-        tr.append(td);
+        tr.append(th, td);
+        body.append(tr);
       };
       const input = (/** @type {number} */ value, /** @type {string} */ label, /** @type {(v: number, k: any) => void} */ set) => {
         const el = document.createElement("input");
         el.type = "number";
         el.step = "any";
         el.value = String(value);
+        el.title = label;
         el.setAttribute("aria-label", `Key ${i + 1} ${label}`);
         el.addEventListener("change", () => setTimeout(() => {
           const v = Number(el.value);
@@ -182,16 +183,6 @@ export class MotionPanel {
         }));
         return el;
       };
-      cell(input(key.t_s, "time, seconds", (v, k) => { k.t_s = v; }));
-      cell(...[0, 1, 2].map((a) => input((key.translate_m || [0, 0, 0])[a], `translate ${"xyz"[a]}, metres`, (v, k) => {
-        k.translate_m = (k.translate_m || [0, 0, 0]).slice();
-        k.translate_m[a] = v;
-      })));
-      cell(...[0, 1, 2].map((a) => input((key.rotate_deg || [0, 0, 0])[a], `rotate about ${"xyz"[a]}, degrees`, (v, k) => {
-        k.rotate_deg = (k.rotate_deg || [0, 0, 0]).slice();
-        k.rotate_deg[a] = v;
-      })));
-      cell(input(key.scale ?? 1, "scale", (v, k) => { k.scale = v; }));
       const ease = document.createElement("select");
       ease.setAttribute("aria-label", `Key ${i + 1} easing`);
       for (const name of ["smooth", "linear"]) ease.append(new Option(name, name, false, (key.easing || "smooth") === name));
@@ -199,7 +190,6 @@ export class MotionPanel {
       ease.addEventListener("change", () => this.state.edit(`Motion key ${i + 1}: ${ease.value}`, () => {
         this.state.formation.motion.keys[i].easing = ease.value;
       }));
-      cell(ease);
       const del = document.createElement("button");
       del.type = "button";
       del.textContent = "✕";
@@ -208,8 +198,19 @@ export class MotionPanel {
       del.addEventListener("click", () => this.state.edit(`Motion: delete key ${i + 1}`, () => {
         this.state.formation.motion.keys.splice(i, 1);
       }));
-      cell(del);
-      this.table.append(tr);
+      line(`key ${i + 1} at`, input(key.t_s, "time, seconds", (v, k) => { k.t_s = v; }), document.createTextNode(" s ×"),
+        input(key.scale ?? 1, "scale", (v, k) => { k.scale = v; }), ease, del);
+      line("move (m)", ...[0, 1, 2].map((a) => input((key.translate_m || [0, 0, 0])[a], `translate ${"xyz"[a]}, metres`,
+        (v, k) => {
+          k.translate_m = (k.translate_m || [0, 0, 0]).slice();
+          k.translate_m[a] = v;
+        })));
+      line("turn (°)", ...[0, 1, 2].map((a) => input((key.rotate_deg || [0, 0, 0])[a], `rotate about ${"xyz"[a]}, degrees`,
+        (v, k) => {
+          k.rotate_deg = (k.rotate_deg || [0, 0, 0]).slice();
+          k.rotate_deg[a] = v;
+        })));
+      this.table.append(body);
     });
   }
 
