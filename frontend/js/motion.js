@@ -198,8 +198,8 @@ export class MotionPanel {
       del.addEventListener("click", () => this.state.edit(`Motion: delete key ${i + 1}`, () => {
         this.state.formation.motion.keys.splice(i, 1);
       }));
-      line(`key ${i + 1} at`, input(key.t_s, "time, seconds", (v, k) => { k.t_s = v; }), document.createTextNode(" s ×"),
-        input(key.scale ?? 1, "scale", (v, k) => { k.scale = v; }), ease, del);
+      line(`key ${i + 1} at`, input(key.t_s, "time, seconds", (v, k) => { k.t_s = v; }), document.createTextNode(" s "),
+        ease, del);
       line("move (m)", ...[0, 1, 2].map((a) => input((key.translate_m || [0, 0, 0])[a], `translate ${"xyz"[a]}, metres`,
         (v, k) => {
           k.translate_m = (k.translate_m || [0, 0, 0]).slice();
@@ -210,6 +210,7 @@ export class MotionPanel {
           k.rotate_deg = (k.rotate_deg || [0, 0, 0]).slice();
           k.rotate_deg[a] = v;
         })));
+      line("scale", input(key.scale ?? 1, "scale", (v, k) => { k.scale = v; }));
       this.table.append(body);
     });
   }
