@@ -126,3 +126,22 @@ def test_a_box_light_follows_the_moving_points():
     inside = pos[..., 0] >= 5.0
     np.testing.assert_array_equal(red, inside)
     assert (red[0] != red[1]).sum() >= 10
+
+
+def test_crazyswarm_of_a_moving_show_through_crazyswarms_reader_cut_only_where_drones_rest(moving):
+    """The moving holds' pieces need more than a Crazyflie holds: the parts are cut where every drone rests."""
+    from tests.test_exports_crazyswarm import _drone_positions
+
+    show, plan = moving
+    result = export_show(show, "crazyswarm", plan=plan)
+    t = np.linspace(0.0, plan.duration_s, 2001)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        manifest = json.loads(z.read("manifest.json"))
+        cuts = [p["start_s"] for p in manifest["parts"][1:]]
+        assert cuts, "the moving show needs parts"
+        v = plan.evaluate(np.array(cuts)).velocities_mps
+        assert np.abs(v).max() < 1e-9  # every drone at rest at every cut
+        for i in (0, 17, 39):
+            got, _ = _drone_positions(z, manifest["parts"], i, t)
+            want = plan.evaluate(t, drones=np.array([i])).positions_m[:, 0]
+            assert np.abs(got - want).max() <= 1e-6
