@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from formations import ShowValidationError
@@ -16,7 +18,7 @@ from formations._motion import Motion, apply, motion_peaks, pivot_of, pose, samp
 from formations._points import closest_pair
 from formations.sources import generate_shape, text_points
 from sim.plan import FIT_TOLERANCE_M, PlanError, plan_show
-from sim.plan._motion import fit_error, hermite_quintic, sample_count
+from sim.plan._motion import MotionFitError, fit_error, hermite_quintic, hold_pieces, sample_counts
 from sim.verify import check_plan
 from tests.conftest import make_show
 
@@ -168,10 +170,75 @@ def test_fit_error_bound_shrinks_like_h6_and_sample_count_meets_the_tolerance():
     e = [fit_error(motion, c, pts, np.linspace(0.0, 10.0, n + 1), probes=32) for n in (4, 8, 16)]
     # Quintic Hermite: error ~ h^6, so halving h divides it by about 64 (at least 30 here).
     assert e[0] / e[1] > 30 and e[1] / e[2] > 30, e
-    n = sample_count(motion, pts)
+    (n,) = sample_counts(motion, pts)
     assert fit_error(motion, c, pts, np.linspace(0.0, 10.0, n + 1), probes=64) < FIT_TOLERANCE_M
     if n > 2:
         assert fit_error(motion, c, pts, np.linspace(0.0, 10.0, n // 2 + 1), probes=64) > FIT_TOLERANCE_M / 64
+
+
+def test_each_key_interval_gets_its_own_sample_count():
+    pts = _star()
+    motion = Motion.model_validate({"keys": [{"t_s": 0.0}, {"t_s": 10.0, "translate_m": [0.0, 0.0, 1.0]},
+                                             {"t_s": 20.0, "translate_m": [0.0, 0.0, 1.0], "rotate_deg": [0, 0, 180]}]})
+    quiet, turning = sample_counts(motion, pts)
+    assert quiet < turning
+
+
+def test_a_motion_beyond_the_sample_cap_or_the_piece_budget_is_refused(monkeypatch):
+    from sim.plan import _motion as motion_module
+
+    pts = _star(20)
+    motion = Motion.model_validate({"keys": [{"t_s": 0.0}, {"t_s": 10.0, "rotate_deg": [0, 0, 3600.0]}]})
+    monkeypatch.setattr(motion_module, "_MAX_SAMPLES", 4)
+    with pytest.raises(MotionFitError, match="between keys 0 and 1") as err:
+        sample_counts(motion, pts)
+    assert err.value.key == 1
+    monkeypatch.setattr(motion_module, "_MAX_SAMPLES", 1024)
+    monkeypatch.setattr(motion_module, "MAX_HOLD_PIECE_DRONES", 50)
+    with pytest.raises(MotionFitError, match="pieces x drones"):
+        hold_pieces(motion, pts, pts, 10.0)
+    # Through the planner: a PlanError naming the field (the budget is the reason here).
+    show = _unvalidated(_show(pts, None), {"keys": [{"t_s": 0.0}, {"t_s": 20.0, "rotate_deg": [0, 0, 90.0]}]})
+    with pytest.raises(PlanError) as plan_err:
+        plan_show(show)
+    assert plan_err.value.path == "formations[0].motion.keys"
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    turns=st.lists(st.tuples(st.floats(-120, 120), st.floats(-120, 120), st.floats(-400, 400)), min_size=1,
+                   max_size=3),
+    moves=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-10, 10)), min_size=3, max_size=3),
+    scales=st.lists(st.floats(0.5, 2.0), min_size=3, max_size=3),
+    easings=st.lists(st.sampled_from(["smooth", "linear"]), min_size=3, max_size=3),
+    spans=st.lists(st.floats(2.0, 30.0), min_size=3, max_size=3),
+)
+def test_fitted_pieces_stay_within_tolerance_of_any_motion(turns, moves, scales, easings, spans):
+    """Random motions: the planned pieces of every point, densely sampled at times the fit never probed,
+    stay within FIT_TOLERANCE_M of the exact transform."""
+    pts = _cloud()
+    keys, t = [{"t_s": 0.0}], 0.0
+    for i, r in enumerate(turns):
+        t += spans[i]
+        keys.append({"t_s": t, "rotate_deg": list(r), "translate_m": list(moves[i]), "scale": scales[i],
+                     "easing": easings[i]})
+    motion = Motion.model_validate({"keys": keys})
+    durations, coeffs = hold_pieces(motion, pts, pts, t)
+    breaks = np.r_[0.0, np.cumsum(durations)]
+    tt = np.sort(np.random.default_rng(len(keys)).uniform(0.0, t, 4000))
+    piece = np.clip(np.searchsorted(breaks, tt, side="right") - 1, 0, len(durations) - 1)
+    u = (tt - breaks[piece])[:, None, None]
+    c = coeffs[:, piece].transpose(1, 0, 2, 3)  # (T, n, 3, 6)
+    got = np.zeros(c.shape[:3])
+    for k in range(5, -1, -1):
+        got = got * u + c[..., k]
+    want = apply(pose(motion, tt), pivot_of(motion, pts), pts)[0]
+    assert float(np.linalg.norm(got - want, axis=-1).max()) < FIT_TOLERANCE_M
+
+
+def _cloud() -> np.ndarray:
+    rng = np.random.default_rng(7)
+    return rng.uniform(-15.0, 15.0, (80, 3)) + [0.0, 0.0, 50.0]
 
 
 @pytest.fixture(scope="module")

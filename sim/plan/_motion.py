@@ -9,9 +9,9 @@ acceleration (C2), and the hold meets the transitions at rest (the first and las
 
 Error: the quintic Hermite interpolant of a C6 function on an interval of length h errs by
 at most h⁶/46080 · max|X⁽⁶⁾| (the remainder (t-a)³(t-b)³ X⁽⁶⁾(ξ)/6!, |(t-a)³(t-b)³| <= (h/2)⁶),
-so halving the sample spacing cuts the error ~64-fold. The sample count is chosen by
-doubling until the error, measured at :data:`_PROBES` interior times per piece, is below
-:data:`FIT_TOLERANCE_M`. The fit is linear in the data and the data are affine in p, so the
+so halving the sample spacing cuts the error ~64-fold. The sample count of each key
+interval is chosen by doubling until the error, measured at :data:`_PROBES` interior times
+per piece, is below :data:`FIT_TOLERANCE_M`. The fit is linear in the data and the data are affine in p, so the
 error is affine in p and its largest norm over all drones is reached at a vertex of the
 formation's convex hull: only those are measured.
 """
@@ -28,7 +28,19 @@ FIT_TOLERANCE_M = 1e-3
 #: Interior times per piece at which the fit error is measured.
 _PROBES = 16
 #: Fewest and most samples per key interval (the most bounds the pieces a hold may cost).
-_MIN_SAMPLES, _MAX_SAMPLES = 2, 512
+_MIN_SAMPLES, _MAX_SAMPLES = 2, 1024
+#: Most pieces x drones one moving hold may add to the plan (each costs 144 bytes of coefficients:
+#: 288 MB at the limit), so no show file can make the planner run out of memory.
+MAX_HOLD_PIECE_DRONES = 2_000_000
+
+
+class MotionFitError(ValueError):
+    """A moving hold cannot be fitted within the tolerance and the piece budget; ``key`` is the key
+    interval's end key index (or -1 when the budget is the reason)."""
+
+    def __init__(self, message: str, key: int) -> None:
+        super().__init__(message)
+        self.key = key
 
 
 def hermite_quintic(p0: np.ndarray, v0: np.ndarray, a0: np.ndarray, p1: np.ndarray, v1: np.ndarray,
@@ -44,11 +56,11 @@ def hermite_quintic(p0: np.ndarray, v0: np.ndarray, a0: np.ndarray, p1: np.ndarr
     return c
 
 
-def _sample_times(motion: Motion, per_key: int) -> np.ndarray:
-    """``per_key`` even sample intervals in every key interval: (K-1)·per_key + 1 hold times."""
+def sample_times(motion: Motion, counts: np.ndarray) -> np.ndarray:
+    """``counts[i]`` even sample intervals in key interval i: Σ counts + 1 increasing hold times."""
     t_k = np.array([k.t_s for k in motion.keys])
-    u = np.arange(per_key) / per_key
-    return np.append((t_k[:-1, None] + np.diff(t_k)[:, None] * u).ravel(), t_k[-1])
+    parts = [t_k[i] + (t_k[i + 1] - t_k[i]) * np.arange(int(c)) / int(c) for i, c in enumerate(counts)]
+    return np.append(np.concatenate(parts), t_k[-1])
 
 
 def _fit(motion: Motion, pivot_m: np.ndarray, points_m: np.ndarray, times_s: np.ndarray) -> np.ndarray:
@@ -74,19 +86,29 @@ def fit_error(motion: Motion, pivot_m: np.ndarray, points_m: np.ndarray, times_s
     return float(np.linalg.norm(fitted - exact, axis=-1).max(initial=0.0))
 
 
-def sample_count(motion: Motion, points_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M) -> int:
-    """Samples per key interval that fit the motion of ``points_m`` (M, 3) within ``tolerance_m``.
+def sample_counts(motion: Motion, points_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M) -> np.ndarray:
+    """(K-1,) samples per key interval that fit the motion of ``points_m`` (M, 3) within ``tolerance_m``.
 
-    Doubles from :data:`_MIN_SAMPLES`; at :data:`_MAX_SAMPLES` it stops (a motion that needs more
-    is far beyond any drone's limits, which the show file's validation rejects first).
+    Each interval doubles from :data:`_MIN_SAMPLES` on its own (a quiet interval stays cheap).
+
+    Raises:
+        MotionFitError: an interval needs more than :data:`_MAX_SAMPLES` (far more turning between two
+            keys than drones can fly; more keys help).
     """
     pts = np.asarray(points_m, dtype=np.float64)
     pivot = pivot_of(motion, pts)
     hull = pts[extreme_points(pts)]
-    n = _MIN_SAMPLES
-    while n < _MAX_SAMPLES and fit_error(motion, pivot, hull, _sample_times(motion, n)) > tolerance_m:
-        n *= 2
-    return n
+    t_k = [k.t_s for k in motion.keys]
+    counts = np.full(len(t_k) - 1, _MIN_SAMPLES, dtype=np.int64)
+    for i in range(len(counts)):
+        while fit_error(motion, pivot, hull, np.linspace(t_k[i], t_k[i + 1], counts[i] + 1)) > tolerance_m:
+            if counts[i] >= _MAX_SAMPLES:
+                raise MotionFitError(
+                    f"the motion between keys {i} and {i + 1} cannot be fitted within {tolerance_m * 1000:g} mm "
+                    f"with {_MAX_SAMPLES} pieces: add keys in between", key=i + 1,
+                )
+            counts[i] *= 2
+    return counts
 
 
 def hold_pieces(motion: Motion, formation_points_m: np.ndarray, drone_points_m: np.ndarray, hold_s: float,
@@ -105,7 +127,12 @@ def hold_pieces(motion: Motion, formation_points_m: np.ndarray, drone_points_m: 
         when they are longer than zero).
     """
     pivot = pivot_of(motion, formation_points_m)
-    times = _sample_times(motion, sample_count(motion, formation_points_m, tolerance_m))
+    times = sample_times(motion, sample_counts(motion, formation_points_m, tolerance_m))
+    if (len(times) + 1) * len(drone_points_m) > MAX_HOLD_PIECE_DRONES:
+        raise MotionFitError(
+            f"the motion needs {len(times) - 1} pieces per drone for {len(drone_points_m)} drones, more than the "
+            f"{MAX_HOLD_PIECE_DRONES:,} pieces x drones a hold may cost: use fewer keys or less motion", key=-1,
+        )
     coeffs = _fit(motion, pivot, drone_points_m, times)
     durations = np.diff(times)
     first, _, _ = apply(pose(motion, times[:1]), pivot, drone_points_m)
@@ -131,4 +158,14 @@ def start_pose_points(motion: Motion, formation_points_m: np.ndarray) -> np.ndar
     return at_start
 
 
-__all__ = ["FIT_TOLERANCE_M", "fit_error", "hermite_quintic", "hold_pieces", "sample_count", "start_pose_points"]
+__all__ = [
+    "FIT_TOLERANCE_M",
+    "MAX_HOLD_PIECE_DRONES",
+    "MotionFitError",
+    "fit_error",
+    "hermite_quintic",
+    "hold_pieces",
+    "sample_counts",
+    "sample_times",
+    "start_pose_points",
+]

@@ -37,7 +37,7 @@ from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
 from sim.plan._cues import earliest_window, fit_transition
-from sim.plan._motion import hold_pieces, start_pose_points
+from sim.plan._motion import MotionFitError, hold_pieces, start_pose_points
 from sim.plan._schedule import (
     Limits,
     Schedule,
@@ -444,7 +444,11 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                 f"formation {f.name!r}, which lasts {hold_s:.2f} s (until leave_at_s): keys must lie within the hold",
                 path=f"formations[{k}].motion.keys[{last}].t_s",
             )
-        durations, coeffs = hold_pieces(f.motion, f.points_m, f.points_m[goal_index], hold_s)
+        try:
+            durations, coeffs = hold_pieces(f.motion, f.points_m, f.points_m[goal_index], hold_s)
+        except MotionFitError as exc:
+            where = f"formations[{k}].motion.keys" + (f"[{exc.key}]" if exc.key >= 0 else "")
+            raise PlanError(f"{where}: {exc} (formation {f.name!r})", path=where) from exc
         for p in range(len(durations)):
             builder.append(np.full(len(home), durations[p]), coeffs[:, p])
         return builder.positions_m
