@@ -220,9 +220,10 @@ def pose(motion: Motion, times_s: np.ndarray) -> Pose:
 def apply(p: Pose, pivot_m: np.ndarray, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions, velocities, accelerations of ``points_m`` (n, 3) under the pose: (T, n, 3) each."""
     rel = np.asarray(points_m, dtype=np.float64) - pivot_m
-    pos = pivot_m + np.einsum("tij,nj->tni", p.m, rel) + p.t[:, None, :]
-    vel = np.einsum("tij,nj->tni", p.dm, rel) + p.dt[:, None, :]
-    acc = np.einsum("tij,nj->tni", p.ddm, rel) + p.ddt[:, None, :]
+    # (n, 3) @ (T, 3, 3)ᵀ -> (T, n, 3): matmul (BLAS), not einsum, which loops.
+    pos = np.matmul(rel, p.m.transpose(0, 2, 1)) + (pivot_m + p.t)[:, None, :]
+    vel = np.matmul(rel, p.dm.transpose(0, 2, 1)) + p.dt[:, None, :]
+    acc = np.matmul(rel, p.ddm.transpose(0, 2, 1)) + p.ddt[:, None, :]
     return pos, vel, acc
 
 
@@ -244,11 +245,55 @@ def extreme_points(points_m: np.ndarray) -> np.ndarray:
         return np.arange(len(pts))
 
 
-def check_times(motion: Motion, per_key: int = CHECK_SAMPLES_PER_KEY) -> np.ndarray:
-    """Hold times at which the motion is checked: ``per_key`` per key interval, keys included."""
+def check_times(motion: Motion, per_key: int | None = None) -> np.ndarray:
+    """Hold times at which the motion is checked: ``per_key`` per key interval, keys included.
+
+    By default :data:`CHECK_SAMPLES_PER_KEY`, fewer (at least 16) when there are many keys, so
+    that a check never takes more than :data:`_MAX_CHECK_TIMES` times.
+    """
     t_k = np.array([k.t_s for k in motion.keys])
+    if per_key is None:
+        per_key = max(16, min(CHECK_SAMPLES_PER_KEY, _MAX_CHECK_TIMES // (len(t_k) - 1)))
     u = np.arange(per_key) / per_key
     return np.append((t_k[:-1, None] + np.diff(t_k)[:, None] * u).ravel(), t_k[-1])
+
+
+#: Most times a motion is checked at, and most (time, hull point) pairs evaluated at once.
+_MAX_CHECK_TIMES = 1024
+_CHUNK_PAIRS = 1 << 20
+
+
+_Scan = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _scan(motion: Motion, points_m: np.ndarray) -> _Scan:
+    """Per check time (T,): lowest and highest x, y, z (T, 3) each, and peak velocity terms (T, 4) =
+    [horizontal speed, |vertical speed|, descent speed, acceleration] over the hull points, and the times.
+
+    Evaluated in chunks of times, so that memory stays bounded however many hull points there are.
+    """
+    pts = np.asarray(points_m, dtype=np.float64)
+    hull = pts[extreme_points(pts)]
+    pivot = pivot_of(motion, pts)
+    t = check_times(motion)
+    lo, hi, peaks = np.empty((len(t), 3)), np.empty((len(t), 3)), np.empty((len(t), 4))
+    step = max(1, _CHUNK_PAIRS // max(len(hull), 1))
+    rel_t = np.ascontiguousarray((hull - pivot).T)  # (3, H): points last, so every reduction is contiguous
+    for a in range(0, len(t), step):
+        p = pose(motion, t[a:a + step])
+        pos = np.matmul(p.m, rel_t) + (pivot + p.t)[:, :, None]  # (Tc, 3, H)
+        lo[a:a + step], hi[a:a + step] = pos.min(axis=-1), pos.max(axis=-1)
+        vel = np.matmul(p.dm, rel_t) + p.dt[:, :, None]
+        peaks[a:a + step, 0] = np.sqrt(vel[:, 0] ** 2 + vel[:, 1] ** 2).max(axis=-1)
+        peaks[a:a + step, 1] = vel[:, 2].max(axis=-1)
+        peaks[a:a + step, 2] = -vel[:, 2].min(axis=-1)
+        acc = np.matmul(p.ddm, rel_t) + p.ddt[:, :, None]
+        peaks[a:a + step, 3] = np.sqrt((acc**2).sum(axis=1)).max(axis=-1)
+    # |vertical speed| and descent speed: the largest upward and downward vertical speeds.
+    up, down = peaks[:, 1].copy(), peaks[:, 2].copy()
+    peaks[:, 1] = np.maximum(up, down)
+    peaks[:, 2] = np.maximum(down, 0.0)
+    return lo, hi, peaks, t
 
 
 class MotionPeaks(NamedTuple):
@@ -264,19 +309,12 @@ class MotionPeaks(NamedTuple):
     accel_t_s: float
 
 
-def motion_peaks(motion: Motion, points_m: np.ndarray) -> MotionPeaks:
+def motion_peaks(motion: Motion, points_m: np.ndarray, scan: _Scan | None = None) -> MotionPeaks:
     """The motion's peak speeds and acceleration over every point of ``points_m`` (M, 3) (sampled in time)."""
-    pts = np.asarray(points_m, dtype=np.float64)
-    hull = pts[extreme_points(pts)]
-    t = check_times(motion)
-    _, vel, acc = apply(pose(motion, t), pivot_of(motion, pts), hull)
-    vxy = np.hypot(vel[..., 0], vel[..., 1]).max(axis=1)
-    vz = np.abs(vel[..., 2]).max(axis=1)
-    down = np.maximum(-vel[..., 2], 0.0).max(axis=1)
-    a = np.linalg.norm(acc, axis=-1).max(axis=1)
-    i, j, k, m = (int(np.argmax(x)) for x in (vxy, vz, down, a))
-    return MotionPeaks(float(vxy[i]), float(t[i]), float(vz[j]), float(t[j]), float(down[k]), float(t[k]),
-                       float(a[m]), float(t[m]))
+    _, _, peaks, t = scan if scan is not None else _scan(motion, points_m)
+    i, j, k, m = (int(np.argmax(peaks[:, c])) for c in range(4))
+    return MotionPeaks(float(peaks[i, 0]), float(t[i]), float(peaks[j, 1]), float(t[j]), float(peaks[k, 2]),
+                       float(t[k]), float(peaks[m, 3]), float(t[m]))
 
 
 def stretch_needed(peaks: MotionPeaks, v_xy: float, v_z: float, v_down: float, a_max: float) -> float:
@@ -296,13 +334,10 @@ def min_scale(motion: Motion) -> tuple[float, float]:
     return float(s[i]), float(t[i])
 
 
-def reach(motion: Motion, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def reach(motion: Motion, points_m: np.ndarray,
+          scan: _Scan | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Lowest and highest x, y, z any point reaches during the motion, (3,) each, and when (hold times, (3,))."""
-    pts = np.asarray(points_m, dtype=np.float64)
-    hull = pts[extreme_points(pts)]
-    t = check_times(motion)
-    pos, _, _ = apply(pose(motion, t), pivot_of(motion, pts), hull)
-    lo, hi = pos.min(axis=1), pos.max(axis=1)  # (T, 3)
+    lo, hi, _, t = scan if scan is not None else _scan(motion, points_m)
     ilo, ihi = lo.argmin(axis=0), hi.argmax(axis=0)
     ax = np.arange(3)
     return lo[ilo, ax], t[ilo], hi[ihi, ax], t[ihi]
@@ -339,7 +374,8 @@ def motion_problem(
             f"{closest_m * s_min:.3f} m apart, closer than min_distance_m {min_distance_m} m: keep the scale at "
             f"least {need:.3f}"
         )
-    lo, lo_t, hi, hi_t = reach(motion, points_m)
+    scan = _scan(motion, points_m)
+    lo, lo_t, hi, hi_t = reach(motion, points_m, scan)
     reasons: list[tuple[bool, int, float, float, str]] = [
         (hi[2] > ceiling_m + 1e-9, 2, hi[2], hi_t[2], f"above max_altitude_m {ceiling_m:g} m"),
         (lo[2] < floor_m - 1e-9, 2, lo[2], lo_t[2], f"below min_altitude_m {floor_m:g} m"),
@@ -362,7 +398,7 @@ def motion_problem(
                 f"the motion takes the formation to {'xyz'[axis]} = {value:.2f} m at {when:.2f} s into the hold, "
                 f"{what}"
             )
-    peaks = motion_peaks(motion, points_m)
+    peaks = motion_peaks(motion, points_m, scan)
     lam = stretch_needed(peaks, v_xy, v_z, v_down, a_max)
     if lam > 1.0 + 1e-9:
         span = motion.end_s - motion.start_s
