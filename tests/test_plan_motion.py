@@ -18,7 +18,14 @@ from formations._motion import Motion, apply, motion_peaks, pivot_of, pose, samp
 from formations._points import closest_pair
 from formations.sources import generate_shape, text_points
 from sim.plan import FIT_TOLERANCE_M, PlanError, plan_show
-from sim.plan._motion import MotionFitError, fit_error, hermite_quintic, hold_pieces, sample_counts
+from sim.plan._motion import (
+    MotionFitError,
+    fit_error,
+    fit_error_bound,
+    hermite_quintic,
+    hold_pieces,
+    sample_counts,
+)
 from sim.verify import check_plan
 from tests.conftest import make_show
 
@@ -174,6 +181,20 @@ def test_fit_error_bound_shrinks_like_h6_and_sample_count_meets_the_tolerance():
     assert fit_error(motion, c, pts, np.linspace(0.0, 10.0, n + 1), probes=64) < FIT_TOLERANCE_M
     if n > 2:
         assert fit_error(motion, c, pts, np.linspace(0.0, 10.0, n // 2 + 1), probes=64) > FIT_TOLERANCE_M / 64
+
+
+def test_the_error_bound_covers_every_point_brute_force():
+    """fit_error_bound (four points and a norm) is at least the error of every point of the formation."""
+    pts = _cloud()
+    motion = Motion.model_validate({"keys": [{"t_s": 0.0}, {"t_s": 6.0, "rotate_deg": [30.0, -20.0, 150.0],
+                                                            "translate_m": [3.0, 1.0, 2.0], "scale": 1.4}]})
+    c = pivot_of(motion, pts)
+    radius = float(np.linalg.norm(pts - c, axis=1).max())
+    for n in (2, 4, 8, 16):
+        times = np.linspace(0.0, 6.0, n + 1)
+        brute = fit_error(motion, c, pts, times)
+        bound = fit_error_bound(motion, c, radius, times)
+        assert brute <= bound * (1 + 1e-9) + 1e-12 and bound < 4 * brute, (n, brute, bound)
 
 
 def test_each_key_interval_gets_its_own_sample_count():

@@ -11,16 +11,17 @@ Error: the quintic Hermite interpolant of a C6 function on an interval of length
 at most h⁶/46080 · max|X⁽⁶⁾| (the remainder (t-a)³(t-b)³ X⁽⁶⁾(ξ)/6!, |(t-a)³(t-b)³| <= (h/2)⁶),
 so halving the sample spacing cuts the error ~64-fold. The sample count of each key
 interval is chosen by doubling until the error, measured at :data:`_PROBES` interior times
-per piece, is below :data:`FIT_TOLERANCE_M`. The fit is linear in the data and the data are affine in p, so the
-error is affine in p and its largest norm over all drones is reached at a vertex of the
-formation's convex hull: only those are measured.
+per piece, is below :data:`FIT_TOLERANCE_M`. The fit is linear in the data and the data are
+affine in p, so the error is affine in p, e(p) = E·(p - c) + e₀: four points give E and e₀, and
+‖E‖₂·|p - c| + |e₀| bounds it for every point within the formation's radius at once
+(:func:`fit_error_bound`), so the cost does not grow with the formation.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from formations._motion import Motion, apply, extreme_points, pivot_of, pose
+from formations._motion import Motion, apply, pivot_of, pose
 from sim.plan._trajectory import DEGREE
 
 #: Largest distance between a planned moving-hold piece and the exact transform, metres.
@@ -86,10 +87,36 @@ def fit_error(motion: Motion, pivot_m: np.ndarray, points_m: np.ndarray, times_s
     return float(np.linalg.norm(fitted - exact, axis=-1).max(initial=0.0))
 
 
+def fit_error_bound(motion: Motion, pivot_m: np.ndarray, radius_m: float, times_s: np.ndarray,
+                    probes: int = _PROBES) -> float:
+    """An upper bound (m) of :func:`fit_error` over every point within ``radius_m`` of the pivot.
+
+    The fit is linear in the data and the data are affine in p, so the error is e(p) = E·(p - c) + e₀:
+    four points (the pivot and a unit step along each axis) give E and e₀ exactly, and
+    |e(p)| <= ‖E‖₂·|p - c| + |e₀| (triangle inequality) bounds every point at once, at the cost of
+    four points whatever the formation's size.
+    """
+    probe_pts = pivot_m + np.vstack([np.zeros(3), np.eye(3)])  # (4, 3)
+    c = _fit(motion, pivot_m, probe_pts, times_s)  # (4, S, 3, 6)
+    h = np.diff(times_s)
+    u = (np.arange(1, probes + 1) / (probes + 1))[None, :] * h[:, None]  # (S, probes)
+    exact, _, _ = apply(pose(motion, (times_s[:-1, None] + u).ravel()), pivot_m, probe_pts)
+    exact = exact.reshape(len(h), probes, 4, 3)
+    fitted = np.zeros_like(exact)
+    for k in range(DEGREE, -1, -1):
+        fitted = fitted * u[:, :, None, None] + c[:, :, :, k].transpose(1, 0, 2)[:, None]
+    err = fitted - exact  # (S, probes, 4, 3)
+    e0 = err[:, :, 0]  # (S, probes, 3)
+    e_lin = (err[:, :, 1:] - e0[:, :, None, :]).transpose(0, 1, 3, 2)  # (S, probes, 3, 3): columns E·e_k
+    norm = np.linalg.norm(e_lin, ord=2, axis=(-2, -1))  # spectral norms
+    return float((norm * radius_m + np.linalg.norm(e0, axis=-1)).max(initial=0.0))
+
+
 def sample_counts(motion: Motion, points_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M) -> np.ndarray:
     """(K-1,) samples per key interval that fit the motion of ``points_m`` (M, 3) within ``tolerance_m``.
 
-    Each interval doubles from :data:`_MIN_SAMPLES` on its own (a quiet interval stays cheap).
+    Each interval doubles from :data:`_MIN_SAMPLES` on its own (a quiet interval stays cheap) until
+    :func:`fit_error_bound` over the formation's radius about the pivot is below the tolerance.
 
     Raises:
         MotionFitError: an interval needs more than :data:`_MAX_SAMPLES` (far more turning between two
@@ -97,11 +124,11 @@ def sample_counts(motion: Motion, points_m: np.ndarray, tolerance_m: float = FIT
     """
     pts = np.asarray(points_m, dtype=np.float64)
     pivot = pivot_of(motion, pts)
-    hull = pts[extreme_points(pts)]
+    radius = float(np.linalg.norm(pts - pivot, axis=1).max(initial=0.0))
     t_k = [k.t_s for k in motion.keys]
     counts = np.full(len(t_k) - 1, _MIN_SAMPLES, dtype=np.int64)
     for i in range(len(counts)):
-        while fit_error(motion, pivot, hull, np.linspace(t_k[i], t_k[i + 1], counts[i] + 1)) > tolerance_m:
+        while fit_error_bound(motion, pivot, radius, np.linspace(t_k[i], t_k[i + 1], counts[i] + 1)) > tolerance_m:
             if counts[i] >= _MAX_SAMPLES:
                 raise MotionFitError(
                     f"the motion between keys {i} and {i + 1} cannot be fitted within {tolerance_m * 1000:g} mm "
