@@ -7,6 +7,11 @@ closed-form motion; the exact check against motions made to break each limit.
 
 from __future__ import annotations
 
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -411,3 +416,31 @@ def test_exact_check_finds_violations_inside_a_moving_hold_that_returns_to_its_s
     assert found, (kind, [v.kind for v in report.violations])
     assert all(seg.start_s - 1e-6 <= v.time_s <= seg.end_s + 1e-6 for v in found)
     assert check_plan(plan_show(base)).ok
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
+def test_the_editors_motion_preview_matches_the_show_files_transform():
+    """frontend/js/motion.js (the canvas playback) against formations/_motion.py on random motions."""
+    rng = np.random.default_rng(11)
+    pts = rng.uniform(-10, 10, (6, 3)) + [0, 0, 40]
+    cases = []
+    for _ in range(20):
+        keys, t = [{"t_s": 0.0}], 0.0
+        for _ in range(int(rng.integers(1, 4))):
+            t += float(rng.uniform(1, 10))
+            keys.append({"t_s": t, "rotate_deg": rng.uniform(-200, 200, 3).round(3).tolist(),
+                         "translate_m": rng.uniform(-5, 5, 3).round(3).tolist(), "scale": float(rng.uniform(0.5, 2)),
+                         "easing": str(rng.choice(["smooth", "linear"]))})
+        motion = {"keys": keys} if rng.random() < 0.5 else {"keys": keys, "pivot_m": [1.0, -2.0, 38.0]}
+        cases.append({"motion": motion, "times": rng.uniform(-1, t + 1, 7).tolist()})
+    module = (Path(__file__).parent.parent / "frontend" / "js" / "motion.js").as_uri()
+    script = (f"import {{ movedPoints }} from {json.dumps(module)};\n"
+              f"const cases = {json.dumps(cases)}; const pts = {json.dumps(pts.tolist())};\n"
+              "console.log(JSON.stringify(cases.map((c) => c.times.map((t) => movedPoints(c.motion, pts, t)))));\n")
+    out = subprocess.run(["node", "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout)
+    for case, js in zip(cases, got, strict=True):
+        motion = Motion.model_validate(case["motion"])
+        want = apply(pose(motion, np.array(case["times"])), pivot_of(motion, pts), pts)[0]
+        np.testing.assert_allclose(np.array(js), want, atol=1e-9)
