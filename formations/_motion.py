@@ -264,6 +264,21 @@ _CHUNK_PAIRS = 1 << 20
 
 
 _Scan = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+#: Most hull points a show file's motion check evaluates (a sphere's hull is all its points): the
+#: check's cost stays bounded per formation; the exact check of the planned pieces has the last word.
+MAX_SCAN_POINTS = 4096
+
+
+def _few(hull: np.ndarray, pivot: np.ndarray) -> np.ndarray:
+    """At most :data:`MAX_SCAN_POINTS` of the hull points: the farthest from the pivot, the extremes
+    along each axis, and an even stride through the rest."""
+    if len(hull) <= MAX_SCAN_POINTS:
+        return hull
+    far = np.argsort(-np.linalg.norm(hull - pivot, axis=1))[: MAX_SCAN_POINTS // 4]
+    ends = np.r_[hull.argmin(axis=0), hull.argmax(axis=0)]
+    stride = np.linspace(0, len(hull) - 1, MAX_SCAN_POINTS - len(far) - len(ends)).astype(np.int64)
+    few: np.ndarray = hull[np.unique(np.r_[far, ends, stride])]
+    return few
 
 
 def _scan(motion: Motion, points_m: np.ndarray) -> _Scan:
@@ -273,8 +288,8 @@ def _scan(motion: Motion, points_m: np.ndarray) -> _Scan:
     Evaluated in chunks of times, so that memory stays bounded however many hull points there are.
     """
     pts = np.asarray(points_m, dtype=np.float64)
-    hull = pts[extreme_points(pts)]
     pivot = pivot_of(motion, pts)
+    hull = _few(pts[extreme_points(pts)], pivot)
     t = check_times(motion)
     lo, hi, peaks = np.empty((len(t), 3)), np.empty((len(t), 3)), np.empty((len(t), 4))
     step = max(1, _CHUNK_PAIRS // max(len(hull), 1))
