@@ -24,6 +24,7 @@ from PIL import Image
 from scipy.spatial.distance import pdist
 
 from app.cli import main as cli_main
+from formations._mesh import uv_lookup
 from formations.sources import FormationError, InputTooLargeError, MeshFitError, mesh_points
 
 CENTER = np.array([0.0, 0.0, 40.0])
@@ -480,3 +481,14 @@ def test_png_texture_bytes_are_a_real_png():
     geom = next(iter(scene.geometry.values()))
     img = geom.visual.material.baseColorTexture
     assert img.size == (64, 64) and math.isclose(np.asarray(img.convert("RGB"))[0, 0, 0], 255)
+
+
+def test_uv_lookup_edges_belong_to_the_edge_texels():
+    """u or v exactly 1 is the image's right or top edge (the last texel), not the first texel of
+    the next repeat: a mesh whose UVs span [0, 1] (the textured plane) has points on its border."""
+    image = np.array([[[1, 1, 1], [2, 2, 2]],  # top row: top-left, top-right
+                      [[3, 3, 3], [4, 4, 4]]], np.uint8)  # bottom row
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.25], [0.25, 1.0],
+                   [1.25, 0.25], [-0.25, 0.25], [0.25, 2.75]])
+    want = [3, 4, 1, 2, 4, 1, 3, 4, 1]  # the last three repeat (the glTF default)
+    assert uv_lookup(uv, image)[:, 0].tolist() == want
