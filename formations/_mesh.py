@@ -6,8 +6,11 @@ binary header declares must match the bytes it holds, so a GLB or PLY cannot pro
 file and allocate a huge one), and every coordinate must be finite. Points are picked from
 dense candidates (area-weighted random surface samples, interior voxel centres or the distinct
 vertices) by farthest-point order, which spreads them evenly (blue noise) and makes the
-achieved spacing of any prefix known exactly; so the size that fits N at the minimum spacing is
-a closed form, and the largest N that fits a given size is a count.
+achieved spacing of any prefix known exactly; surface picks are then relaxed on the faces toward
+the hexagonal packing (:func:`relax_on_surface`, about 1.3x the density of the picks alone).
+Picking works in unit-sized coordinates, so the size that fits N at the minimum spacing is a
+closed form, and the largest N that fits a given size is a count (the farthest-point prefix, or
+the count the relaxed density predicts, verified).
 """
 
 from __future__ import annotations
@@ -644,7 +647,7 @@ def relax_on_surface(
     polygonal surfaces", with a cut-off at the target spacing as in soft-sphere jamming), and
     each moved point goes back to the plane of the face of its nearest dense surface sample.
     The iterate with the largest nearest-pair distance is kept; at the end every point is put on
-    a face (the nearest of the faces of its 8 nearest samples).
+    the closest point of the faces near it.
 
     Args:
         mesh: the (unit-sized) mesh; ``cand`` (M, 3) dense surface samples on it, ``cand_face``
@@ -659,6 +662,9 @@ def relax_on_surface(
     n = len(start)
     area = float(_face_areas(tri).sum())
     h = math.sqrt(2.0 * area / (math.sqrt(3.0) * n))
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = normal / np.where(length > 0.0, length, 1.0)
     samples = cKDTree(cand)
     pts = np.array(start, dtype=np.float64)
     best, best_d = pts.copy(), _nearest_pair(pts)
@@ -675,11 +681,27 @@ def relax_on_surface(
         np.add.at(disp, i, -push)
         np.add.at(disp, j, push)
         q = pts + disp
-        pts = _on_faces(q, tri, samples, cand_face, 4)[0]
+        # Back onto the surface: the plane of the nearest face of the 4 nearest samples (on a
+        # fine mesh the true face is often not among them, and clamping to theirs would snap
+        # the point to their edges), clamped onto that face where the plane leaves the surface
+        # by more than 5 % of h (across a sharp edge, e.g. off a cube's face).
+        on, f, _ = _on_faces(q, tri, samples, cand_face, 4)
+        nf = normal[f]
+        planar = q - ((q - tri[f, 0]) * nf).sum(axis=1, keepdims=True) * nf
+        off = ((planar - on) ** 2).sum(axis=1) > (0.05 * h) ** 2
+        pts = np.where(off[:, None], on, planar)
         d = _nearest_pair(pts)
         if d > best_d:
             best, best_d = pts.copy(), d
-    pts, faces, bary = _on_faces(best, tri, samples, cand_face, 8)
+    # The last placement decides the spacing, so look wider: the faces of the 8 nearest samples
+    # (right for large faces) and the 8 faces with the nearest centroids (on a fine mesh the
+    # point's own face often holds no sample); the closest of the 16 points.
+    near_samples = _on_faces(best, tri, samples, cand_face, 8)
+    centroids = cKDTree(tri.mean(axis=1))
+    near_faces = _on_faces(best, tri, centroids, np.arange(len(tri)), 8)
+    closer = ((near_faces[0] - best) ** 2).sum(axis=1) < ((near_samples[0] - best) ** 2).sum(axis=1)
+    pts, faces, bary = (np.where(closer.reshape((-1,) + (1,) * (a.ndim - 1)), b, a)
+                        for a, b in zip(near_samples, near_faces, strict=True))
     return pts, faces, bary
 
 
