@@ -1,5 +1,6 @@
-"""The editor's "save as a copy" keeps the show's music (Playwright against a live server on
-loopback): the copy is a new show whose stored track is the same file, and the music lane shows it."""
+"""Small editor behaviours, driven with Playwright against a live server on loopback: "save as a
+copy" keeps the show's music (the copy's stored track is the same file, and the music lane shows
+it); the simulation panel's summary table (heading, rows, limits marked)."""
 
 from __future__ import annotations
 
@@ -47,3 +48,23 @@ def test_save_as_copy_copies_the_music(ui: Page):
     assert ui.state("window.swarmshow.music.info.filename") == "tone.wav"
     # the original keeps its music
     assert httpx.get(f"{ui.base}/api/shows/{old_id}/audio").content == track.read_bytes()
+
+
+def test_summary_table_builds_the_heading_and_rows(ui: Page):
+    """simulate.js's one helper for the flight and Monte-Carlo summaries: the heading's class and
+    text, one row per truthy entry (falsy ones left out), breaking values marked bad."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { summaryTable } = await import('/js/simulate.js');
+        const out = {};
+        for (const ok of [true, false]) {
+          const [head, table] = summaryTable(ok, ok ? 'fine' : 'broken', 'Some summary',
+            [['Speed', '3 m/s'], null, false, ['Gap', '1 m', true], undefined, ['Time', '2 s', false]]);
+          out[ok] = { cls: head.className, text: head.textContent, label: table.getAttribute('aria-label'),
+            rows: [...table.rows].map((r) => [...r.cells].map((c) => [c.textContent, c.className])) };
+        }
+        return out; }""")
+    rows = [[["Speed", ""], ["3 m/s", ""]], [["Gap", ""], ["1 m", "bad-value"]], [["Time", ""], ["2 s", ""]]]
+    assert got["true"] == {"cls": "report-ok", "text": "fine", "label": "Some summary", "rows": rows}
+    assert got["false"] == {"cls": "report-bad", "text": "broken", "label": "Some summary", "rows": rows}
