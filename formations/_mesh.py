@@ -629,9 +629,13 @@ def _on_triangles(q: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 #: Surface relaxation: iterations of the pairwise push (each a cKDTree of the N points; 2,000
-#: points on a 100k-face mesh take about a second for all of them) and the push per iteration,
-#: the fraction of a pair's overlap each of its two points moves.
+#: points on a 100k-face mesh take about a second for all of them), fewer for large N so that
+#: N x iterations stays within RELAX_POINT_ITERATIONS (20,000 points: 30 iterations, a few
+#: seconds, within an interactive request's budget), and the push per iteration, the fraction of a
+#: pair's overlap each of its two points moves.
 RELAX_ITERATIONS = 150
+RELAX_MIN_ITERATIONS = 30
+RELAX_POINT_ITERATIONS = 600_000
 RELAX_STEP = 0.5
 
 
@@ -668,7 +672,8 @@ def relax_on_surface(
     samples = cKDTree(cand)
     pts = np.array(start, dtype=np.float64)
     best, best_d = pts.copy(), _nearest_pair(pts)
-    for _ in range(RELAX_ITERATIONS):
+    iterations = min(RELAX_ITERATIONS, max(RELAX_MIN_ITERATIONS, RELAX_POINT_ITERATIONS // n))
+    for _ in range(iterations):
         pairs = cKDTree(pts).query_pairs(h, output_type="ndarray")
         if len(pairs) == 0:
             break
