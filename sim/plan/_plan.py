@@ -204,7 +204,9 @@ class ShowPlan:
         motion = self.motion.evaluate(t, sel)
         k = self.segment_index(t)
         t0 = self.knot_times_s[k]
-        tau = np.clip((t - t0) / (self.knot_times_s[k + 1] - t0), 0.0, 1.0)
+        span = self.knot_times_s[k + 1] - t0
+        # A zero-length window has faded completely at its instant (its end colour), not 0/0.
+        tau = np.clip(np.divide(t - t0, span, out=np.ones_like(t), where=span > 0.0), 0.0, 1.0)
         c0 = self.knot_colors_rgb[k][:, sel]
         dc = self.knot_colors_rgb[k + 1][:, sel] - c0
         return PlanSample(
