@@ -16,6 +16,8 @@ from formations._effects import lights_problem as lights_problem
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
+from formations._show import DronesByCount as DronesByCount
+from formations._show import DronesFromGroup as DronesFromGroup
 from formations._show import Formation as Formation
 from formations._show import Geofence as Geofence
 from formations._show import GeoPlacement as GeoPlacement
@@ -37,6 +39,8 @@ __all__ = [
     "MAX_DRONES",
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",
+    "DronesByCount",
+    "DronesFromGroup",
     "Formation",
     "GeoPlacement",
     "Geofence",

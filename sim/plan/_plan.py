@@ -43,6 +43,7 @@ from sim.plan._schedule import (
     sync_min_duration,
     synchronised,
 )
+from sim.plan._subset import choose_drones, park_slots
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
@@ -340,6 +341,57 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed, warm=first)
 
+    def prepare_formation(k: int, start: np.ndarray, from_name: str) -> tuple[TransitionPlan, np.ndarray, np.ndarray]:
+        """The transition into formation k from ``start``: (plan, its goal points, which drones fly it).
+
+        A subset formation (issue 21, :mod:`sim.plan._subset`) is one fixed assignment over every
+        drone: the flying ones onto their points, the others onto their own start (hold: stationary,
+        so the per-drone scheduler keeps clear of them) or a park slot behind the formation. It is
+        flown with per-drone timing only (no spreading, which would move the holding drones);
+        what cannot be made safe so is reported in ``unresolved`` like any transition.
+        """
+        f = show.formations[k]
+        where = f"formations[{k}].transition_s"
+        sel = show.formation_drones(k)
+        flying = np.ones(len(start), dtype=bool)
+        if sel is None:
+            return prepare(start, from_name, f.name, f.points_m, f.transition_s, where), f.points_m, flying
+        pts = f.points_m
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(start, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(start[drones], pts).goal_index
+        flying[:] = False
+        flying[drones] = True
+        others = np.flatnonzero(~flying)
+        if f.others == "park":
+            slots = park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
+                               ceiling_m=s.max_altitude_m)
+            waiting = slots[assign(start[others], slots).goal_index]
+        else:
+            waiting = start[others]
+        goals = np.concatenate([pts, waiting])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[drones] = point_index
+        goal_index[others] = len(pts) + np.arange(len(others))
+        label = f"{from_name!r} -> {f.name!r}"
+        duration = forced(start, goals[goal_index], f.transition_s, where, label)
+        def subset_plan(layers: bool) -> TransitionPlan:
+            return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration,
+                                   label=label, allow_layers=layers, fixed_assignment=True)
+
+        tp = subset_plan(False)
+        if tp.unresolved and duration is None:
+            # Holding drones stand in the flyers' way (e.g. in the middle of a launch grid): spreading both
+            # sets apart and back (every drone, the holding ones return to their place) is the fallback
+            # that keeps the show safe; still unresolved conflicts are reported as for any transition.
+            layered = subset_plan(True)
+            if not layered.unresolved:
+                tp = layered
+        return tp, goals, flying
+
     def commit(tp: TransitionPlan, from_name: str, to_name: str,
                goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         start = positions[-1]
@@ -423,7 +475,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # into the spread grid instead (a similarity plus a common lift: distances only grow).
     up = home + lift
     first = show.formations[0]
-    tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+    tp, goals, flying = prepare_formation(0, up, "takeoff")
     if first.arrive_at_s is None:
         tp, up = fold_first(tp, home)
     else:
@@ -439,11 +491,13 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
         if k > 0:
-            tp = prepare(positions[-1], previous, f.name, f.points_m, f.transition_s,
-                         f"formations[{k}].transition_s")
+            tp, goals, flying = prepare_formation(k, positions[-1], previous)
             tp = pin_arrival(tp, k, times[-1])
-        end, info = commit(tp, previous, f.name, f.points_m)
-        col = f.colors_rgb[tp.goal_index]
+        end, info = commit(tp, previous, f.name, goals)
+        # Drones not flying this formation are dark and have no point (goal_index -1).
+        info["goal_index"] = np.where(flying, tp.goal_index, -1)
+        col = np.zeros((len(home), 3))
+        col[flying] = f.colors_rgb[tp.goal_index[flying]]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         add("hold", f.name, hold_length(k), end, col)

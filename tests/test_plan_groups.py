@@ -1,0 +1,261 @@
+"""Drone groups and subset formations (issue 21 item 3): validation, drone choice, planning, exact check.
+
+Independent computations: brute force over every drone subset and permutation for the count choice,
+dense sampling of every pair for separation, positions read straight off the plan for holding drones.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from formations import ShowValidationError, parse_show
+from sim import check_plan, plan_show
+from sim.plan._subset import choose_drones, park_slots
+from tests.conftest import ring
+
+MIN_D = 3.0
+
+
+def _doc(formations: list[dict], *, drones: int = 9, groups: dict | None = None, lights: dict | None = None,
+         rows: int = 3, cols: int = 3) -> dict:
+    doc: dict = {
+        "format": "swarmshow/1", "name": "subset", "drones": drones,
+        "home": {"grid": {"rows": rows, "cols": cols, "spacing_m": 4.0}},
+        "settings": {"min_distance_m": MIN_D},
+        "formations": formations,
+    }
+    if groups is not None:
+        doc["groups"] = groups
+    if lights is not None:
+        doc["lights"] = lights
+    return doc
+
+
+def _pts(a: np.ndarray) -> list[list[float]]:
+    return np.round(np.asarray(a, dtype=float), 6).tolist()
+
+
+def _line(n: int, z: float = 30.0, y: float = 0.0, gap: float = 5.0) -> np.ndarray:
+    return np.column_stack([(np.arange(n) - (n - 1) / 2) * gap, np.full(n, y), np.full(n, z)])
+
+
+def _subset_show(others: str | None = "hold", *, use: dict | None = None, drones: int = 9) -> dict:
+    """All drones on a ring, then a subset on a line in front, then all on the ring again."""
+    sub: dict = {"name": "line", "hold_s": 3.0, "points": _pts(_line(4, y=-20.0)), "color": "#00ff00",
+                 "drones": use or {"group": "front"}}
+    if others is not None:
+        sub["others"] = others
+    return _doc([
+        {"name": "ring", "hold_s": 2.0, "points": _pts(ring(drones, 12.0, (0, 0, 30))), "color": "#ff0000"},
+        sub,
+        {"name": "ring2", "hold_s": 2.0, "points": _pts(ring(drones, 14.0, (0, 0, 32))), "color": "#0000ff"},
+    ], drones=drones, groups={"front": [0, 2, 4, 6], "back": [1, 3]})
+
+
+def _dense_min_distance(plan, step_s: float = 0.02) -> float:
+    """Brute force: the closest any two drones come over times sampled every ``step_s`` (all pairs)."""
+    t = np.arange(0.0, plan.duration_s, step_s)
+    best = np.inf
+    for chunk in np.array_split(t, max(1, len(t) // 500)):
+        p = plan.evaluate(chunk).positions_m
+        d = np.linalg.norm(p[:, :, None, :] - p[:, None, :, :], axis=-1)
+        n = d.shape[1]
+        d[:, np.arange(n), np.arange(n)] = np.inf
+        # Drones standing on the ground before takeoff / after touchdown sit on the home grid (>= 4 m).
+        best = min(best, float(d.min()))
+    return best
+
+
+# ------------------------------------------------------------------ validation
+
+
+@pytest.mark.parametrize("mutate, path, words", [
+    (lambda d: d["formations"][1].__setitem__("drones", {"group": "nope"}), "formations[1].drones.group",
+     "no drone group named 'nope'"),
+    (lambda d: d["formations"][1].__setitem__("drones", {"count": 10}), "formations[1].drones.count",
+     "more than drones = 9"),
+    (lambda d: d["formations"][1].__setitem__("drones", {"count": 5}), "formations[1].drones.count",
+     "more than the formation's 4 points"),
+    (lambda d: d["groups"].__setitem__("front", [0, 9]), "groups.front", "out of range for 9 drones"),
+    (lambda d: d["groups"].__setitem__("front", [0, 2, 2]), "groups.front", "listed twice"),
+    (lambda d: d["groups"].__setitem__("front", [0, 1, 2, 3, 4]), "formations[1].points",
+     "4 points for 5 drones"),
+    (lambda d: d["formations"][1].__setitem__("drones", {"count": 0}), "formations[1].drones.count",
+     "greater than or equal to 1"),
+    (lambda d: d["formations"][1].__setitem__("drones", {"every": 1}), "formations[1].drones", "group"),
+    (lambda d: d["formations"][1].__setitem__("others", "fly"), "formations[1].others", "hold"),
+])
+def test_bad_subsets_name_the_path(mutate, path, words):
+    doc = _subset_show()
+    mutate(doc)
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(doc)
+    first = info.value.errors[0]
+    assert first["path"] == path, info.value.errors
+    assert words in first["msg"]
+
+
+def test_old_shows_keep_their_hash_and_lights_groups_load():
+    """A show without the new fields dumps as before (no 'groups', no 'others'); lights.groups still loads."""
+    doc = _doc([{"name": "ring", "hold_s": 2.0, "points": _pts(ring(9, 12.0)), "color": "#ff0000"}],
+               lights={"groups": {"g": [0, 0, 1]}, "effects": [
+                   {"target": {"kind": "group", "group": "g"}, "effect": {"kind": "solid", "color": "#00ff00"},
+                    "start_s": 0.0, "end_s": 100.0}]})
+    show = parse_show(doc)
+    canon = json.loads(show.canonical_json())
+    assert "groups" not in canon and "others" not in canon["formations"][0] and "drones" not in canon["formations"][0]
+    assert show.drone_groups == {"g": [0, 0, 1]}
+
+
+def test_a_group_defined_twice_differently_is_refused():
+    doc = _subset_show()
+    doc["lights"] = {"groups": {"front": [1]}, "effects": []}
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(doc)
+    assert info.value.errors[0]["path"] == "groups.front"
+
+
+# ------------------------------------------------------------------ choosing the drones
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(2, 6), extra=st.integers(0, 2), seed=st.integers(0, 2**31 - 1), data=st.data())
+def test_count_choice_is_the_brute_force_optimum(n, extra, seed, data):
+    """Over every set of `count` drones and every injective map onto the points: no cheaper choice exists."""
+    count = data.draw(st.integers(1, n))
+    rng = np.random.default_rng(seed)
+    starts = rng.uniform(-20, 20, (n, 3))
+    points = rng.uniform(-20, 20, (count + extra, 3))
+    drones, pidx = choose_drones(starts, points, count)
+    assert len(drones) == count and len(set(pidx.tolist())) == count
+    got = float(((starts[drones] - points[pidx]) ** 2).sum())
+    best = min(
+        float(((starts[list(ds)] - points[list(ps)]) ** 2).sum())
+        for ds in itertools.combinations(range(n), count)
+        for ps in itertools.permutations(range(len(points)), count)
+    )
+    assert got == pytest.approx(best, rel=1e-9, abs=1e-9)
+
+
+def test_park_slots_lie_behind_and_apart():
+    pts = _line(6, z=20.0, y=5.0)
+    slots = park_slots(pts, 30, min_distance_m=MIN_D, floor_m=2.5, ceiling_m=40.0)
+    assert slots.shape == (30, 3)
+    assert np.all(slots[:, 1] >= pts[:, 1].max() + 2 * MIN_D - 1e-9)
+    d = np.linalg.norm(slots[:, None] - slots[None], axis=-1) + np.eye(30) * 1e9
+    assert d.min() >= MIN_D
+    assert slots[:, 2].min() > 2.5 and slots[:, 2].max() < 40.0
+
+
+# ------------------------------------------------------------------ planning and the exact check
+
+
+@pytest.mark.parametrize("others", ["hold", "park"])
+def test_subset_formation_passes_the_exact_check(others):
+    show = parse_show(_subset_show(others))
+    plan = plan_show(show)
+    report = check_plan(plan)
+    assert report.ok, report.violations[:3]
+    assert all(t.safe for t in plan.transitions)
+    # Brute force agrees: every pair of drones, sampled densely over the whole show.
+    assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
+
+    hold = [s for s in plan.segments if s.kind == "hold"][1]
+    into = plan.transitions[1]
+    flying = np.array([0, 2, 4, 6])
+    resting = np.setdiff1d(np.arange(9), flying)
+    # The group flies: every point of the formation is occupied by one of its drones for the whole hold.
+    t = np.linspace(hold.start_s, hold.end_s, 7)
+    smp = plan.evaluate(t)
+    pts = np.asarray(show.formations[1].points)
+    on = np.linalg.norm(smp.positions_m[:, flying, None, :] - pts[None, None], axis=-1).argmin(-1)
+    assert np.all(np.sort(on, axis=1) == np.arange(4))
+    np.testing.assert_allclose(smp.positions_m[:, flying], pts[on], atol=1e-9)
+    np.testing.assert_array_equal(into.goal_index[resting], -1)
+    np.testing.assert_allclose(smp.colors_rgb[:, flying], np.tile([0.0, 1.0, 0.0], (7, 4, 1)))
+    # The others are dark through the hold ...
+    assert np.all(smp.colors_rgb[:, resting] == 0.0)
+    before = plan.evaluate([into.start_s]).positions_m[0]
+    if others == "hold":
+        # ... and do not move at all from the end of the ring's hold to the end of the line's.
+        tt = np.linspace(into.start_s, hold.end_s, 200)
+        p = plan.evaluate(tt).positions_m[:, resting]
+        np.testing.assert_allclose(p, np.broadcast_to(before[resting], p.shape), atol=1e-12)
+    else:
+        # ... park in a layer behind the formation (away from the audience, +y).
+        p = smp.positions_m[:, resting]
+        assert np.all(p[:, :, 1] >= pts[:, 1].max() + 2 * MIN_D - 1e-9)
+        assert np.ptp(p[:, :, 1]) < 1e-9  # one plane
+
+
+def test_count_subset_flies_the_nearest_drones_and_is_safe():
+    show = parse_show(_subset_show(use={"count": 3}))
+    plan = plan_show(show)
+    assert check_plan(plan).ok
+    into = plan.transitions[1]
+    flying = np.flatnonzero(into.goal_index >= 0)
+    assert len(flying) == 3
+    start = plan.evaluate([into.start_s]).positions_m[0]
+    pts = np.asarray(show.formations[1].points)
+    got = float(((start[flying] - pts[into.goal_index[flying]]) ** 2).sum())
+    best = min(float(((start[list(ds)] - pts[list(ps)]) ** 2).sum())
+               for ds in itertools.combinations(range(9), 3) for ps in itertools.permutations(range(4), 3))
+    assert got == pytest.approx(best)
+
+
+def test_first_formation_may_be_a_subset():
+    doc = _subset_show()
+    doc["formations"] = doc["formations"][1:]
+    show = parse_show(doc)
+    plan = plan_show(show)
+    assert check_plan(plan).ok
+    assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
+    # Drones 1 and 3 hold in the middle of the launch grid, in the group's way: the planner spreads the sets
+    # apart and back (the fallback), and the holding drones are back above their homes for the hold.
+    hold = [s for s in plan.segments if s.kind == "hold"][0]
+    resting = np.setdiff1d(np.arange(9), [0, 2, 4, 6])
+    p = plan.evaluate([hold.start_s, hold.end_s]).positions_m[:, resting]
+    want = show.home_positions_m[resting] + [0, 0, show.settings.takeoff_altitude_m]
+    np.testing.assert_allclose(p, np.broadcast_to(want, p.shape), atol=1e-9)
+
+
+def test_stationary_drones_in_the_way_are_never_silently_accepted():
+    """Holding drones parked across the flyers' straight lines: the plan is safe or says it is not."""
+    doc = _doc([
+        {"name": "wall", "hold_s": 1.0, "points": _pts(_line(9, z=30.0, gap=3.0)), "color": "#ff0000"},
+        {"name": "far", "hold_s": 1.0, "points": _pts(_line(3, z=30.0, y=30.0, gap=3.0) + [0, 0, 0]),
+         "drones": {"group": "ends"}},
+    ], groups={"ends": [0, 4, 8]})
+    plan = plan_show(parse_show(doc))
+    report = check_plan(plan)
+    unsafe = any(not t.safe for t in plan.transitions)
+    assert report.ok or unsafe
+    if report.ok:
+        assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park"]), size=st.integers(1, 6))
+def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size):
+    """Random group and line formation: the exact check and brute-force sampling agree on safety."""
+    rng = np.random.default_rng(seed)
+    group = sorted(rng.choice(9, size, replace=False).tolist())
+    pts = _line(size, z=float(rng.uniform(20, 40)), y=float(rng.uniform(-30, 30)), gap=float(rng.uniform(3.5, 8)))
+    doc = _doc([
+        {"name": "ring", "hold_s": 1.0, "points": _pts(ring(9, 12.0, (0, 0, 30))), "color": "#ff0000"},
+        {"name": "sub", "hold_s": 1.0, "points": _pts(pts), "drones": {"group": "g"}, "others": others},
+    ], groups={"g": group})
+    plan = plan_show(parse_show(doc))
+    report = check_plan(plan)
+    dense = _dense_min_distance(plan, step_s=0.05)
+    if all(t.safe for t in plan.transitions):
+        assert report.ok, report.violations[:3]
+        assert dense >= MIN_D * (1 - 1e-6)
+    if dense < MIN_D * (1 - 1e-3):
+        assert not report.ok  # the exact check never misses what sampling sees
