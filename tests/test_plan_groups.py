@@ -259,3 +259,71 @@ def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size)
         assert dense >= MIN_D * (1 - 1e-6)
     if dense < MIN_D * (1 - 1e-3):
         assert not report.ok  # the exact check never misses what sampling sees
+
+
+# ------------------------------------------------------------------ lights and exports
+
+
+def _fx_solid(target: dict, color: str = "#ffffff") -> dict:
+    return {"target": target, "effect": {"kind": "solid", "color": color}, "start_s": 0.0, "end_s": 500.0}
+
+
+def test_light_targets_resolve_show_groups_and_older_lights_groups():
+    """A group target paints exactly the group's drones, whether the group is the show's or (older) the lights'."""
+    from sim.light import show_colors
+
+    doc = _subset_show()
+    doc["formations"] = [doc["formations"][0]]
+    doc["lights"] = {"groups": {"old": [5, 8]}, "effects": [
+        _fx_solid({"kind": "group", "group": "back"}, "#ff00ff"), _fx_solid({"kind": "group", "group": "old"},
+                                                                             "#00ffff")]}
+    show = parse_show(doc)
+    plan = plan_show(show)
+    hold = [s for s in plan.segments if s.kind == "hold"][0]
+    c = show_colors(show, plan, [hold.start_s + 1.0])[0]
+    np.testing.assert_allclose(c[[1, 3]], [[1, 0, 1]] * 2, atol=1e-6)
+    np.testing.assert_allclose(c[[5, 8]], [[0, 1, 1]] * 2, atol=1e-6)
+    np.testing.assert_allclose(c[[0, 2, 4, 6, 7]], [[1, 0, 0]] * 5, atol=1e-6)  # the ring's own red
+    # An unknown group names the field.
+    doc["lights"]["effects"][0]["target"]["group"] = "missing"
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(doc)
+    assert info.value.errors[0]["path"] == "lights.effects[0].target.group"
+
+
+def test_effects_leave_drones_out_of_a_subset_formation_dark():
+    from sim.light import show_colors
+
+    doc = _subset_show()
+    doc["lights"] = {"effects": [_fx_solid({"kind": "all"}, "#ffffff")]}
+    show = parse_show(doc)
+    plan = plan_show(show)
+    hold = [s for s in plan.segments if s.kind == "hold"][1]
+    t = np.linspace(hold.start_s, hold.end_s - 1e-6, 5)
+    c = show_colors(show, plan, t)
+    assert np.all(c[:, [1, 3, 5, 7, 8]] == 0.0)
+    assert np.all(c[:, [0, 2, 4, 6]] == 1.0)
+    # Before and after the subset formation the effect lights every drone.
+    ring_hold = [s for s in plan.segments if s.kind == "hold"][0]
+    assert np.all(show_colors(show, plan, [ring_hold.start_s + 0.5]) == 1.0)
+
+
+def test_subset_show_exports_read_back_with_the_studio_importer():
+    """Skybrush CSV of a subset show through Studio's importer: positions follow the plan, idle drones dark."""
+    from app.exports import export_show
+    from tests.skybrush_readers import studio_csv_import
+
+    show = parse_show(_subset_show("park"))
+    plan = plan_show(show)
+    imported = studio_csv_import(export_show(show, "skybrush-csv", plan=plan).content, fps=25)
+    assert len(imported) == 9
+    hold = [s for s in plan.segments if s.kind == "hold"][1]
+    for i, (_name, (times, pos, pixels)) in enumerate(imported.items()):
+        ref = plan.evaluate(times, drones=np.array([i])).positions_m[:, 0]
+        assert np.linalg.norm(pos - ref, axis=1).max() <= 0.005
+        frames = np.arange(len(pixels)) / 25
+        mid = (frames > hold.start_s + 0.1) & (frames < hold.end_s - 0.1)
+        if i in (0, 2, 4, 6):
+            np.testing.assert_allclose(pixels[mid], np.tile([0, 255, 0], (mid.sum(), 1)), atol=1)
+        else:
+            assert np.all(pixels[mid] == 0)
