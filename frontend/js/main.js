@@ -9,6 +9,7 @@ import { clearShowErrors, formationProblems, setError, showShowErrors } from "./
 import { EffectsPanel } from "./effects.js";
 import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
+import { GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
 import { MusicLane } from "./music.js";
 import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
@@ -85,6 +86,13 @@ const effects = new EffectsPanel($("effects-body"), state, {
   redraw: () => view.redraw(), toast,
   plan: () => (report.result ? report.result.plan : null),
   viewer: () => preview.viewerState(),
+});
+// Drone groups and who flies each formation (issue 21); a new group becomes the selected effect's target.
+const groups = new GroupsPanel($("groups-body"), state, {
+  toast,
+  selectedDrones: () => effects.selectedDrones(),
+  ask: (title, label, value) => askText(title, label, value),
+  created: (name) => effects.targetGroup(name),
 });
 // The 3D preview paints the editor's unsaved effects: sent after each edit, and to a new viewer page
 // (a reload or a fresh preview has a new token) within a second.
@@ -479,5 +487,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects, fxLane, report };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects, fxLane, report, groups };
 start();
