@@ -14,6 +14,19 @@ export function allGroups(show) {
 }
 
 /**
+ * How many drones fly formation `f`: its group's size, its count, or every drone.
+ * @param {any} show
+ * @param {any} f
+ * @returns {number}
+ */
+export function flyingCount(show, f) {
+  const sel = f && f.drones;
+  if (sel && "group" in sel) return (allGroups(show)[sel.group] || []).length || show.drones;
+  if (sel && "count" in sel) return Math.min(sel.count, show.drones);
+  return show.drones;
+}
+
+/**
  * Where group `name` is used: formations flying it and light effects targeting it (plain words).
  * @param {any} show
  * @param {string} name

@@ -9,7 +9,7 @@ import { clearShowErrors, formationProblems, setError, showShowErrors } from "./
 import { EffectsPanel } from "./effects.js";
 import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
-import { GroupsPanel } from "./groups.js";
+import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
 import { MusicLane } from "./music.js";
 import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
@@ -226,7 +226,7 @@ function updateStatusbar() {
     $("st-selection").textContent = "";
     return;
   }
-  const n = state.show.drones;
+  const n = flyingCount(state.show, f);
   const m = f.points.length;
   pts.textContent = `"${f.name}": ${m} points / ${n} drones${m < n ? ` (need ${n - m} more: Fit to N drones)` : m > n ? ` (${m - n} stay dark)` : ""}`;
   pts.className = m < n ? "bad" : "";
