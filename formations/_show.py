@@ -510,7 +510,8 @@ class ShowFile(_ArrayCachingModel):
         """Who flies formation k: the group's drone indices (sorted, int64), a count, or None (every drone)."""
         sel = self.formations[k].drones
         if isinstance(sel, DronesFromGroup):
-            return np.sort(np.asarray(self.drone_groups[sel.group], dtype=np.int64))
+            drones = np.sort(np.asarray(self.drone_groups[sel.group], dtype=np.int64))
+            return drones if len(drones) < self.drones else None  # validated unique: a group of all drones is all
         if isinstance(sel, DronesByCount):
             return sel.count if sel.count < self.drones else None
         return None

@@ -240,18 +240,27 @@ def test_stationary_drones_in_the_way_are_never_silently_accepted():
         assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park"]), size=st.integers(1, 6))
-def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size):
-    """Random group and line formation: the exact check and brute-force sampling agree on safety."""
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park"]), size=st.integers(1, 6),
+       by_count=st.booleans())
+def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size, by_count):
+    """Random group (or count) and line formation between two full ones: the exact check and brute-force
+    sampling agree on safety, and the flying drones are the group's (or `size` of them)."""
     rng = np.random.default_rng(seed)
     group = sorted(rng.choice(9, size, replace=False).tolist())
     pts = _line(size, z=float(rng.uniform(20, 40)), y=float(rng.uniform(-30, 30)), gap=float(rng.uniform(3.5, 8)))
+    use = {"count": size} if by_count else {"group": "g"}
     doc = _doc([
         {"name": "ring", "hold_s": 1.0, "points": _pts(ring(9, 12.0, (0, 0, 30))), "color": "#ff0000"},
-        {"name": "sub", "hold_s": 1.0, "points": _pts(pts), "drones": {"group": "g"}, "others": others},
+        {"name": "sub", "hold_s": 1.0, "points": _pts(pts), "drones": use, "others": others},
+        {"name": "ring2", "hold_s": 1.0, "points": _pts(ring(9, 13.0, (0, 5, 35))), "color": "#0000ff"},
     ], groups={"g": group})
     plan = plan_show(parse_show(doc))
+    flying = np.flatnonzero(plan.transitions[1].goal_index >= 0)
+    if by_count or size == 9:
+        assert len(flying) == size
+    else:
+        assert flying.tolist() == group
     report = check_plan(plan)
     dense = _dense_min_distance(plan, step_s=0.05)
     if all(t.safe for t in plan.transitions):
@@ -327,3 +336,18 @@ def test_subset_show_exports_read_back_with_the_studio_importer():
             np.testing.assert_allclose(pixels[mid], np.tile([0, 255, 0], (mid.sum(), 1)), atol=1)
         else:
             assert np.all(pixels[mid] == 0)
+
+
+def test_api_names_the_path_of_a_bad_subset(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from app.server import create_app
+    from app.settings import AppSettings
+
+    doc = _subset_show()
+    doc["formations"][1]["drones"] = {"group": "nope"}
+    with TestClient(create_app(AppSettings(data_dir=tmp_path, workers=1)), base_url="http://127.0.0.1") as c:
+        r = c.post("/api/shows", json=doc)
+        assert r.status_code == 422
+        assert r.json()["detail"][0]["path"] == "formations[1].drones.group"
+        assert c.post("/api/shows", json=_subset_show("park")).status_code in (200, 201)
