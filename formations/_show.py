@@ -345,9 +345,10 @@ class Formation(_ArrayCachingModel):
         "(the planner picks the n nearest, CAPT-optimal); default every drone.",
     )
     # None (left out) means "hold", so that shows written before this field keep their content hash.
-    others: Literal["hold", "park"] | None = Field(
-        None, description="What the drones not in this formation do (dark): 'hold' where they are (default), or "
-        "'park' in a vertical layer behind the formation (+y, away from the audience).",
+    others: Literal["hold", "park", "land"] | None = Field(
+        None, description="What the drones not in this formation do (dark): 'hold' where they are (default), "
+        "'park' in a vertical layer behind the formation (+y, away from the audience), or 'land' on their own "
+        "home (taking off again for the next formation).",
     )
 
     @field_validator("name")

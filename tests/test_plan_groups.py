@@ -156,7 +156,7 @@ def test_park_slots_lie_behind_and_apart():
 # ------------------------------------------------------------------ planning and the exact check
 
 
-@pytest.mark.parametrize("others", ["hold", "park"])
+@pytest.mark.parametrize("others", ["hold", "park", "land"])
 def test_subset_formation_passes_the_exact_check(others):
     show = parse_show(_subset_show(others))
     plan = plan_show(show)
@@ -187,11 +187,22 @@ def test_subset_formation_passes_the_exact_check(others):
         tt = np.linspace(into.start_s, hold.end_s, 200)
         p = plan.evaluate(tt).positions_m[:, resting]
         np.testing.assert_allclose(p, np.broadcast_to(before[resting], p.shape), atol=1e-12)
-    else:
+    elif others == "park":
         # ... park in a layer behind the formation (away from the audience, +y).
         p = smp.positions_m[:, resting]
         assert np.all(p[:, :, 1] >= pts[:, 1].max() + 2 * MIN_D - 1e-9)
         assert np.ptp(p[:, :, 1]) < 1e-9  # one plane
+    else:
+        # ... stand on their own homes through the hold, and fly the next formation again.
+        np.testing.assert_allclose(smp.positions_m[:, resting],
+                                   np.broadcast_to(show.home_positions_m[resting], (7, len(resting), 3)), atol=1e-9)
+        assert len(plan.grounded) == 1 and sorted(plan.grounded[0][2].tolist()) == resting.tolist()
+        g0, g1, _ = plan.grounded[0]
+        assert into.start_s < g0 < hold.start_s and g1 > hold.end_s
+        last = [s for s in plan.segments if s.kind == "hold"][2]
+        p = plan.evaluate([last.start_s]).positions_m[0]
+        ring2 = np.asarray(show.formations[2].points)
+        assert np.linalg.norm(p[:, None] - ring2[None], axis=-1).min(axis=1).max() < 1e-9
 
 
 def test_count_subset_flies_the_nearest_drones_and_is_safe():
@@ -241,7 +252,7 @@ def test_stationary_drones_in_the_way_are_never_silently_accepted():
 
 
 @settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park"]), size=st.integers(1, 6),
+@given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park", "land"]), size=st.integers(1, 6),
        by_count=st.booleans())
 def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size, by_count):
     """Random group (or count) and line formation between two full ones: the exact check and brute-force
@@ -351,3 +362,19 @@ def test_api_names_the_path_of_a_bad_subset(tmp_path):
         assert r.status_code == 422
         assert r.json()["detail"][0]["path"] == "formations[1].drones.group"
         assert c.post("/api/shows", json=_subset_show("park")).status_code in (200, 201)
+
+
+@pytest.mark.parametrize("keep", [slice(0, 2), slice(1, 2)])
+def test_others_land_when_the_subset_formation_is_first_or_last(keep):
+    """Landing others before the show's landing (they take off again for it) or right after takeoff."""
+    doc = _subset_show("land")
+    doc["formations"] = doc["formations"][keep]
+    show = parse_show(doc)
+    plan = plan_show(show)
+    report = check_plan(plan)
+    assert report.ok, report.violations[:3]
+    assert all(t.safe for t in plan.transitions)
+    assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
+    assert len(plan.grounded) == 1
+    # Everyone is home at the end.
+    np.testing.assert_allclose(np.sort(plan.knot_positions_m[-1][:, 2]), 0.0, atol=1e-9)

@@ -1,7 +1,7 @@
 // @ts-check
 // Drone groups and subset formations (issue 21): the show's named groups (create from the selection,
 // rename, delete) and, per formation, which drones fly it (all, a group or a count) and what the
-// others do (hold where they are, or park behind the formation).
+// others do (hold where they are, park behind the formation, or land on their homes).
 
 /**
  * Every named group: the show's `groups` over the older `lights.groups` (as the server's ShowFile.drone_groups).
@@ -130,7 +130,7 @@ export class GroupsPanel {
         <input id="grp-count" type="number" min="1" step="1" aria-label="How many drones fly this formation"></div>
       <div class="row"><label for="grp-others">Others</label>
         <select id="grp-others" aria-label="What the other drones do"><option value="hold">hold where they are</option>
-          <option value="park">park behind the formation</option></select></div>
+          <option value="park">park behind the formation</option><option value="land">land on their homes</option></select></div>
       <p class="field-error" data-error-for="groups" role="alert"></p>`;
     const q = (/** @type {string} */ sel) => /** @type {any} */ (this.root.querySelector(sel));
     this.$name = q("#grp-name");
@@ -215,7 +215,7 @@ export class GroupsPanel {
     });
   }
 
-  /** @param {string} what "hold" or "park" */
+  /** @param {string} what "hold", "park" or "land" */
   setOthers(what) {
     const s = this.state.show;
     const f = this.state.formation;
@@ -223,7 +223,7 @@ export class GroupsPanel {
     const k = this.state.current;
     this.state.edit(`Others ${what} during "${f.name}"`, () => {
       const g = { ...s.formations[k] };
-      if (what === "park") g.others = "park";
+      if (what === "park" || what === "land") g.others = what;
       else delete g.others;
       s.formations[k] = g;
     });

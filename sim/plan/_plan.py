@@ -39,6 +39,7 @@ from sim.plan._schedule import (
     plan_transition,
     required_distance,
     round_up,
+    schedule_transition,
     sync_conflicts,
     sync_min_duration,
     synchronised,
@@ -151,6 +152,10 @@ class ShowPlan:
     settings: Settings
     show_name: str = ""
     trajectories: Trajectories | None = field(default=None, repr=False)
+    #: Drones landed mid-show (issue 21, a subset formation's ``"others": "land"``): (from, to, drones) with
+    #: from the start of their descent and to the end of their climb, seconds; the altitude floor does not
+    #: apply to them then.
+    grounded: tuple[tuple[float, float, np.ndarray], ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         if self.trajectories is None:
@@ -284,9 +289,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = ()) -> None:
-        """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
-        t0 = times[-1]
+    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = (), start_s: float | None = None) -> None:
+        """Append the legs (each from where the previous ends) to the trajectories, from ``start_s``
+        (default times[-1])."""
+        t0 = times[-1] if start_s is None else start_s
         if any(overlaps_s):  # blended synchronised legs (sim.plan._blend): pieces shared by all drones
             for dur, c3 in blended_pieces(legs, overlaps_s):
                 builder.append(np.full(len(home), dur), c3)
@@ -341,21 +347,32 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed, warm=first)
 
-    def prepare_formation(k: int, start: np.ndarray, from_name: str) -> tuple[TransitionPlan, np.ndarray, np.ndarray]:
-        """The transition into formation k from ``start``: (plan, its goal points, which drones fly it).
+    def vertical_leg(start: np.ndarray, drones: np.ndarray, z_m: np.ndarray, label: str) -> Schedule:
+        """``drones`` straight up or down to altitudes ``z_m`` while every other drone stays, certified
+        against them (per-drone timing; what cannot be made safe is in ``unresolved``)."""
+        end = start.copy()
+        end[drones, 2] = z_m
+        return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
+
+    def prepare_formation(k: int, start: np.ndarray, from_name: str
+                          ) -> tuple[TransitionPlan, np.ndarray, np.ndarray, Schedule | None]:
+        """The transition into formation k from ``start``: (plan, its goal points, which drones fly it,
+        the landing descent of the others when they land, else None).
 
         A subset formation (issue 21, :mod:`sim.plan._subset`) is one fixed assignment over every
         drone: the flying ones onto their points, the others onto their own start (hold: stationary,
         so the per-drone scheduler keeps clear of them) or a park slot behind the formation. It is
         flown with per-drone timing only (no spreading, which would move the holding drones);
-        what cannot be made safe so is reported in ``unresolved`` like any transition.
+        what cannot be made safe so is reported in ``unresolved`` like any transition. Landing others
+        fly to their own home at takeoff altitude, then descend vertically (a leg after the transition,
+        certified against the drones already in the formation).
         """
         f = show.formations[k]
         where = f"formations[{k}].transition_s"
         sel = show.formation_drones(k)
         flying = np.ones(len(start), dtype=bool)
         if sel is None:
-            return prepare(start, from_name, f.name, f.points_m, f.transition_s, where), f.points_m, flying
+            return prepare(start, from_name, f.name, f.points_m, f.transition_s, where), f.points_m, flying, None
         pts = f.points_m
         if isinstance(sel, int):
             drones, point_index = choose_drones(start, pts, sel)
@@ -369,6 +386,8 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             slots = park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
                                ceiling_m=s.max_altitude_m)
             waiting = slots[assign(start[others], slots).goal_index]
+        elif f.others == "land":
+            waiting = home[others] + lift
         else:
             waiting = start[others]
         goals = np.concatenate([pts, waiting])
@@ -390,32 +409,43 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             layered = subset_plan(True)
             if not layered.unresolved:
                 tp = layered
-        return tp, goals, flying
+        descent = None
+        if f.others == "land" and len(others):
+            descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")
+        return tp, goals, flying, descent
 
-    def commit(tp: TransitionPlan, from_name: str, to_name: str,
-               goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray, pre: Schedule | None = None,
+               post: Schedule | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Fly ``pre`` (grounded drones climbing), the transition, then ``post`` (others landing) as one window."""
         start = positions[-1]
         goal_index = tp.goal_index
-        end = tp.legs[-1].b_m
+        end = (post or tp.legs[-1]).b_m
         t0 = times[-1]
-        fly(tp.legs, tp.overlaps_s)
+        pre_s = pre.window_s if pre is not None else 0.0
+        if pre is not None:
+            fly((pre,))
+        fly(tp.legs, tp.overlaps_s, start_s=t0 + pre_s)
+        if post is not None:
+            fly((post,), start_s=t0 + pre_s + tp.window_s)
+        extra = tuple(replace(u, time_s=t0 + u.time_s) for u in (pre.unresolved if pre is not None else ())) + tuple(
+            replace(u, time_s=t0 + pre_s + tp.window_s + u.time_s) for u in (post.unresolved if post else ()))
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=tp.window_s,
+            duration_s=pre_s + tp.window_s + (post.window_s if post is not None else 0.0),
             min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
-            depart_s=t0 + tp.depart_s,
-            arrive_s=t0 + tp.arrive_s,
+            depart_s=t0 + pre_s + tp.depart_s,
+            arrive_s=t0 + pre_s + tp.arrive_s,
             stagger_s=tp.stagger_s,
             resolution=tp.resolution,
             unresolved=tuple(
-                replace(u, time_s=t0 + u.time_s) for u in tp.unresolved
-            ),
+                replace(u, time_s=t0 + pre_s + u.time_s) for u in tp.unresolved
+            ) + extra,
         )
         return end, info
 
@@ -437,16 +467,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             return tp, tp.legs[-1].b_m
         return replace(tp, legs=tp.legs[:-1], overlaps_s=tp.overlaps_s[:-1]), source
 
-    def pin_arrival(tp: TransitionPlan, k: int, t0: float) -> TransitionPlan:
-        """Fit the transition into formation k (starting at ``t0``) to end at its ``arrive_at_s`` (issue 18)."""
+    def pin_arrival(tp: TransitionPlan, k: int, t0: float, tail_s: float = 0.0) -> TransitionPlan:
+        """Fit the transition into formation k (starting at ``t0``, followed by ``tail_s`` of others landing)
+        to end at its ``arrive_at_s`` (issue 18)."""
         f = show.formations[k]
         if f.arrive_at_s is None:
             return tp
         label = f"into {f.name!r}"
-        fitted = fit_transition(tp, f.arrive_at_s - t0, lim, min_distance_m=s.min_distance_m, label=label)
+        fitted = fit_transition(tp, f.arrive_at_s - t0 - tail_s, lim, min_distance_m=s.min_distance_m, label=label)
         if fitted is not None:
             return fitted
-        earliest = t0 + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
+        earliest = t0 + tail_s + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
         raise PlanError(
             f"formations[{k}].arrive_at_s = {f.arrive_at_s:g} s is too early for formation {f.name!r}: the "
             f"transition into it starts at {t0:.2f} s and needs {earliest - t0:.1f} s, so the earliest feasible "
@@ -475,25 +506,44 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # into the spread grid instead (a similarity plus a common lift: distances only grow).
     up = home + lift
     first = show.formations[0]
-    tp, goals, flying = prepare_formation(0, up, "takeoff")
+    tp, goals, flying, post = prepare_formation(0, up, "takeoff")
     if first.arrive_at_s is None:
         tp, up = fold_first(tp, home)
     else:
         # A pinned first formation: the takeoff's length must be known before the transition is fitted
         # (folding would change it), so the takeoff climbs to the lifted grid.
-        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
+        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)), post.window_s if post else 0.0)
     add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
+
+    # Subset formations whose others land (issue 21): (descent start, drones) while they are down, and
+    # every (descent start, climb end, drones) interval, which the altitude floor does not apply to.
+    down: tuple[float, np.ndarray] | None = None
+    grounded: list[tuple[float, float, np.ndarray]] = []
+
+    def climb(start: np.ndarray, label: str) -> Schedule | None:
+        """The landed others straight up to takeoff altitude above their homes (None: nobody is down)."""
+        if down is None:
+            return None
+        return vertical_leg(start, down[1], home[down[1], 2] + s.takeoff_altitude_m, label)
 
     previous = "takeoff"
     homes_up = np.array(show.all_home_positions_m) + lift
     own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
+        pre = None
         if k > 0:
-            tp, goals, flying = prepare_formation(k, positions[-1], previous)
-            tp = pin_arrival(tp, k, times[-1])
-        end, info = commit(tp, previous, f.name, goals)
+            pre = climb(positions[-1], f"taking off again into {f.name!r}")
+            tp, goals, flying, post = prepare_formation(k, positions[-1] if pre is None else pre.b_m, previous)
+            tp = pin_arrival(tp, k, times[-1] + (pre.window_s if pre else 0.0), post.window_s if post else 0.0)
+        t_start = times[-1]
+        end, info = commit(tp, previous, f.name, goals, pre, post)
+        if pre is not None and down is not None:  # the landed others are airborne again at the end of `pre`
+            grounded.append((down[0], t_start + pre.window_s, down[1]))
+            down = None
+        if post is not None:  # the others touch down from the start of `post` on
+            down = (t_start + info["duration_s"] - post.window_s, np.flatnonzero(~flying))
         # Drones not flying this formation are dark and have no point (goal_index -1).
         info["goal_index"] = np.where(flying, tp.goal_index, -1)
         col = np.zeros((len(home), 3))
@@ -509,13 +559,18 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
-    tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
-    down = homes_up[tp.goal_index] - lift
-    tp, _ = fold_last(tp, down)
-    end, info = commit(tp, previous, "landing", homes_up)
+    pre = climb(positions[-1], "taking off again for the landing")
+    tp = prepare(positions[-1] if pre is None else pre.b_m, previous, "landing", homes_up, None, "landing",
+                 goal_index=own)
+    touch = homes_up[tp.goal_index] - lift
+    tp, _ = fold_last(tp, touch)
+    t_start = times[-1]
+    end, info = commit(tp, previous, "landing", homes_up, pre)
+    if pre is not None and down is not None:
+        grounded.append((down[0], t_start + pre.window_s, down[1]))
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
-    add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
+    add("landing", "landing", vertical(end, touch), touch, np.zeros_like(end))
     if progress:
         progress(1.0)
 
@@ -528,6 +583,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         settings=s,
         show_name=show.name,
         trajectories=builder.build(end_s=times[-1]),
+        grounded=tuple(grounded),
     )
 
 
