@@ -15,6 +15,11 @@ per-drone delays, or spreading the formations apart), along straight legs flown 
 law of ``settings.time_law`` (the jerk-limited minimum-time S-curve, or the paper's quintic
 s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, which reproduces the shared-segment plans exactly). Holds are
 windows in which every drone rests on its formation point. Colours fade linearly in time.
+
+A subset formation (issue 21: a group or a count of drones, :mod:`sim.plan._subset`) is flown by
+its drones while the others hold, park behind it or land on their homes, dark; its transition is
+one fixed assignment over every drone, the holding ones stationary obstacles of the per-drone
+scheduler, and the drones that landed climb back at the start of the next transition.
 """
 
 from __future__ import annotations
@@ -396,6 +401,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         goal_index[others] = len(pts) + np.arange(len(others))
         label = f"{from_name!r} -> {f.name!r}"
         duration = forced(start, goals[goal_index], f.transition_s, where, label)
+
         def subset_plan(layers: bool) -> TransitionPlan:
             return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
                                    ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration,
