@@ -611,6 +611,10 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
     for k, f in enumerate(show.formations):
         pts = f.points_m
         fly = n
+        if f.others is not None and f.drones is None:
+            return ("formations", k, "others"), (
+                "'others' applies to a formation flown by some of the drones: give 'drones' "
+                '({"group": name} or {"count": n}) or leave \'others\' out')
         if isinstance(f.drones, DronesFromGroup):
             if f.drones.group not in groups:
                 return ("formations", k, "drones", "group"), (

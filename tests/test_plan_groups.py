@@ -90,6 +90,7 @@ def _dense_min_distance(plan, step_s: float = 0.02) -> float:
      "greater than or equal to 1"),
     (lambda d: d["formations"][1].__setitem__("drones", {"every": 1}), "formations[1].drones", "group"),
     (lambda d: d["formations"][1].__setitem__("others", "fly"), "formations[1].others", "hold"),
+    (lambda d: d["formations"][0].__setitem__("others", "park"), "formations[0].others", "some of the drones"),
 ])
 def test_bad_subsets_name_the_path(mutate, path, words):
     doc = _subset_show()
