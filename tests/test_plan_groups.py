@@ -379,3 +379,38 @@ def test_others_land_when_the_subset_formation_is_first_or_last(keep):
     assert len(plan.grounded) == 1
     # Everyone is home at the end.
     np.testing.assert_allclose(np.sort(plan.knot_positions_m[-1][:, 2]), 0.0, atol=1e-9)
+
+
+def test_downwash_is_checked_while_others_are_landed_mid_show():
+    """A flyer hovering 4 m up, 4.2 m beside the homes of landed drones (downwash ellipsoid 5 m wide): the
+    exact check names the pair during the mid-show landing; with the others holding aloft there is none."""
+    def doc(others: str) -> dict:
+        d = _doc([
+            {"name": "ring", "hold_s": 1.0, "points": _pts(ring(9, 14.0, (0, 0, 30))), "color": "#ff0000"},
+            {"name": "low", "hold_s": 2.0, "points": [[3.0, 3.0, 4.0], [-20.0, 30.0, 20.0], [0.0, 30.0, 20.0],
+                                                     [20.0, 30.0, 20.0]],
+             "drones": {"group": "g"}, "others": others},
+        ], groups={"g": [0, 1, 2, 3]})
+        d["home"]["grid"]["spacing_m"] = 6.0
+        d["settings"]["downwash_radius_m"] = 5.0
+        return d
+
+    from sim.verify import downwash_violations
+
+    landed = plan_show(parse_show(doc("land")))
+    found, total = downwash_violations(landed)
+    assert total >= 1
+    hold = [s for s in landed.segments if s.kind == "hold"][1]
+    flyer = int(np.flatnonzero(landed.transitions[1].goal_index == 0)[0])
+    during = [v for v in found if "mid-show landing" in v.message]
+    assert during and all(flyer in v.drones for v in during)
+    g0, g1, _ = landed.grounded[0]
+    assert all(g0 <= v.time_s <= g1 for v in during)
+    # Brute force at the middle of the hold: the flyer is inside a landed drone's ellipsoid.
+    p = landed.evaluate([hold.start_s + 1.0]).positions_m[0]
+    landed_ids = np.flatnonzero(landed.transitions[1].goal_index < 0)
+    dxy = np.hypot(*(p[landed_ids, :2] - p[flyer, :2]).T)
+    dz = p[flyer, 2] - p[landed_ids, 2]
+    assert np.min(dxy**2 / 25.0 + dz**2 / 12.5**2) < 1.0
+    assert not check_plan(landed).ok
+    assert downwash_violations(plan_show(parse_show(doc("hold"))))[1] == 0
