@@ -632,9 +632,9 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                     f"count {f.drones.count} is more than the formation's {len(pts)} points")
             fly = f.drones.count
         if len(pts) < fly:
-            what = f"group {f.drones.group!r}" if isinstance(f.drones, DronesFromGroup) else f"{n} drones"
+            what = f" (group {f.drones.group!r})" if isinstance(f.drones, DronesFromGroup) else ""
             return ("formations", k, "points"), (
-                f"{len(pts)} points for {fly} drones ({what}); a formation needs at least as many points as drones"
+                f"{len(pts)} points for {fly} drones{what}; a formation needs at least as many points as drones"
             )
         outside = _outside_area(pts, extent)
         if outside is not None:
