@@ -254,8 +254,8 @@ def test_stationary_drones_in_the_way_are_never_silently_accepted():
 
 @settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31 - 1), others=st.sampled_from(["hold", "park", "land"]), size=st.integers(1, 6),
-       by_count=st.booleans())
-def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size, by_count):
+       by_count=st.booleans(), swap=st.booleans())
+def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size, by_count, swap):
     """Random group (or count) and line formation between two full ones: the exact check and brute-force
     sampling agree on safety, and the flying drones are the group's (or `size` of them)."""
     rng = np.random.default_rng(seed)
@@ -267,6 +267,12 @@ def test_random_small_subset_shows_check_like_dense_sampling(seed, others, size,
         {"name": "sub", "hold_s": 1.0, "points": _pts(pts), "drones": use, "others": others},
         {"name": "ring2", "hold_s": 1.0, "points": _pts(ring(9, 13.0, (0, 5, 35))), "color": "#0000ff"},
     ], groups={"g": group})
+    rest = sorted(set(range(9)) - set(group))
+    if swap and rest:
+        # Then the complement flies a line of its own while the first group lands (a swap through the ground).
+        doc["groups"]["h"] = rest
+        doc["formations"].insert(2, {"name": "sub2", "hold_s": 1.0, "drones": {"group": "h"}, "others": "land",
+                                     "points": _pts(_line(len(rest), z=32.0, y=float(rng.uniform(-30, 30))))})
     plan = plan_show(parse_show(doc))
     flying = np.flatnonzero(plan.transitions[1].goal_index >= 0)
     if by_count or size == 9:
@@ -414,3 +420,20 @@ def test_downwash_is_checked_while_others_are_landed_mid_show():
     assert np.min(dxy**2 / 25.0 + dz**2 / 12.5**2) < 1.0
     assert not check_plan(landed).ok
     assert downwash_violations(plan_show(parse_show(doc("hold"))))[1] == 0
+
+
+def test_landed_drones_take_off_to_fly_the_next_subset_while_the_first_group_lands():
+    doc = _doc([
+        {"name": "ring", "hold_s": 1.0, "points": _pts(ring(9, 12.0, (0, 0, 30))), "color": "#ff0000"},
+        {"name": "a", "hold_s": 1.0, "points": _pts(_line(4, y=-20.0)), "drones": {"group": "a"}, "others": "land"},
+        {"name": "b", "hold_s": 1.0, "points": _pts(_line(5, y=-25.0, z=35.0)), "drones": {"group": "b"},
+         "others": "land"},
+    ], groups={"a": [0, 2, 4, 6], "b": [1, 3, 5, 7, 8]})
+    plan = plan_show(parse_show(doc))
+    assert check_plan(plan).ok
+    assert _dense_min_distance(plan) >= MIN_D * (1 - 1e-6)
+    assert [sorted(g[2].tolist()) for g in plan.grounded] == [[1, 3, 5, 7, 8], [0, 2, 4, 6]]
+    hold_b = [s for s in plan.segments if s.kind == "hold"][2]
+    p = plan.evaluate([hold_b.start_s + 0.5]).positions_m[0]
+    np.testing.assert_allclose(p[[0, 2, 4, 6], 2], 0.0, atol=1e-9)
+    np.testing.assert_allclose(p[[1, 3, 5, 7, 8], 2], 35.0, atol=1e-9)

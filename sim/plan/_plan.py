@@ -53,6 +53,8 @@ from sim.plan._subset import choose_drones, park_slots
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
+#: One part of a transition window flown after another: a planned transition or a single leg.
+Stage = TransitionPlan | Schedule
 #: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
 MIN_HOLD_S = 0.01
 ProgressFn = Callable[[float], None]
@@ -420,26 +422,31 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")
         return tp, goals, flying, descent
 
-    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray, pre: Schedule | None = None,
-               post: Schedule | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        """Fly ``pre`` (grounded drones climbing), the transition, then ``post`` (others landing) as one window."""
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray, pre: tuple[Stage, ...] = (),
+               post: tuple[Stage, ...] = ()) -> tuple[np.ndarray, dict[str, Any]]:
+        """Fly the stages ``pre`` (e.g. landed drones climbing), the transition, then ``post`` (others landing),
+        one after the other, as one window."""
         start = positions[-1]
         goal_index = tp.goal_index
-        end = (post or tp.legs[-1]).b_m
+        last = post[-1] if post else tp
+        end = last.legs[-1].b_m if isinstance(last, TransitionPlan) else last.b_m
         t0 = times[-1]
-        pre_s = pre.window_s if pre is not None else 0.0
-        if pre is not None:
-            fly((pre,))
-        fly(tp.legs, tp.overlaps_s, start_s=t0 + pre_s)
-        if post is not None:
-            fly((post,), start_s=t0 + pre_s + tp.window_s)
-        extra = tuple(replace(u, time_s=t0 + u.time_s) for u in (pre.unresolved if pre is not None else ())) + tuple(
-            replace(u, time_s=t0 + pre_s + tp.window_s + u.time_s) for u in (post.unresolved if post else ()))
+        at = t0
+        extra: list[UnresolvedConflict] = []
+        pre_s = 0.0
+        for stage in (*pre, tp, *post):
+            legs, overlaps = (stage.legs, stage.overlaps_s) if isinstance(stage, TransitionPlan) else ((stage,), ())
+            fly(legs, overlaps, start_s=at)
+            if stage is not tp:
+                extra += [replace(u, time_s=at + u.time_s) for u in stage.unresolved]
+            else:
+                pre_s = at - t0
+            at += stage.window_s
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=pre_s + tp.window_s + (post.window_s if post is not None else 0.0),
+            duration_s=at - t0,
             min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
@@ -451,7 +458,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             resolution=tp.resolution,
             unresolved=tuple(
                 replace(u, time_s=t0 + pre_s + u.time_s) for u in tp.unresolved
-            ) + extra,
+            ) + tuple(extra),
         )
         return end, info
 
@@ -523,33 +530,110 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     if progress:
         progress(1 / n_steps)
 
-    # Subset formations whose others land (issue 21): (descent start, drones) while they are down, and
-    # every (descent start, climb end, drones) interval, which the altitude floor does not apply to.
-    down: tuple[float, np.ndarray] | None = None
+    # Subset formations whose others land (issue 21): when each drone touched down (its descent's start;
+    # NaN: airborne), and every (descent start, climb end, drones) interval, which the altitude floor
+    # does not apply to.
+    down_since = np.full(len(home), np.nan)
     grounded: list[tuple[float, float, np.ndarray]] = []
 
-    def climb(start: np.ndarray, label: str) -> Schedule | None:
-        """The landed others straight up to takeoff altitude above their homes (None: nobody is down)."""
-        if down is None:
+    def climb(start: np.ndarray, drones: np.ndarray, label: str) -> Schedule | None:
+        """Landed ``drones`` straight up to takeoff altitude above their homes (None: none of them)."""
+        if not len(drones):
             return None
-        return vertical_leg(start, down[1], home[down[1], 2] + s.takeoff_altitude_m, label)
+        return vertical_leg(start, drones, home[drones, 2] + s.takeoff_altitude_m, label)
+
+    def airborne_again(drones: np.ndarray, t_s: float) -> None:
+        """``drones`` finished climbing at ``t_s``: close their grounded intervals."""
+        for since in np.unique(down_since[drones]):
+            grounded.append((float(since), t_s, drones[down_since[drones] == since]))
+        down_since[drones] = np.nan
+
+    def prepare_swap(k: int, start: np.ndarray, from_name: str) -> tuple[
+            TransitionPlan, np.ndarray, np.ndarray, tuple[Stage, ...], np.ndarray, np.ndarray, float, float]:
+        """Into subset formation k whose others land while some of its drones are on the ground: first the
+        airborne drones fly (to their points, or to their homes and down), then the landed ones of the
+        formation climb and fly to their points; landed drones that do not fly stay down. Sequential, so
+        the drones leaving never cross the ones arriving from the ground. Returns (the arriving transition,
+        its goals, who flies, the stages before it, who lands, who climbs, when the landing starts and when
+        the climb ends, seconds into the window)."""
+        f = show.formations[k]
+        sel = show.formation_drones(k)
+        assert sel is not None
+        pts = f.points_m
+        down_now = ~np.isnan(down_since)
+        lifted = start.copy()
+        lifted[down_now] = home[down_now] + lift  # where the landed drones would start from
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(lifted, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(lifted[drones], pts).goal_index
+        flying = np.zeros(len(start), dtype=bool)
+        flying[drones] = True
+        point_of = np.full(len(start), -1, dtype=np.int64)
+        point_of[drones] = point_index
+        landers = np.flatnonzero(~flying & ~down_now)
+        climbers = np.flatnonzero(flying & down_now)
+        label = f"{from_name!r} -> {f.name!r}"
+
+        def stay_but(moving: np.ndarray, at: np.ndarray, targets: np.ndarray) -> TransitionPlan:
+            goals = at.copy()
+            goals[moving] = targets
+            return plan_transition(at, goals, np.arange(len(at)), lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
+                                   allow_layers=False, fixed_assignment=True)
+
+        leaving = np.flatnonzero(~down_now)  # airborne: fly to their points, or home to land
+        targets = np.where(flying[leaving, None], pts[np.maximum(point_of[leaving], 0)], home[leaving] + lift)
+        first = stay_but(leaving, start, targets)
+        stages: list[Stage] = [first]
+        at = first.legs[-1].b_m
+        t_down = t_up = first.window_s
+        if len(landers):
+            descent = vertical_leg(at, landers, home[landers, 2], f"landing the others of {f.name!r}")
+            stages.append(descent)
+            at = descent.b_m
+            t_up += descent.window_s
+        up = climb(at, climbers, f"taking off again into {f.name!r}")
+        if up is not None:
+            stages.append(up)
+            at = up.b_m
+            t_up += up.window_s
+        arrive = stay_but(climbers, at, pts[point_of[climbers]])
+        goals = np.concatenate([pts, at[~flying]])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[flying] = point_of[flying]
+        goal_index[~flying] = len(pts) + np.arange(int((~flying).sum()))
+        return (replace(arrive, goal_index=goal_index), goals, flying, tuple(stages), landers, climbers, t_down,
+                t_up)
 
     previous = "takeoff"
     homes_up = np.array(show.all_home_positions_m) + lift
     own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
-        pre = None
-        if k > 0:
-            pre = climb(positions[-1], f"taking off again into {f.name!r}")
-            tp, goals, flying, post = prepare_formation(k, positions[-1] if pre is None else pre.b_m, previous)
-            tp = pin_arrival(tp, k, times[-1] + (pre.window_s if pre else 0.0), post.window_s if post else 0.0)
+        pre: tuple[Stage, ...] = ()
+        posts: tuple[Stage, ...] = () if post is None else (post,)
         t_start = times[-1]
-        end, info = commit(tp, previous, f.name, goals, pre, post)
-        if pre is not None and down is not None:  # the landed others are airborne again at the end of `pre`
-            grounded.append((down[0], t_start + pre.window_s, down[1]))
-            down = None
-        if post is not None:  # the others touch down from the start of `post` on
-            down = (t_start + info["duration_s"] - post.window_s, np.flatnonzero(~flying))
+        down_now = np.flatnonzero(~np.isnan(down_since))
+        if k > 0 and len(down_now) and f.others == "land" and show.formation_drones(k) is not None:
+            tp, goals, flying, pre, landers, climbers, t_down, t_up = prepare_swap(k, positions[-1], previous)
+            tp = pin_arrival(tp, k, t_start + sum(x.window_s for x in pre))
+            end, info = commit(tp, previous, f.name, goals, pre)
+            if len(climbers):
+                airborne_again(climbers, t_start + t_up)
+            down_since[landers] = t_start + t_down
+        else:
+            if k > 0:
+                up = climb(positions[-1], down_now, f"taking off again into {f.name!r}")
+                pre = () if up is None else (up,)
+                tp, goals, flying, post = prepare_formation(k, positions[-1] if up is None else up.b_m, previous)
+                posts = () if post is None else (post,)
+                tp = pin_arrival(tp, k, t_start + (up.window_s if up else 0.0), post.window_s if post else 0.0)
+            end, info = commit(tp, previous, f.name, goals, pre, posts)
+            if pre:  # the landed drones are airborne again at the end of the climb
+                airborne_again(down_now, t_start + pre[0].window_s)
+            if posts:  # the others touch down from the start of the descent on
+                down_since[~flying] = t_start + info["duration_s"] - posts[0].window_s
         # Drones not flying this formation are dark and have no point (goal_index -1).
         info["goal_index"] = np.where(flying, tp.goal_index, -1)
         col = np.zeros((len(home), 3))
@@ -565,15 +649,16 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
-    pre = climb(positions[-1], "taking off again for the landing")
-    tp = prepare(positions[-1] if pre is None else pre.b_m, previous, "landing", homes_up, None, "landing",
+    down_now = np.flatnonzero(~np.isnan(down_since))
+    up = climb(positions[-1], down_now, "taking off again for the landing")
+    tp = prepare(positions[-1] if up is None else up.b_m, previous, "landing", homes_up, None, "landing",
                  goal_index=own)
     touch = homes_up[tp.goal_index] - lift
     tp, _ = fold_last(tp, touch)
     t_start = times[-1]
-    end, info = commit(tp, previous, "landing", homes_up, pre)
-    if pre is not None and down is not None:
-        grounded.append((down[0], t_start + pre.window_s, down[1]))
+    end, info = commit(tp, previous, "landing", homes_up, () if up is None else (up,))
+    if up is not None:
+        airborne_again(down_now, t_start + up.window_s)
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
     add("landing", "landing", vertical(end, touch), touch, np.zeros_like(end))
