@@ -1,7 +1,8 @@
 """The show model and formation sources.
 
 The show file format (``swarmshow/1``) and its validation live in ``_show``, its light
-effects (``lights``: groups and the effect stack) in ``_effects``;
+effects (``lights``: groups and the effect stack) in ``_effects``, a formation's motion during its
+hold (``motion``: keyframed rotate, translate, scale) in ``_motion``;
 formation sources (shapes, strokes, text, image, SVG, transforms, spacing
 repair) are re-exported from :mod:`formations.sources`.
 """
@@ -16,6 +17,8 @@ from formations._effects import Lights as Lights
 from formations._effects import check_group_names as check_group_names
 from formations._effects import groups_problem as groups_problem
 from formations._effects import lights_problem as lights_problem
+from formations._motion import Motion as Motion
+from formations._motion import MotionKey as MotionKey
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
@@ -53,6 +56,8 @@ __all__ = [
     "HomeGrid",
     "LightEffect",
     "Lights",
+    "Motion",
+    "MotionKey",
     "Settings",
     "ShowFile",
     "ShowValidationError",

@@ -19,6 +19,10 @@ start of the transition into it to the end of its hold); ``drones`` (indices); `
 drones assigned to some points of a formation: the editor's selection); ``group`` (a
 name from ``lights.groups``, a list of drone indices); ``box`` (drones inside an axis-aligned
 box at that instant); ``plane`` (drones on the side of a plane its normal points to).
+Targets and kinds that read positions (``box``, ``plane``, ``sweep``, ``image``, ``video``) read
+each drone's planned position at each instant, so they follow formations that move during
+their hold (``Formation.motion``); ``points`` names drones (those assigned to the points), so
+the light stays on the same drones as their points move.
 
 Kinds: ``solid``; ``ramp`` (colours evenly spaced in time over the effect); ``sweep`` (a
 periodic gradient moving along an axis or out from a centre at ``speed_mps``); ``chase`` (a

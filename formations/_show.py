@@ -33,6 +33,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from formations._effects import KINDS, TARGETS, DroneGroups, Lights, check_group_names, groups_problem, lights_problem
+from formations._motion import Motion, motion_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -338,6 +339,13 @@ class Formation(_ArrayCachingModel):
         description="Show time at which the drones leave this formation (its hold ends; hold_s is then unused), "
         "seconds.",
     )
+    # Issue 21: keyframed rotation, translation and scale of the whole formation during its hold
+    # (formations._motion). The transition into it ends at the first key's pose, the one out of it
+    # starts at the last key's.
+    motion: Motion | None = Field(
+        None, description="Keyframed similarity transform of the formation over its hold (rotate, translate, "
+        "scale about a pivot); None: the formation holds still.",
+    )
 
     # Issue 21: subset formations. None (left out) means every drone, as before.
     drones: DroneSelection | None = Field(
@@ -615,6 +623,9 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
             return ("formations", k, "others"), (
                 "'others' applies to a formation flown by some of the drones: give 'drones' "
                 '({"group": name} or {"count": n}) or leave \'others\' out')
+        if f.drones is not None and f.motion is not None:
+            return ("formations", k, "motion"), (
+                "a formation that moves during its hold is flown by every drone: leave out 'drones' or 'motion'")
         if isinstance(f.drones, DronesFromGroup):
             if f.drones.group not in groups:
                 return ("formations", k, "drones", "group"), (
@@ -658,6 +669,18 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+        if f.motion is not None:
+            fence = s.geofence
+            descent = s.max_descent_speed_mps if s.max_descent_speed_mps is not None else s.max_speed_z_mps
+            problem = motion_problem(
+                f.motion, pts, f.hold_s if f.leave_at_s is None else None, min_distance_m=s.min_distance_m,
+                closest_m=closest_pair(pts)[2] if len(pts) > 1 else float("inf"), floor_m=s.min_altitude_m,
+                ceiling_m=s.max_altitude_m, extent_m=extent,
+                fence=None if fence is None else (fence.x_min_m, fence.x_max_m, fence.y_min_m, fence.y_max_m),
+                v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, v_down=descent, a_max=s.max_accel_mps2,
+            )
+            if problem is not None:
+                return ("formations", k, "motion", *problem[0]), problem[1]
     if show.lights is not None:
         problem = lights_problem(show.lights, n, [f.name for f in show.formations],
                                  [len(f.points) for f in show.formations], show.groups)

@@ -437,3 +437,11 @@ def test_landed_drones_take_off_to_fly_the_next_subset_while_the_first_group_lan
     p = plan.evaluate([hold_b.start_s + 0.5]).positions_m[0]
     np.testing.assert_allclose(p[[0, 2, 4, 6], 2], 0.0, atol=1e-9)
     np.testing.assert_allclose(p[[1, 3, 5, 7, 8], 2], 35.0, atol=1e-9)
+
+
+def test_a_moving_formation_cannot_be_a_subset():
+    doc = _subset_show()
+    doc["formations"][1]["motion"] = {"keys": [{"t_s": 0.0}, {"t_s": 2.0, "translate_m": [1.0, 0.0, 0.0]}]}
+    with pytest.raises(ShowValidationError) as info:
+        parse_show(doc)
+    assert info.value.errors[0]["path"] == "formations[1].motion"

@@ -11,6 +11,7 @@ import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
 import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
+import { MotionPanel } from "./motion.js";
 import { MusicLane } from "./music.js";
 import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
@@ -34,6 +35,7 @@ const $ = (id) => document.getElementById(id);
 const state = new EditorState();
 keepUndoAcrossReloads(state);
 const view = new CanvasView(/** @type {HTMLCanvasElement} */ ($("canvas")), state);
+new MotionPanel(state, view);
 const timeline = new Timeline(/** @type {HTMLOListElement} */ ($("timeline-list")), state);
 timeline.problems = formationProblems;
 timeline.onTransition = async (k) => {

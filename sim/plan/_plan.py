@@ -14,7 +14,13 @@ assignment (eq. 11) and makes the window safe by construction (synchronised stra
 per-drone delays, or spreading the formations apart), along straight legs flown with the time
 law of ``settings.time_law`` (the jerk-limited minimum-time S-curve, or the paper's quintic
 s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, which reproduces the shared-segment plans exactly). Holds are
-windows in which every drone rests on its formation point. Colours fade linearly in time.
+windows in which every drone rests on its formation point, or, for a formation with a
+``motion`` (issue 21), follows its keyframed transform as fitted quintic pieces
+(:mod:`sim.plan._motion`): the transition into it ends at the first key's pose, the hold's
+knots are the first and last keys' poses (every drone rests there), and the transition out
+starts at the last key's pose. Between a moving hold's knots only ``trajectories`` has the
+motion (:func:`trajectories_from_knots` would fly the knots straight). Colours fade linearly
+in time.
 
 A subset formation (issue 21: a group or a count of drones, :mod:`sim.plan._subset`) is flown by
 its drones while the others hold, park behind it or land on their homes, dark; its transition is
@@ -36,6 +42,7 @@ from formations import Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
 from sim.plan._cues import earliest_window, fit_transition
+from sim.plan._motion import MotionFitError, hold_pieces, start_pose_points
 from sim.plan._schedule import (
     Limits,
     Schedule,
@@ -379,7 +386,8 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         sel = show.formation_drones(k)
         flying = np.ones(len(start), dtype=bool)
         if sel is None:
-            return prepare(start, from_name, f.name, f.points_m, f.transition_s, where), f.points_m, flying, None
+            goals = goal_points(k)  # a moving formation: its first key's pose (subsets never move)
+            return prepare(start, from_name, f.name, goals, f.transition_s, where), goals, flying, None
         pts = f.points_m
         if isinstance(sel, int):
             drones, point_index = choose_drones(start, pts, sel)
@@ -513,6 +521,35 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             )
         return f.leave_at_s - arrived
 
+    def goal_points(k: int) -> np.ndarray:
+        """Formation k's points where the transition into it ends: at its motion's first pose (issue 21)."""
+        f = show.formations[k]
+        return f.points_m if f.motion is None else start_pose_points(f.motion, f.points_m)
+
+    def move(k: int, goal_index: np.ndarray, hold_s: float, end: np.ndarray) -> np.ndarray:
+        """Fly formation k's hold (from times[-1]): at rest, or its motion as fitted pieces (sim.plan._motion).
+
+        Returns every drone's position at the end of the hold (the last key's pose).
+        """
+        f = show.formations[k]
+        if f.motion is None:
+            return end
+        if f.motion.end_s > hold_s + 1e-9:
+            last = len(f.motion.keys) - 1
+            raise PlanError(
+                f"formations[{k}].motion.keys[{last}].t_s = {f.motion.end_s:g} s is after the end of the hold of "
+                f"formation {f.name!r}, which lasts {hold_s:.2f} s (until leave_at_s): keys must lie within the hold",
+                path=f"formations[{k}].motion.keys[{last}].t_s",
+            )
+        try:
+            durations, coeffs = hold_pieces(f.motion, f.points_m, f.points_m[goal_index], hold_s)
+        except MotionFitError as exc:
+            where = f"formations[{k}].motion.keys" + (f"[{exc.key}]" if exc.key >= 0 else "")
+            raise PlanError(f"{where}: {exc} (formation {f.name!r})", path=where) from exc
+        for p in range(len(durations)):
+            builder.append(np.full(len(home), durations[p]), coeffs[:, p])
+        return builder.positions_m
+
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance (the home
     # layout is validated at >= min_distance_m, so nobody climbs beneath another: no waves needed).
     # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
@@ -640,7 +677,8 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         col[flying] = f.colors_rgb[tp.goal_index[flying]]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
-        add("hold", f.name, hold_length(k), end, col)
+        held = hold_length(k)
+        add("hold", f.name, held, move(k, tp.goal_index, held, end), col)
         wait(times[-1])
         previous = f.name
         if progress:

@@ -612,7 +612,8 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
                      f"at least the downwash radius (settings.downwash_radius_m) apart")
     if "min_distance" in kinds and not unresolved:
         if kind == "hold":
-            fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")
+            fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m "
+                         "(if it moves during its hold: keep its motion's scale up)")
         elif kind in ("takeoff", "landing"):
             fixes.append(f"space the home positions at least {limit_m} m apart")
         else:
