@@ -11,14 +11,19 @@ from __future__ import annotations
 
 from formations._demo import demo_show as demo_show
 from formations._demo import load_demo_show as load_demo_show
+from formations._effects import DroneGroups as DroneGroups
 from formations._effects import LightEffect as LightEffect
 from formations._effects import Lights as Lights
+from formations._effects import check_group_names as check_group_names
+from formations._effects import groups_problem as groups_problem
 from formations._effects import lights_problem as lights_problem
 from formations._motion import Motion as Motion
 from formations._motion import MotionKey as MotionKey
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
+from formations._show import DronesByCount as DronesByCount
+from formations._show import DronesFromGroup as DronesFromGroup
 from formations._show import Formation as Formation
 from formations._show import Geofence as Geofence
 from formations._show import GeoPlacement as GeoPlacement
@@ -40,6 +45,9 @@ __all__ = [
     "MAX_DRONES",
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",
+    "DroneGroups",
+    "DronesByCount",
+    "DronesFromGroup",
     "Formation",
     "GeoPlacement",
     "Geofence",
@@ -63,4 +71,6 @@ __all__ = [
     "rgb_to_hex",
     "show_json_schema",
     "lights_problem",
+    "groups_problem",
+    "check_group_names",
 ]

@@ -21,6 +21,11 @@ knots are the first and last keys' poses (every drone rests there), and the tran
 starts at the last key's pose. Between a moving hold's knots only ``trajectories`` has the
 motion (:func:`trajectories_from_knots` would fly the knots straight). Colours fade linearly
 in time.
+
+A subset formation (issue 21: a group or a count of drones, :mod:`sim.plan._subset`) is flown by
+its drones while the others hold, park behind it or land on their homes, dark; its transition is
+one fixed assignment over every drone, the holding ones stationary obstacles of the per-drone
+scheduler, and the drones that landed climb back at the start of the next transition.
 """
 
 from __future__ import annotations
@@ -46,13 +51,17 @@ from sim.plan._schedule import (
     plan_transition,
     required_distance,
     round_up,
+    schedule_transition,
     sync_conflicts,
     sync_min_duration,
     synchronised,
 )
+from sim.plan._subset import choose_drones, park_slots
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
+#: One part of a transition window flown after another: a planned transition or a single leg.
+Stage = TransitionPlan | Schedule
 #: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
 MIN_HOLD_S = 0.01
 ProgressFn = Callable[[float], None]
@@ -157,6 +166,10 @@ class ShowPlan:
     settings: Settings
     show_name: str = ""
     trajectories: Trajectories | None = field(default=None, repr=False)
+    #: Drones landed mid-show (issue 21, a subset formation's ``"others": "land"``): (from, to, drones) with
+    #: from the start of their descent and to the end of their climb, seconds; the altitude floor does not
+    #: apply to them then.
+    grounded: tuple[tuple[float, float, np.ndarray], ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         if self.trajectories is None:
@@ -292,9 +305,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = ()) -> None:
-        """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
-        t0 = times[-1]
+    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = (), start_s: float | None = None) -> None:
+        """Append the legs (each from where the previous ends) to the trajectories, from ``start_s``
+        (default times[-1])."""
+        t0 = times[-1] if start_s is None else start_s
         if any(overlaps_s):  # blended synchronised legs (sim.plan._blend): pieces shared by all drones
             for dur, c3 in blended_pieces(legs, overlaps_s):
                 builder.append(np.full(len(home), dur), c3)
@@ -349,30 +363,112 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed, warm=first)
 
-    def commit(tp: TransitionPlan, from_name: str, to_name: str,
-               goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    def vertical_leg(start: np.ndarray, drones: np.ndarray, z_m: np.ndarray, label: str) -> Schedule:
+        """``drones`` straight up or down to altitudes ``z_m`` while every other drone stays, certified
+        against them (per-drone timing; what cannot be made safe is in ``unresolved``)."""
+        end = start.copy()
+        end[drones, 2] = z_m
+        return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
+
+    def prepare_formation(k: int, start: np.ndarray, from_name: str
+                          ) -> tuple[TransitionPlan, np.ndarray, np.ndarray, Schedule | None]:
+        """The transition into formation k from ``start``: (plan, its goal points, which drones fly it,
+        the landing descent of the others when they land, else None).
+
+        A subset formation (issue 21, :mod:`sim.plan._subset`) is one fixed assignment over every
+        drone: the flying ones onto their points, the others onto their own start (hold: stationary,
+        so the per-drone scheduler keeps clear of them) or a park slot behind the formation. It is
+        flown with per-drone timing only (no spreading, which would move the holding drones);
+        what cannot be made safe so is reported in ``unresolved`` like any transition. Landing others
+        fly to their own home at takeoff altitude, then descend vertically (a leg after the transition,
+        certified against the drones already in the formation).
+        """
+        f = show.formations[k]
+        where = f"formations[{k}].transition_s"
+        sel = show.formation_drones(k)
+        flying = np.ones(len(start), dtype=bool)
+        if sel is None:
+            goals = goal_points(k)  # a moving formation: its first key's pose (subsets never move)
+            return prepare(start, from_name, f.name, goals, f.transition_s, where), goals, flying, None
+        pts = f.points_m
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(start, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(start[drones], pts).goal_index
+        flying[:] = False
+        flying[drones] = True
+        others = np.flatnonzero(~flying)
+        if f.others == "park":
+            slots = park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
+                               ceiling_m=s.max_altitude_m)
+            waiting = slots[assign(start[others], slots).goal_index]
+        elif f.others == "land":
+            waiting = home[others] + lift
+        else:
+            waiting = start[others]
+        goals = np.concatenate([pts, waiting])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[drones] = point_index
+        goal_index[others] = len(pts) + np.arange(len(others))
+        label = f"{from_name!r} -> {f.name!r}"
+        duration = forced(start, goals[goal_index], f.transition_s, where, label)
+
+        def subset_plan(layers: bool) -> TransitionPlan:
+            return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration,
+                                   label=label, allow_layers=layers, fixed_assignment=True)
+
+        tp = subset_plan(False)
+        if tp.unresolved and duration is None:
+            # Holding drones stand in the flyers' way (e.g. in the middle of a launch grid): spreading both
+            # sets apart and back (every drone, the holding ones return to their place) is the fallback
+            # that keeps the show safe; still unresolved conflicts are reported as for any transition.
+            layered = subset_plan(True)
+            if not layered.unresolved:
+                tp = layered
+        descent = None
+        if f.others == "land" and len(others):
+            descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")
+        return tp, goals, flying, descent
+
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray, pre: tuple[Stage, ...] = (),
+               post: tuple[Stage, ...] = ()) -> tuple[np.ndarray, dict[str, Any]]:
+        """Fly the stages ``pre`` (e.g. landed drones climbing), the transition, then ``post`` (others landing),
+        one after the other, as one window."""
         start = positions[-1]
         goal_index = tp.goal_index
-        end = tp.legs[-1].b_m
+        last = post[-1] if post else tp
+        end = last.legs[-1].b_m if isinstance(last, TransitionPlan) else last.b_m
         t0 = times[-1]
-        fly(tp.legs, tp.overlaps_s)
+        at = t0
+        extra: list[UnresolvedConflict] = []
+        pre_s = 0.0
+        for stage in (*pre, tp, *post):
+            legs, overlaps = (stage.legs, stage.overlaps_s) if isinstance(stage, TransitionPlan) else ((stage,), ())
+            fly(legs, overlaps, start_s=at)
+            if stage is not tp:
+                extra += [replace(u, time_s=at + u.time_s) for u in stage.unresolved]
+            else:
+                pre_s = at - t0
+            at += stage.window_s
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=tp.window_s,
+            duration_s=at - t0,
             min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
-            depart_s=t0 + tp.depart_s,
-            arrive_s=t0 + tp.arrive_s,
+            depart_s=t0 + pre_s + tp.depart_s,
+            arrive_s=t0 + pre_s + tp.arrive_s,
             stagger_s=tp.stagger_s,
             resolution=tp.resolution,
             unresolved=tuple(
-                replace(u, time_s=t0 + u.time_s) for u in tp.unresolved
-            ),
+                replace(u, time_s=t0 + pre_s + u.time_s) for u in tp.unresolved
+            ) + tuple(extra),
         )
         return end, info
 
@@ -394,16 +490,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             return tp, tp.legs[-1].b_m
         return replace(tp, legs=tp.legs[:-1], overlaps_s=tp.overlaps_s[:-1]), source
 
-    def pin_arrival(tp: TransitionPlan, k: int, t0: float) -> TransitionPlan:
-        """Fit the transition into formation k (starting at ``t0``) to end at its ``arrive_at_s`` (issue 18)."""
+    def pin_arrival(tp: TransitionPlan, k: int, t0: float, tail_s: float = 0.0) -> TransitionPlan:
+        """Fit the transition into formation k (starting at ``t0``, followed by ``tail_s`` of others landing)
+        to end at its ``arrive_at_s`` (issue 18)."""
         f = show.formations[k]
         if f.arrive_at_s is None:
             return tp
         label = f"into {f.name!r}"
-        fitted = fit_transition(tp, f.arrive_at_s - t0, lim, min_distance_m=s.min_distance_m, label=label)
+        fitted = fit_transition(tp, f.arrive_at_s - t0 - tail_s, lim, min_distance_m=s.min_distance_m, label=label)
         if fitted is not None:
             return fitted
-        earliest = t0 + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
+        earliest = t0 + tail_s + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
         raise PlanError(
             f"formations[{k}].arrive_at_s = {f.arrive_at_s:g} s is too early for formation {f.name!r}: the "
             f"transition into it starts at {t0:.2f} s and needs {earliest - t0:.1f} s, so the earliest feasible "
@@ -461,28 +558,125 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # into the spread grid instead (a similarity plus a common lift: distances only grow).
     up = home + lift
     first = show.formations[0]
-    tp = prepare(up, "takeoff", first.name, goal_points(0), first.transition_s, "formations[0].transition_s")
+    tp, goals, flying, post = prepare_formation(0, up, "takeoff")
     if first.arrive_at_s is None:
         tp, up = fold_first(tp, home)
     else:
         # A pinned first formation: the takeoff's length must be known before the transition is fitted
         # (folding would change it), so the takeoff climbs to the lifted grid.
-        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
+        tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)), post.window_s if post else 0.0)
     add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
     if progress:
         progress(1 / n_steps)
+
+    # Subset formations whose others land (issue 21): when each drone touched down (its descent's start;
+    # NaN: airborne), and every (descent start, climb end, drones) interval, which the altitude floor
+    # does not apply to.
+    down_since = np.full(len(home), np.nan)
+    grounded: list[tuple[float, float, np.ndarray]] = []
+
+    def climb(start: np.ndarray, drones: np.ndarray, label: str) -> Schedule | None:
+        """Landed ``drones`` straight up to takeoff altitude above their homes (None: none of them)."""
+        if not len(drones):
+            return None
+        return vertical_leg(start, drones, home[drones, 2] + s.takeoff_altitude_m, label)
+
+    def airborne_again(drones: np.ndarray, t_s: float) -> None:
+        """``drones`` finished climbing at ``t_s``: close their grounded intervals."""
+        for since in np.unique(down_since[drones]):
+            grounded.append((float(since), t_s, drones[down_since[drones] == since]))
+        down_since[drones] = np.nan
+
+    def prepare_swap(k: int, start: np.ndarray, from_name: str) -> tuple[
+            TransitionPlan, np.ndarray, np.ndarray, tuple[Stage, ...], np.ndarray, np.ndarray, float, float]:
+        """Into subset formation k whose others land while some of its drones are on the ground: first the
+        airborne drones fly (to their points, or to their homes and down), then the landed ones of the
+        formation climb and fly to their points; landed drones that do not fly stay down. Sequential, so
+        the drones leaving never cross the ones arriving from the ground. Returns (the arriving transition,
+        its goals, who flies, the stages before it, who lands, who climbs, when the landing starts and when
+        the climb ends, seconds into the window)."""
+        f = show.formations[k]
+        sel = show.formation_drones(k)
+        assert sel is not None
+        pts = f.points_m
+        down_now = ~np.isnan(down_since)
+        lifted = start.copy()
+        lifted[down_now] = home[down_now] + lift  # where the landed drones would start from
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(lifted, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(lifted[drones], pts).goal_index
+        flying = np.zeros(len(start), dtype=bool)
+        flying[drones] = True
+        point_of = np.full(len(start), -1, dtype=np.int64)
+        point_of[drones] = point_index
+        landers = np.flatnonzero(~flying & ~down_now)
+        climbers = np.flatnonzero(flying & down_now)
+        label = f"{from_name!r} -> {f.name!r}"
+
+        def stay_but(moving: np.ndarray, at: np.ndarray, targets: np.ndarray) -> TransitionPlan:
+            goals = at.copy()
+            goals[moving] = targets
+            return plan_transition(at, goals, np.arange(len(at)), lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
+                                   allow_layers=False, fixed_assignment=True)
+
+        leaving = np.flatnonzero(~down_now)  # airborne: fly to their points, or home to land
+        targets = np.where(flying[leaving, None], pts[np.maximum(point_of[leaving], 0)], home[leaving] + lift)
+        first = stay_but(leaving, start, targets)
+        stages: list[Stage] = [first]
+        at = first.legs[-1].b_m
+        t_down = t_up = first.window_s
+        if len(landers):
+            descent = vertical_leg(at, landers, home[landers, 2], f"landing the others of {f.name!r}")
+            stages.append(descent)
+            at = descent.b_m
+            t_up += descent.window_s
+        up = climb(at, climbers, f"taking off again into {f.name!r}")
+        if up is not None:
+            stages.append(up)
+            at = up.b_m
+            t_up += up.window_s
+        arrive = stay_but(climbers, at, pts[point_of[climbers]])
+        goals = np.concatenate([pts, at[~flying]])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[flying] = point_of[flying]
+        goal_index[~flying] = len(pts) + np.arange(int((~flying).sum()))
+        return (replace(arrive, goal_index=goal_index), goals, flying, tuple(stages), landers, climbers, t_down,
+                t_up)
 
     previous = "takeoff"
     homes_up = np.array(show.all_home_positions_m) + lift
     own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
-        goals = goal_points(k)
-        if k > 0:
-            tp = prepare(positions[-1], previous, f.name, goals, f.transition_s,
-                         f"formations[{k}].transition_s")
-            tp = pin_arrival(tp, k, times[-1])
-        end, info = commit(tp, previous, f.name, goals)
-        col = f.colors_rgb[tp.goal_index]
+        pre: tuple[Stage, ...] = ()
+        posts: tuple[Stage, ...] = () if post is None else (post,)
+        t_start = times[-1]
+        down_now = np.flatnonzero(~np.isnan(down_since))
+        if k > 0 and len(down_now) and f.others == "land" and show.formation_drones(k) is not None:
+            tp, goals, flying, pre, landers, climbers, t_down, t_up = prepare_swap(k, positions[-1], previous)
+            tp = pin_arrival(tp, k, t_start + sum(x.window_s for x in pre))
+            end, info = commit(tp, previous, f.name, goals, pre)
+            if len(climbers):
+                airborne_again(climbers, t_start + t_up)
+            down_since[landers] = t_start + t_down
+        else:
+            if k > 0:
+                up = climb(positions[-1], down_now, f"taking off again into {f.name!r}")
+                pre = () if up is None else (up,)
+                tp, goals, flying, post = prepare_formation(k, positions[-1] if up is None else up.b_m, previous)
+                posts = () if post is None else (post,)
+                tp = pin_arrival(tp, k, t_start + (up.window_s if up else 0.0), post.window_s if post else 0.0)
+            end, info = commit(tp, previous, f.name, goals, pre, posts)
+            if pre:  # the landed drones are airborne again at the end of the climb
+                airborne_again(down_now, t_start + pre[0].window_s)
+            if posts:  # the others touch down from the start of the descent on
+                down_since[~flying] = t_start + info["duration_s"] - posts[0].window_s
+        # Drones not flying this formation are dark and have no point (goal_index -1).
+        info["goal_index"] = np.where(flying, tp.goal_index, -1)
+        col = np.zeros((len(home), 3))
+        col[flying] = f.colors_rgb[tp.goal_index[flying]]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
         held = hold_length(k)
@@ -495,13 +689,19 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
-    tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
-    down = homes_up[tp.goal_index] - lift
-    tp, _ = fold_last(tp, down)
-    end, info = commit(tp, previous, "landing", homes_up)
+    down_now = np.flatnonzero(~np.isnan(down_since))
+    up = climb(positions[-1], down_now, "taking off again for the landing")
+    tp = prepare(positions[-1] if up is None else up.b_m, previous, "landing", homes_up, None, "landing",
+                 goal_index=own)
+    touch = homes_up[tp.goal_index] - lift
+    tp, _ = fold_last(tp, touch)
+    t_start = times[-1]
+    end, info = commit(tp, previous, "landing", homes_up, () if up is None else (up,))
+    if up is not None:
+        airborne_again(down_now, t_start + up.window_s)
     seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
     transitions.append(TransitionInfo(segment=seg, **info))
-    add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
+    add("landing", "landing", vertical(end, touch), touch, np.zeros_like(end))
     if progress:
         progress(1.0)
 
@@ -514,6 +714,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         settings=s,
         show_name=show.name,
         trajectories=builder.build(end_s=times[-1]),
+        grounded=tuple(grounded),
     )
 
 

@@ -486,8 +486,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
 
 
 def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[Violation], int]:
-    """Every pair inside each other's downwash ellipsoid during takeoff or landing, exact
-    (:mod:`sim.verify._downwash`).
+    """Every pair inside each other's downwash ellipsoid during takeoff or landing (and, for drones
+    landed mid-show, from their descent to their climb), exact (:mod:`sim.verify._downwash`).
 
     Returns:
         (violations: one per pair and segment, deepest first within a segment, at most
@@ -496,15 +496,22 @@ def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[
     """
     r, c = plan.settings.downwash_axes_m
     motion = scaled_motion(plan.motion, r, c)
-    segs = [s for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
-    if plan.drone_count < 2 or not segs:
+    # (start, end, segment, what, drones): takeoff and landing for every pair; drones landed mid-show
+    # (issue 21, a subset formation's others) from their descent to their climb, pairs with one of them.
+    windows: list[tuple[float, float, int, str, np.ndarray | None]] = [
+        (s.start_s, s.end_s, s.index, s.kind, None) for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
+    windows += [(g0, g1, -1, "a mid-show landing", g) for g0, g1, g in getattr(plan, "grounded", ())]
+    if plan.drone_count < 2 or not windows:
         return [], 0
     bounds = speed_bounds(motion)
     out: list[Violation] = []
     total = 0
-    for seg in segs:
-        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, 1.0, bounds=bounds)
-        bad = np.flatnonzero(pairs.dist_m < 1.0 - _TOL)
+    for w0, w1, index, what, down in windows:
+        pairs = window_close_pairs(motion, w0, w1, 1.0, bounds=bounds)
+        inside = pairs.dist_m < 1.0 - _TOL
+        if down is not None:
+            inside &= np.isin(pairs.i, down) | np.isin(pairs.j, down)
+        bad = np.flatnonzero(inside)
         total += len(bad)
         bad = bad[np.argsort(pairs.dist_m[bad], kind="stable")]
         for q in bad[: max(0, max_listed - len(out))]:
@@ -515,8 +522,8 @@ def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[
             dxy = float(np.hypot(*(p[upper, :2] - p[lower, :2])))
             out.append(Violation(
                 kind="downwash", drones=[upper, lower], time_s=t, value=float(pairs.dist_m[q]), limit=1.0,
-                segment=seg.index,
-                message=f"drone {lower} is in drone {upper}'s downwash during {seg.kind} at t = {t:.2f} s: "
+                segment=index if index >= 0 else int(plan.segment_index(t)),
+                message=f"drone {lower} is in drone {upper}'s downwash during {what} at t = {t:.2f} s: "
                 f"{dz:.2f} m below it and {dxy:.2f} m to the side (ellipsoid {r:g} m wide, {c:g} m high)",
             ))
     return out, total
