@@ -541,6 +541,28 @@ class ShowStore:
             )
         return AudioRecord(show_id, filename, media_type, len(data), digest, now, analysis)
 
+    def copy_audio(self, source_id: str, show_id: str) -> AudioRecord | None:
+        """Give ``show_id`` the music of ``source_id`` (replacing any), in one transaction and without
+        the bytes passing through Python; None (nothing changed) when the source has no music.
+        Raises :class:`ShowNotFound` naming a show that does not exist."""
+        now = _now()
+        with self._tx() as db:
+            for sid in (source_id, show_id):
+                if db.execute("SELECT 1 FROM shows WHERE id = ?", (sid,)).fetchone() is None:
+                    raise ShowNotFound(sid)
+            if db.execute("SELECT 1 FROM audio WHERE show_id = ?", (source_id,)).fetchone() is None:
+                return None
+            if source_id != show_id:
+                db.execute(
+                    "INSERT OR REPLACE INTO audio (show_id, filename, media_type, size, sha256, analysis, data, "
+                    "created_at) SELECT ?, filename, media_type, size, sha256, analysis, data, ? FROM audio "
+                    "WHERE show_id = ?",
+                    (show_id, now, source_id),
+                )
+            row = db.execute("SELECT show_id, filename, media_type, size, sha256, created_at FROM audio "
+                             "WHERE show_id = ?", (show_id,)).fetchone()
+        return None if row is None else AudioRecord(*row)
+
     def get_audio(self, show_id: str, *, analysis: bool = False) -> AudioRecord | None:
         """A show's music record (without its bytes), or None when it has none."""
         cols = "show_id, filename, media_type, size, sha256, created_at" + (", analysis" if analysis else "")

@@ -14,17 +14,12 @@ import asyncio
 import json
 import os
 import random
-import shutil
-import signal
-import socket
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
+from _common import serve
 
 pytestmark = pytest.mark.slow
 
@@ -34,12 +29,6 @@ SHOWS = 20
 WRITE_SHARE = 0.2
 #: The hardening issue's target for the run with a simulation job (``SWARMSHOW_BENCH_P99_MS`` overrides it).
 P99_TARGET_MS = float(os.environ.get("SWARMSHOW_BENCH_P99_MS", "100"))
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _show_doc() -> dict:
@@ -118,23 +107,7 @@ def test_bench_api_50_clients_while_a_simulation_runs(tmp_path, record_result) -
 
 
 def _bench(tmp_path, record_result, *, simulate: bool) -> dict:
-    port = _free_port()
-    exe = shutil.which("swarmshow", path=str(Path(sys.executable).parent))
-    cmd = [exe] if exe else [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main())"]
-    proc = subprocess.Popen([*cmd, "serve", "--port", str(port), "--data-dir", str(tmp_path), "--workers", "1"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(f"{base}/api/health", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert proc.poll() is None and time.monotonic() < deadline, "server did not start"
-            time.sleep(0.2)
+    with serve(tmp_path) as base:
         doc = _show_doc()
         ids = [httpx.post(f"{base}/api/shows", json={**doc, "name": f"bench {k}"}, timeout=30).json()["id"]
                for k in range(SHOWS)]
@@ -151,12 +124,6 @@ def _bench(tmp_path, record_result, *, simulate: bool) -> dict:
         t0 = time.monotonic()
         asyncio.run(run())
         wall = time.monotonic() - t0
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
     every = out["read_s"] + out["write_s"]
     figures = {
         "clients": CLIENTS,

@@ -10,17 +10,13 @@ the same run, for a ratio.
 from __future__ import annotations
 
 import io
-import math
 import time
 import zipfile
 
-import numpy as np
 import pytest
+from _common import knot_show
 
 from app.exports import export_show
-from formations import parse_show
-from sim import Segment, ShowPlan, min_transition_duration
-from sim.bench._shows import BENCH_SPACING_M
 
 pytestmark = pytest.mark.slow
 
@@ -29,77 +25,11 @@ TARGET_DURATION_S = 300.0
 TARGET_EXPORT_S = 10.0
 
 
-def _layers(z0_m: float, angle_rad: float, shift_m: tuple[float, float]) -> np.ndarray:
-    """DRONES points in two horizontal grids 6 m apart, spaced BENCH_SPACING_M, rotated and shifted."""
-    per = DRONES // 2
-    side = math.ceil(math.sqrt(per))
-    i, j = np.divmod(np.arange(per), side)
-    xy = np.c_[(j - (side - 1) / 2) * BENCH_SPACING_M, (i - (side - 1) / 2) * BENCH_SPACING_M]
-    c, s = math.cos(angle_rad), math.sin(angle_rad)
-    xy = xy @ np.array([[c, -s], [s, c]]).T + np.asarray(shift_m)
-    return np.r_[np.c_[xy, np.full(per, z0_m)], np.c_[xy, np.full(per, z0_m + 6.0)]]
-
-
-def _planned_show(hold_s: float):
-    """The show and a plan built directly from its knots.
-
-    CAPT planning of 5,000 drones is benchmarked elsewhere (bench_plan.py); here
-    each drone simply flies to the point with its own index, which has the same
-    shape and size as a real plan, so the export's cost is the same.
-    """
-    formations = [
-        ("layers", _layers(30.0, 0.0, (0.0, 0.0)), (1.0, 0.0, 0.0)),
-        ("turned", _layers(40.0, 0.5, (20.0, 10.0)), (0.0, 1.0, 0.0)),
-        ("shifted", _layers(25.0, 1.0, (-20.0, 0.0)), (0.0, 0.0, 1.0)),
-    ]
-    side = math.ceil(math.sqrt(DRONES))
-    show = parse_show(
-        {
-            "format": "swarmshow/1",
-            "name": "bench export",
-            "drones": DRONES,
-            "home": {"grid": {"rows": side, "cols": side, "spacing_m": BENCH_SPACING_M}},
-            "formations": [
-                {"name": name, "hold_s": hold_s, "points": np.round(pts, 6).tolist(), "color": "#ffffff"}
-                for name, pts, _ in formations
-            ],
-        }
-    )
-    s = show.settings
-    limits = {"max_speed_xy_mps": s.max_speed_xy_mps, "max_speed_z_mps": s.max_speed_z_mps,
-              "max_accel_mps2": s.max_accel_mps2}
-    home = np.asarray(show.home_positions_m)
-    lift = np.array([0.0, 0.0, s.takeoff_altitude_m])
-    black = np.zeros((DRONES, 3))
-    knots = [(home, black, None, "start"), (home + lift, black, "takeoff", "takeoff")]
-    for name, pts, rgb in formations:
-        col = np.broadcast_to(np.asarray(rgb), (DRONES, 3))
-        knots += [(pts, col, "transition", name), (pts, col, "hold", name)]
-    knots += [(home + lift, black, "transition", "landing"), (home, black, "landing", "landing")]
-    times, segments = [0.0], []
-    for k in range(1, len(knots)):
-        pos, _, kind, label = knots[k]
-        dur = hold_s if kind == "hold" else min_transition_duration(knots[k - 1][0], pos, **limits)
-        segments.append(Segment(k - 1, kind, label, times[-1], float(dur)))
-        times.append(times[-1] + float(dur))
-    plan = ShowPlan(
-        knot_times_s=np.array(times),
-        knot_positions_m=np.stack([k[0] for k in knots]),
-        knot_colors_rgb=np.stack([np.asarray(k[1], dtype=float) for k in knots]),
-        segments=tuple(segments),
-        transitions=(),
-        settings=s,
-        show_name=show.name,
-    )
-    return show, plan
-
-
 @pytest.fixture(scope="module")
 def planned():
     t0 = time.perf_counter()
-    show, plan = _planned_show(10.0)
-    # Stretch the three holds so that the whole show lasts 5 minutes.
-    show, plan = _planned_show(10.0 + max(0.0, (TARGET_DURATION_S - plan.duration_s) / 3))
+    # Built from its knots (the export's cost is the same as a planned show's), holds stretched to 5 minutes.
+    show, plan = knot_show(DRONES, TARGET_DURATION_S, name="bench export")
     return show, plan, time.perf_counter() - t0
 
 

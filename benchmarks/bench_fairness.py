@@ -18,19 +18,13 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import signal
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
-
-from tests.live_server import free_port
+from _common import serve
 
 pytestmark = pytest.mark.slow
 
@@ -70,60 +64,41 @@ def _keep_queue_full(base: str, sid: str, stop: threading.Event, out: dict) -> N
 
 
 def test_bench_fairness_interactive_while_64_simulations_queued(tmp_path, record_result) -> None:
-    port = free_port()
-    exe = shutil.which("swarmshow", path=str(Path(sys.executable).parent))
-    cmd = [exe] if exe else [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main())"]
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "SWARMSHOW_VIEWER": "false", "SWARMSHOW_MAX_JOBS_PER_CLIENT": "64",
-           "SWARMSHOW_MAX_PENDING_JOBS": "100"}
-    proc = subprocess.Popen([*cmd, "serve", "--port", str(port), "--data-dir", str(tmp_path), "--workers", "1"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-    base = f"http://127.0.0.1:{port}"
+    env = {"SWARMSHOW_VIEWER": "false", "SWARMSHOW_MAX_JOBS_PER_CLIENT": "64", "SWARMSHOW_MAX_PENDING_JOBS": "100"}
     stop = threading.Event()
     out: dict = {"heavy_submitted": 0, "heavy_refused": 0, "queue_samples": []}
     lat: dict[str, list[float]] = {"save": [], "check": [], "formation": []}
     errors = 0
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(f"{base}/api/health", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert proc.poll() is None and time.monotonic() < deadline, "server did not start"
-            time.sleep(0.2)
-        doc = _demo()
-        heavy_show = httpx.post(f"{base}/api/shows", json={**doc, "name": "heavy"}, timeout=30).json()["id"]
-        mine = httpx.post(f"{base}/api/shows", json={**doc, "name": "designer"}, timeout=30).json()
-        heavy = threading.Thread(target=_keep_queue_full, args=(base, heavy_show, stop, out), daemon=True)
-        heavy.start()
-        time.sleep(3.0)  # let the queue fill
-        revision, k = mine["revision"], 0
-        t_end = time.monotonic() + DURATION_S
-        with httpx.Client(base_url=base, timeout=120, headers={"X-Swarmshow-Client": "designer"}) as http:
-            while time.monotonic() < t_end:
-                k += 1
-                t0 = time.perf_counter()
-                r = http.put(f"/api/shows/{mine['id']}", json={"revision": revision, "show": {**doc, "name": f"d{k}"}})
-                lat["save"].append(time.perf_counter() - t0)
-                errors += r.status_code != 200
-                revision = r.json().get("revision", revision)
-                t0 = time.perf_counter()
-                r = http.post(f"/api/shows/{mine['id']}/check")
-                lat["check"].append(time.perf_counter() - t0)
-                errors += r.status_code != 200 or r.json().get("cached") is True
-                t0 = time.perf_counter()
-                r = http.post("/api/formations/shape", json={"kind": "sphere", "n": 100, "size_m": 40.0 + k % 7})
-                lat["formation"].append(time.perf_counter() - t0)
-                errors += r.status_code != 200
-                time.sleep(0.2)  # a person, not a loop
-    finally:
-        stop.set()
-        proc.send_signal(signal.SIGINT)
+    with serve(tmp_path, env) as base:
         try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+            doc = _demo()
+            heavy_show = httpx.post(f"{base}/api/shows", json={**doc, "name": "heavy"}, timeout=30).json()["id"]
+            mine = httpx.post(f"{base}/api/shows", json={**doc, "name": "designer"}, timeout=30).json()
+            heavy = threading.Thread(target=_keep_queue_full, args=(base, heavy_show, stop, out), daemon=True)
+            heavy.start()
+            time.sleep(3.0)  # let the queue fill
+            revision, k = mine["revision"], 0
+            t_end = time.monotonic() + DURATION_S
+            with httpx.Client(base_url=base, timeout=120, headers={"X-Swarmshow-Client": "designer"}) as http:
+                while time.monotonic() < t_end:
+                    k += 1
+                    t0 = time.perf_counter()
+                    edit = {"revision": revision, "show": {**doc, "name": f"d{k}"}}
+                    r = http.put(f"/api/shows/{mine['id']}", json=edit)
+                    lat["save"].append(time.perf_counter() - t0)
+                    errors += r.status_code != 200
+                    revision = r.json().get("revision", revision)
+                    t0 = time.perf_counter()
+                    r = http.post(f"/api/shows/{mine['id']}/check")
+                    lat["check"].append(time.perf_counter() - t0)
+                    errors += r.status_code != 200 or r.json().get("cached") is True
+                    t0 = time.perf_counter()
+                    r = http.post("/api/formations/shape", json={"kind": "sphere", "n": 100, "size_m": 40.0 + k % 7})
+                    lat["formation"].append(time.perf_counter() - t0)
+                    errors += r.status_code != 200
+                    time.sleep(0.2)  # a person, not a loop
+        finally:
+            stop.set()  # the heavy client stops before the server does
 
     def pct(values: list[float], q: float) -> float:
         return round(float(np.percentile(values, q)) * 1000, 1)

@@ -15,15 +15,12 @@ from __future__ import annotations
 
 import base64
 import io
-import math
 import time
 
 import numpy as np
 import pytest
+from _common import knot_show
 
-from formations import parse_show
-from sim import Segment, ShowPlan, min_transition_duration
-from sim.bench._shows import BENCH_SPACING_M
 from sim.light import LightStack, base_colors, show_colors
 
 pytestmark = pytest.mark.slow
@@ -66,60 +63,9 @@ EFFECTS = [
 ]
 
 
-def _layers(z0_m: float, angle_rad: float, shift_m: tuple[float, float]) -> np.ndarray:
-    per = DRONES // 2
-    side = math.ceil(math.sqrt(per))
-    i, j = np.divmod(np.arange(per), side)
-    xy = np.c_[(j - (side - 1) / 2) * BENCH_SPACING_M, (i - (side - 1) / 2) * BENCH_SPACING_M]
-    c, s = math.cos(angle_rad), math.sin(angle_rad)
-    xy = xy @ np.array([[c, -s], [s, c]]).T + np.asarray(shift_m)
-    return np.r_[np.c_[xy, np.full(per, z0_m)], np.c_[xy, np.full(per, z0_m + 6.0)]]
-
-
 def lit_show(drones: int = DRONES, duration_s: float = DURATION_S):
-    """A ``drones``-drone show lasting ``duration_s`` with :data:`EFFECTS`, and a plan built from its knots
-    (each drone flies to its own index's point: CAPT is benchmarked elsewhere)."""
-    formations = [
-        ("layers", _layers(30.0, 0.0, (0.0, 0.0))[:drones], (1.0, 0.0, 0.0)),
-        ("turned", _layers(40.0, 0.5, (20.0, 10.0))[:drones], (0.0, 1.0, 0.0)),
-        ("shifted", _layers(25.0, 1.0, (-20.0, 0.0))[:drones], (0.0, 0.0, 1.0)),
-    ]
-    side = math.ceil(math.sqrt(drones))
-
-    def build(hold_s: float):
-        show = parse_show({
-            "format": "swarmshow/1", "name": "bench lights", "drones": drones,
-            "home": {"grid": {"rows": side, "cols": side, "spacing_m": BENCH_SPACING_M}},
-            "formations": [{"name": n, "hold_s": hold_s, "points": np.round(p, 6).tolist(), "color": "#ffffff"}
-                           for n, p, _ in formations],
-            "lights": {"effects": EFFECTS},
-        })
-        s = show.settings
-        limits = {"max_speed_xy_mps": s.max_speed_xy_mps, "max_speed_z_mps": s.max_speed_z_mps,
-                  "max_accel_mps2": s.max_accel_mps2}
-        home = np.asarray(show.home_positions_m)
-        lift = np.array([0.0, 0.0, s.takeoff_altitude_m])
-        black = np.zeros((drones, 3))
-        knots = [(home, black, None, "start"), (home + lift, black, "takeoff", "takeoff")]
-        for name, pts, rgb in formations:
-            col = np.broadcast_to(np.asarray(rgb), (drones, 3))
-            knots += [(pts, col, "transition", name), (pts, col, "hold", name)]
-        knots += [(home + lift, black, "transition", "landing"), (home, black, "landing", "landing")]
-        times, segments = [0.0], []
-        for k in range(1, len(knots)):
-            pos, _, kind, label = knots[k]
-            dur = hold_s if kind == "hold" else min_transition_duration(knots[k - 1][0], pos, **limits)
-            segments.append(Segment(k - 1, kind, label, times[-1], float(dur)))
-            times.append(times[-1] + float(dur))
-        plan = ShowPlan(
-            knot_times_s=np.array(times), knot_positions_m=np.stack([k[0] for k in knots]),
-            knot_colors_rgb=np.stack([np.asarray(k[1], dtype=float) for k in knots]),
-            segments=tuple(segments), transitions=(), settings=s, show_name=show.name,
-        )
-        return show, plan
-
-    show, plan = build(10.0)
-    return build(10.0 + max(0.0, (duration_s - plan.duration_s) / 3))
+    """A ``drones``-drone show lasting ``duration_s`` with :data:`EFFECTS`, and a plan built from its knots."""
+    return knot_show(drones, duration_s, name="bench lights", effects=EFFECTS)
 
 
 @pytest.fixture(scope="module")

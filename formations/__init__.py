@@ -1,7 +1,8 @@
 """The show model and formation sources.
 
 The show file format (``swarmshow/1``) and its validation live in ``_show``, its light
-effects (``lights``: groups and the effect stack) in ``_effects``;
+effects (``lights``: groups and the effect stack) in ``_effects``, a formation's motion during its
+hold (``motion``: keyframed rotate, translate, scale) in ``_motion``;
 formation sources (shapes, strokes, text, image, SVG, transforms, spacing
 repair) are re-exported from :mod:`formations.sources`.
 """
@@ -10,17 +11,24 @@ from __future__ import annotations
 
 from formations._demo import demo_show as demo_show
 from formations._demo import load_demo_show as load_demo_show
+from formations._effects import DroneGroups as DroneGroups
 from formations._effects import LightEffect as LightEffect
 from formations._effects import Lights as Lights
+from formations._effects import check_group_names as check_group_names
+from formations._effects import groups_problem as groups_problem
 from formations._effects import lights_problem as lights_problem
 from formations._launch import MAX_HOME_CSV_BYTES as MAX_HOME_CSV_BYTES
 from formations._launch import HomeCsvError as HomeCsvError
 from formations._launch import LaunchBoxes as LaunchBoxes
 from formations._launch import home_points_from_csv as home_points_from_csv
 from formations._launch import home_points_to_csv as home_points_to_csv
+from formations._motion import Motion as Motion
+from formations._motion import MotionKey as MotionKey
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
+from formations._show import DronesByCount as DronesByCount
+from formations._show import DronesFromGroup as DronesFromGroup
 from formations._show import Formation as Formation
 from formations._show import Geofence as Geofence
 from formations._show import GeoPlacement as GeoPlacement
@@ -44,6 +52,9 @@ __all__ = [
     "MAX_DRONES",
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",
+    "DroneGroups",
+    "DronesByCount",
+    "DronesFromGroup",
     "Formation",
     "GeoPlacement",
     "Geofence",
@@ -55,6 +66,8 @@ __all__ = [
     "LaunchBoxes",
     "LightEffect",
     "Lights",
+    "Motion",
+    "MotionKey",
     "Settings",
     "ShowFile",
     "ShowValidationError",
@@ -70,4 +83,6 @@ __all__ = [
     "rgb_to_hex",
     "show_json_schema",
     "lights_problem",
+    "groups_problem",
+    "check_group_names",
 ]

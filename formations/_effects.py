@@ -19,6 +19,10 @@ start of the transition into it to the end of its hold); ``drones`` (indices); `
 drones assigned to some points of a formation: the editor's selection); ``group`` (a
 name from ``lights.groups``, a list of drone indices); ``box`` (drones inside an axis-aligned
 box at that instant); ``plane`` (drones on the side of a plane its normal points to).
+Targets and kinds that read positions (``box``, ``plane``, ``sweep``, ``image``, ``video``) read
+each drone's planned position at each instant, so they follow formations that move during
+their hold (``Formation.motion``); ``points`` names drones (those assigned to the points), so
+the light stays on the same drones as their points move.
 
 Kinds: ``solid``; ``ramp`` (colours evenly spaced in time over the effect); ``sweep`` (a
 periodic gradient moving along an axis or out from a centre at ``speed_mps``); ``chase`` (a
@@ -114,7 +118,7 @@ class TargetPoints(BaseModel):
 
 
 class TargetGroup(BaseModel):
-    """The drones of the named group in ``lights.groups``.
+    """The drones of the named group in the show's ``groups`` (or, in older files, ``lights.groups``).
 
     Extension point: groups are plain index lists today; a group defined some other way
     (by formation points, by tag) only has to resolve to indices in ``sim.light``.
@@ -429,37 +433,72 @@ class LightEffect(BaseModel):
         return self
 
 
+#: Named drone groups: name -> drone indices (0-based). One type for the show's top-level ``groups``
+#: and the older ``lights.groups`` (both resolve through :func:`groups_problem` and the same lookup).
+DroneGroups = dict[str, Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=20_000)]]
+
+
+def check_group_names(value: dict[str, list[int]]) -> dict[str, list[int]]:
+    """Field validator body for a :data:`DroneGroups` field: few groups, printable names."""
+    if len(value) > MAX_GROUPS:
+        raise PydanticCustomError("too_many_groups", "at most {n} groups", {"n": MAX_GROUPS})
+    for name in value:
+        if not name.strip() or _CONTROL.search(name) or len(name) > 200:
+            raise PydanticCustomError("group_name", "group name {name!r} is empty, too long or has control "
+                                      "characters", {"name": name})
+    return value
+
+
+def groups_problem(groups: dict[str, list[int]], drones: int, *,
+                   unique: bool = True) -> tuple[tuple[str | int, ...], str] | None:
+    """The first rule ``groups`` breaks against the drone count, as (path inside the groups, reason), or None:
+    an index out of range or (``unique``: a group that formations fly must name each drone once) a drone
+    listed twice in one group."""
+    for name, idx in groups.items():
+        bad = [i for i in idx if i >= drones]
+        if bad:
+            return (name,), f"drone index {bad[0]} is out of range for {drones} drones"
+        if unique and len(set(idx)) != len(idx):
+            seen: set[int] = set()
+            for i in idx:
+                if i in seen:
+                    return (name,), f"drone {i} is listed twice in group {name!r}"
+                seen.add(i)
+    return None
+
+
 class Lights(BaseModel):
-    """The show's light design: named drone groups and the effect stack (bottom first)."""
+    """The show's light design: named drone groups and the effect stack (bottom first).
+
+    ``groups`` here is the older place for drone groups (kept so that older files load); new shows keep
+    them in the show's top-level ``groups``, which light targets resolve as well.
+    """
 
     model_config = _CONFIG
 
-    groups: dict[str, Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=20_000)]] = Field(
-        default_factory=dict, description="Named drone groups: name -> drone indices (0-based)."
+    groups: DroneGroups = Field(
+        default_factory=dict, description="Named drone groups: name -> drone indices (0-based). Older files; "
+        "new shows use the show's top-level 'groups'."
     )
     effects: Annotated[list[LightEffect], Field(max_length=MAX_EFFECTS)] = Field(default_factory=list)
 
     @field_validator("groups")
     @classmethod
     def _few_groups(cls, value: dict[str, list[int]]) -> dict[str, list[int]]:
-        if len(value) > MAX_GROUPS:
-            raise PydanticCustomError("too_many_groups", "at most {n} groups", {"n": MAX_GROUPS})
-        for name in value:
-            if not name.strip() or _CONTROL.search(name) or len(name) > 200:
-                raise PydanticCustomError("group_name", "group name {name!r} is empty, too long or has control "
-                                          "characters", {"name": name})
-        return value
+        return check_group_names(value)
 
 
 def lights_problem(
-    lights: Lights, drones: int, formation_names: list[str], point_counts: list[int] | None = None
+    lights: Lights, drones: int, formation_names: list[str], point_counts: list[int] | None = None,
+    show_groups: dict[str, list[int]] | None = None,
 ) -> tuple[tuple[str | int, ...], str] | None:
-    """The first rule ``lights`` breaks against the show (drone count, formation names and point
-    counts), as (path inside ``lights``, reason), or None. Called by the show file's cross-field validator."""
-    for name, idx in lights.groups.items():
-        bad = [i for i in idx if i >= drones]
-        if bad:
-            return ("groups", name), f"drone index {bad[0]} is out of range for {drones} drones"
+    """The first rule ``lights`` breaks against the show (drone count, formation names, point
+    counts and the show's top-level ``show_groups``), as (path inside ``lights``, reason), or None.
+    Called by the show file's cross-field validator."""
+    problem = groups_problem(lights.groups, drones, unique=False)  # older files: repeats were harmless
+    if problem is not None:
+        return ("groups", *problem[0]), problem[1]
+    known = set(lights.groups) | set(show_groups or {})
     names = set(formation_names)
     pixels = 0
     videos = 0
@@ -479,8 +518,8 @@ def lights_problem(
             bad = [i for i in t.indices if i >= drones]
             if bad:
                 return ("effects", k, "target", "indices"), f"drone index {bad[0]} is out of range for {drones} drones"
-        elif isinstance(t, TargetGroup) and t.group not in lights.groups:
-            return ("effects", k, "target", "group"), f"no drone group named {t.group!r} in lights.groups"
+        elif isinstance(t, TargetGroup) and t.group not in known:
+            return ("effects", k, "target", "group"), f"no drone group named {t.group!r} in groups"
         elif isinstance(t, TargetFormation | TargetPoints) and t.formation not in names:
             return ("effects", k, "target", "formation"), f"no formation named {t.formation!r}"
         if isinstance(t, TargetPoints) and point_counts is not None:
@@ -493,6 +532,9 @@ def lights_problem(
 
 
 __all__ = [
+    "DroneGroups",
+    "check_group_names",
+    "groups_problem",
     "BLENDS",
     "KINDS",
     "MAX_EFFECTS",

@@ -6,8 +6,11 @@ binary header declares must match the bytes it holds, so a GLB or PLY cannot pro
 file and allocate a huge one), and every coordinate must be finite. Points are picked from
 dense candidates (area-weighted random surface samples, interior voxel centres or the distinct
 vertices) by farthest-point order, which spreads them evenly (blue noise) and makes the
-achieved spacing of any prefix known exactly; so the size that fits N at the minimum spacing is
-a closed form, and the largest N that fits a given size is a count.
+achieved spacing of any prefix known exactly; surface picks are then relaxed on the faces toward
+the hexagonal packing (:func:`relax_on_surface`, about 1.3x the density of the picks alone).
+Picking works in unit-sized coordinates, so the size that fits N at the minimum spacing is a
+closed form, and the largest N that fits a given size is a count (the farthest-point prefix, or
+the count the relaxed density predicts, verified).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import math
 import re
 import struct
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +37,7 @@ from formations._points import (
     check_center,
     check_n,
     check_positive,
+    nearest_pair_distance,
     parse_color,
 )
 from formations._spacing import ensure_spacing, farthest_point_order, largest_fitting
@@ -314,10 +319,16 @@ def _material_rgb(material: Any, default: np.ndarray) -> np.ndarray:
 
 def uv_lookup(uv: np.ndarray, image: np.ndarray) -> np.ndarray:
     """Colours (K, 3) uint8 of ``image`` (H, W, 3) at texture coordinates ``uv`` (K, 2):
-    (0, 0) is the image's bottom-left corner, coordinates repeat (the glTF default), nearest pixel."""
+    (0, 0) is the image's bottom-left corner, coordinates outside [0, 1] repeat (the glTF default),
+    nearest pixel. Inside [0, 1] nothing wraps: u = 1 is the right edge's texel (a mesh whose UVs
+    span the image has surface points on its border, and they take the border's colour)."""
     h, w = image.shape[:2]
-    u = np.mod(uv[:, 0], 1.0)
-    v = np.mod(uv[:, 1], 1.0)
+
+    def wrap(t: np.ndarray) -> np.ndarray:
+        out: np.ndarray = np.where((t >= 0.0) & (t <= 1.0), t, np.mod(t, 1.0))
+        return out
+
+    u, v = wrap(uv[:, 0]), wrap(uv[:, 1])
     col = np.clip(np.floor(u * w), 0, w - 1).astype(np.int64)
     row = np.clip(np.floor((1.0 - v) * h), 0, h - 1).astype(np.int64)
     out: np.ndarray = image[row, col]
@@ -543,12 +554,12 @@ def _face_colors(mesh: Mesh, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return result
 
 
-def surface_candidates(mesh: Mesh, count: int, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def _surface_samples(mesh: Mesh, count: int, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``count`` uniformly random points on the surface (area-weighted face choice, uniform
-    barycentric coordinates by the square-root rule; Osada et al. 2002, eq. 1) and their colours.
+    barycentric coordinates by the square-root rule; Osada et al. 2002, eq. 1).
 
     Returns:
-        (points (count, 3), colours (count, 3) uint8).
+        (points (count, 3), their faces (count,), barycentric coordinates (count, 3)).
     """
     tri = mesh.vertices[mesh.faces]
     area = _face_areas(tri)
@@ -561,7 +572,169 @@ def surface_candidates(mesh: Mesh, count: int, *, seed: int = 0) -> tuple[np.nda
     r1, r2 = np.sqrt(rng.random(count)), rng.random(count)
     bary = np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
     pts = np.einsum("kj,kjc->kc", bary, tri[face])
+    return pts, face, bary
+
+
+def surface_candidates(mesh: Mesh, count: int, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` uniformly random points on the surface (:func:`_surface_samples`) and their colours.
+
+    Returns:
+        (points (count, 3), colours (count, 3) uint8).
+    """
+    pts, face, bary = _surface_samples(mesh, count, seed=seed)
     return pts, _face_colors(mesh, face, bary)
+
+
+def _on_triangles(q: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The closest points to ``q`` (K, 3) on the triangles ``tri`` (K, 3, 3), by the Voronoi
+    regions of the triangle's vertices, edges and face (Ericson 2004, "Real-Time Collision
+    Detection", 5.1.5), vectorised.
+
+    Returns:
+        (points (K, 3), barycentric coordinates (K, 3)).
+    """
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, ap = b - a, c - a, q - a
+    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
+    bp = q - b
+    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
+    cp = q - c
+    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
+
+    def ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
+        out: np.ndarray = num / np.where(np.abs(den) > 0.0, den, 1.0)
+        return out
+
+    v_ab = ratio(d1, d1 - d3)  # on edge ab: a + v ab
+    w_ac = ratio(d2, d2 - d6)  # on edge ac: a + w ac
+    w_bc = ratio(d4 - d3, (d4 - d3) + (d5 - d6))  # on edge bc: b + w (c - b)
+    den = va + vb + vc
+    v_in, w_in = ratio(vb, den), ratio(vc, den)
+    one, zero = np.ones_like(d1), np.zeros_like(d1)
+    conds = [
+        (d1 <= 0) & (d2 <= 0),  # vertex a
+        (d3 >= 0) & (d4 <= d3),  # vertex b
+        (d6 >= 0) & (d5 <= d6),  # vertex c
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),  # edge ab
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),  # edge ac
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),  # edge bc
+    ]
+    v = np.select(conds, [zero, one, zero, v_ab, zero, 1.0 - w_bc], v_in)
+    w = np.select(conds, [zero, zero, one, zero, w_ac, w_bc], w_in)
+    bary = np.column_stack([1.0 - v - w, v, w])
+    return np.einsum("kj,kjc->kc", bary, tri), bary
+
+
+#: Surface relaxation: iterations of the pairwise push (each a cKDTree of the N points; 2,000
+#: points on a 100k-face mesh take about a second for all of them), fewer for large N so that
+#: N x iterations stays within RELAX_POINT_ITERATIONS (20,000 points: 30 iterations, a few
+#: seconds, within an interactive request's budget), and the push per iteration, the fraction of a
+#: pair's overlap each of its two points moves.
+RELAX_ITERATIONS = 150
+RELAX_MIN_ITERATIONS = 30
+RELAX_POINT_ITERATIONS = 600_000
+RELAX_STEP = 0.5
+
+
+def relax_on_surface(
+    mesh: Mesh, cand: np.ndarray, cand_face: np.ndarray, start: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Spread (N, 3) points ``start`` on the surface toward the hexagonal packing.
+
+    Farthest-point picks keep a minimum spacing of only about 0.72 of the hexagonal spacing
+    ``h = sqrt(2 A / (sqrt(3) N))`` of N points on area A (density ~0.52 of the ideal). Soft-disk
+    relaxation closes most of the gap: every pair closer than ``h`` is pushed apart along its
+    joining line by a fraction of the overlap (the "spring" step of Turk 1992, "Re-tiling
+    polygonal surfaces", with a cut-off at the target spacing as in soft-sphere jamming), and
+    each moved point goes back to the plane of the face of its nearest dense surface sample.
+    The iterate with the largest nearest-pair distance is kept; at the end every point is put on
+    the closest point of the faces near it.
+
+    Args:
+        mesh: the (unit-sized) mesh; ``cand`` (M, 3) dense surface samples on it, ``cand_face``
+            (M,) their faces; ``start`` (N, 3) the initial points.
+
+    Returns:
+        (points (N, 3) on the faces, faces (N,), barycentric coordinates (N, 3)).
+    """
+    from scipy.spatial import cKDTree
+
+    tri = mesh.vertices[mesh.faces]
+    n = len(start)
+    area = float(_face_areas(tri).sum())
+    h = math.sqrt(2.0 * area / (math.sqrt(3.0) * n))
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = normal / np.where(length > 0.0, length, 1.0)
+    samples = cKDTree(cand)
+    pts = np.array(start, dtype=np.float64)
+    best, best_d = pts.copy(), _nearest_pair(pts)
+    iterations = min(RELAX_ITERATIONS, max(RELAX_MIN_ITERATIONS, RELAX_POINT_ITERATIONS // n))
+    for _ in range(iterations):
+        pairs = cKDTree(pts).query_pairs(h, output_type="ndarray")
+        if len(pairs) == 0:
+            break
+        i, j = pairs[:, 0], pairs[:, 1]
+        delta = pts[j] - pts[i]
+        dist = np.linalg.norm(delta, axis=1)
+        unit = delta / np.maximum(dist, 1e-12 * h)[:, None]
+        push = (0.5 * RELAX_STEP * (h - dist))[:, None] * unit
+        disp = np.zeros_like(pts)
+        np.add.at(disp, i, -push)
+        np.add.at(disp, j, push)
+        q = pts + disp
+        # Back onto the surface: the plane of the nearest face of the 4 nearest samples (on a
+        # fine mesh the true face is often not among them, and clamping to theirs would snap
+        # the point to their edges), clamped onto that face where the plane leaves the surface
+        # by more than 5 % of h (across a sharp edge, e.g. off a cube's face).
+        on, f, _ = _on_faces(q, tri, samples, cand_face, 4)
+        nf = normal[f]
+        planar = q - ((q - tri[f, 0]) * nf).sum(axis=1, keepdims=True) * nf
+        off = ((planar - on) ** 2).sum(axis=1) > (0.05 * h) ** 2
+        pts = np.where(off[:, None], on, planar)
+        d = _nearest_pair(pts)
+        if d > best_d:
+            best, best_d = pts.copy(), d
+    # The last placement decides the spacing, so look wider: the faces of the 8 nearest samples
+    # (right for large faces) and the 8 faces with the nearest centroids (on a fine mesh the
+    # point's own face often holds no sample); the closest of the 16 points.
+    near_samples = _on_faces(best, tri, samples, cand_face, 8)
+    centroids = cKDTree(tri.mean(axis=1))
+    near_faces = _on_faces(best, tri, centroids, np.arange(len(tri)), 8)
+    closer = ((near_faces[0] - best) ** 2).sum(axis=1) < ((near_samples[0] - best) ** 2).sum(axis=1)
+    pts, faces, bary = (np.where(closer.reshape((-1,) + (1,) * (a.ndim - 1)), b, a)
+                        for a, b in zip(near_samples, near_faces, strict=True))
+    return pts, faces, bary
+
+
+def _on_faces(
+    q: np.ndarray, tri: np.ndarray, samples: Any, sample_face: np.ndarray, k: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closest points to ``q`` (N, 3) on the faces of their ``k`` nearest surface samples
+    (``samples``: a cKDTree of them, ``sample_face`` their faces).
+
+    Returns:
+        (points (N, 3), faces (N,), barycentric coordinates (N, 3)).
+    """
+    n = len(q)
+    k = min(k, len(sample_face))
+    _, near = samples.query(q, k=k)
+    faces = sample_face[np.asarray(near).reshape(n, k)]
+    on, bary = _on_triangles(np.repeat(q, k, axis=0), tri[faces.ravel()])
+    on, bary = on.reshape(n, k, 3), bary.reshape(n, k, 3)
+    pick = ((on - q[:, None, :]) ** 2).sum(axis=2).argmin(axis=1)
+    rows = np.arange(n)
+    return on[rows, pick], faces[rows, pick], bary[rows, pick]
+
+
+def _nearest_pair(points: np.ndarray) -> float:
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(points).query(points, k=2)
+    return float(d[:, 1].min())
 
 
 def volume_candidates(mesh: Mesh, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -607,6 +780,34 @@ def volume_candidates(mesh: Mesh, count: int) -> tuple[np.ndarray, np.ndarray]:
 # Picking N
 
 
+Improve = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def _picks(
+    candidates: np.ndarray, colors: np.ndarray, n: int, improve: Improve | None
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """``n`` picks: farthest-point order, then ``improve`` (indices -> points, colours) if it
+    spreads them further.
+
+    Returns:
+        (points (k, 3), colours (k, 3), their nearest-pair distance (0 if k < n, inf if n = 1),
+        the farthest-point distances (k,)).
+    """
+    idx, dist = farthest_point_order(candidates, n)
+    if len(idx) < n:
+        return candidates[idx], colors[idx], 0.0, dist
+    if n == 1:
+        return candidates[idx], colors[idx], math.inf, dist
+    idx = np.sort(idx)
+    pts, cols, d_n = candidates[idx], colors[idx], float(dist[-1])
+    if improve is not None and n >= 3:
+        better, better_cols = improve(idx)
+        d_better = nearest_pair_distance(better)
+        if d_better > d_n:
+            pts, cols, d_n = better, better_cols, d_better
+    return pts, cols, d_n, dist
+
+
 def pick_points(
     candidates: np.ndarray,
     colors: np.ndarray,
@@ -618,48 +819,51 @@ def pick_points(
     center_m: np.ndarray,
     origin: np.ndarray,
     what: str,
+    improve: Improve | None = None,
 ) -> tuple[PointSet, float]:
-    """Exactly ``n`` of the (M, 3) ``candidates`` spread by farthest-point order, scaled by
+    """Exactly ``n`` of the (M, 3) ``candidates`` spread by farthest-point order (then by
+    ``improve``, e.g. :func:`relax_on_surface`, when that spreads them further), scaled by
     ``scale`` metres per candidate unit about ``origin`` (the source's bounding-box centre, (3,)),
     which goes to ``center_m``.
 
     With ``scale`` None the smallest scale at which they keep ``min_spacing_m`` is used (the
-    farthest-point distances scale linearly, so it is ``min_spacing_m / d_n``).
+    picks are made in candidate units, so distances scale linearly: ``min_spacing_m / d_n``).
 
     Returns:
         (points, the size in metres: ``extent * scale``).
 
     Raises:
-        MeshFitError: ``n`` do not fit; ``max_n`` and ``fit_size_m`` say what would.
+        MeshFitError: ``n`` do not fit; ``max_n`` (verified to fit at that size) and
+            ``fit_size_m`` say what would.
     """
-    centred = candidates - origin
-    idx, dist = farthest_point_order(centred, n)
-    d_n = float(dist[-1]) if len(idx) == n else 0.0
-    if n == 1:
-        d_n = math.inf
+    pts, cols, d_n, dist = _picks(candidates, colors, n, improve)
     fit_scale = min_spacing_m * (1.0 + _MARGIN) / d_n if d_n > 0.0 else None
     if scale is None:
         if fit_scale is None:
-            raise MeshFitError(f"{what} has only {len(idx)} distinct points, fewer than {n}",
-                               max_n=len(idx), fit_size_m=None)
+            raise MeshFitError(f"{what} has only {len(pts)} distinct points, fewer than {n}",
+                               max_n=len(pts), fit_size_m=None)
         scale = fit_scale if math.isfinite(fit_scale) and fit_scale > 0 else 1.0
-    ok = dist * scale >= min_spacing_m * (1.0 - _TOL)
-    if len(idx) < n or not ok[-1]:
-        max_n = int(ok.sum())
+    if d_n * scale < min_spacing_m * (1.0 - _TOL):
+        # Any farthest-point prefix that keeps the spacing fits (improving only spreads it
+        # further); a relaxed set packs denser, so also try the count its density predicts.
+        max_n = int((dist * scale >= min_spacing_m * (1.0 - _TOL)).sum())
+        if improve is not None and d_n > 0.0:
+            guess = min(n - 1, int(n * (d_n * scale / min_spacing_m) ** 2))
+            if guess > max_n and _picks(candidates, colors, guess, improve)[2] * scale >= min_spacing_m:
+                max_n = guess
         fit = extent * fit_scale if fit_scale is not None else None
         hint = (f", or a size of {fit:.4g} m fits {n}" if fit is not None
-                else f" ({what} has {len(idx)} distinct points)")
+                else f" ({what} has {len(pts)} distinct points)")
         raise MeshFitError(
             f"{n} points do not fit {what} at a size of {extent * scale:.4g} m and a minimum spacing of "
             f"{min_spacing_m:g} m; the largest N that fits is {max_n}{hint}",
             max_n=max_n, fit_size_m=fit,
         )
-    idx = np.sort(idx)
-    pts = centred[idx] * scale + center_m
-    good = ensure_spacing(pts, min_spacing_m)
-    if good is None:  # pragma: no cover - the farthest-point distances guarantee the spacing
+    out = (pts - origin) * scale + center_m
+    good = ensure_spacing(out, min_spacing_m)
+    if good is None:  # pragma: no cover - d_n and the scale guarantee the spacing
         raise FormationError(f"{n} points do not fit {what}")
-    return PointSet(good, colors[idx]), extent * scale
+    return PointSet(good, cols), extent * scale
 
 
 def _box_centre(points: np.ndarray) -> np.ndarray:
@@ -747,8 +951,15 @@ def mesh_points(
     elif len(mesh.faces) == 0:
         raise _err(f"{mode} mode needs faces; the file holds only points (use mode 'vertices')", "mode")
     elif mode == "surface":
-        cand, cols = surface_candidates(unit_mesh, SURFACE_CANDIDATES)
-        what = "the mesh surface"
+        cand, face, bary = _surface_samples(unit_mesh, SURFACE_CANDIDATES)
+        cols = _face_colors(unit_mesh, face, bary)
+
+        def relax(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            pts, f, b = relax_on_surface(unit_mesh, cand, face, cand[idx])
+            return pts, _face_colors(unit_mesh, f, b)
+
+        return pick_points(cand, cols, n, min_spacing_m=s, scale=size, extent=1.0, center_m=center,
+                           origin=_box_centre(verts), what="the mesh surface", improve=relax)
     else:
         return _volume_points(unit_mesh, n, s=s, size=size, center=center, origin=_box_centre(verts))
     return pick_points(cand, cols, n, min_spacing_m=s, scale=None if size is None else size,

@@ -32,8 +32,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from formations._effects import KINDS, TARGETS, Lights, lights_problem
+from formations._effects import KINDS, TARGETS, DroneGroups, Lights, check_group_names, groups_problem, lights_problem
 from formations._launch import LaunchBoxes, boxes_problem
+from formations._motion import Motion, motion_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
@@ -283,6 +284,35 @@ class HomeFromBoxes(BaseModel):
     boxes: LaunchBoxes
 
 
+class DronesFromGroup(BaseModel):
+    """``{"group": name}``: exactly the drones of the show's group ``name`` fly this formation."""
+
+    model_config = _CONFIG
+    group: str = Field(min_length=1, max_length=200)
+
+
+class DronesByCount(BaseModel):
+    """``{"count": n}``: n drones fly this formation; the planner picks which (CAPT-optimal)."""
+
+    model_config = _CONFIG
+    count: int = Field(ge=1, le=MAX_DRONES)
+
+
+def _drones_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return "group" if "group" in value else ("count" if "count" in value else None)
+    if isinstance(value, DronesFromGroup):
+        return "group"
+    return "count" if isinstance(value, DronesByCount) else None
+
+
+DroneSelection = Annotated[
+    Annotated[DronesFromGroup, Tag("group")] | Annotated[DronesByCount, Tag("count")],
+    Discriminator(_drones_kind, custom_error_type="drones_kind",
+                  custom_error_message='drones must be {"group": name} or {"count": n}'),
+]
+
+
 class Formation(_ArrayCachingModel):
     """One formation of the timeline: points (metres), colours, hold time (seconds).
 
@@ -316,6 +346,25 @@ class Formation(_ArrayCachingModel):
         None, ge=0, le=MAX_SHOW_TIME_S,
         description="Show time at which the drones leave this formation (its hold ends; hold_s is then unused), "
         "seconds.",
+    )
+    # Issue 21: keyframed rotation, translation and scale of the whole formation during its hold
+    # (formations._motion). The transition into it ends at the first key's pose, the one out of it
+    # starts at the last key's.
+    motion: Motion | None = Field(
+        None, description="Keyframed similarity transform of the formation over its hold (rotate, translate, "
+        "scale about a pivot); None: the formation holds still.",
+    )
+
+    # Issue 21: subset formations. None (left out) means every drone, as before.
+    drones: DroneSelection | None = Field(
+        None, description='Which drones fly this formation: {"group": name} (a show group) or {"count": n} '
+        "(the planner picks the n nearest, CAPT-optimal); default every drone.",
+    )
+    # None (left out) means "hold", so that shows written before this field keep their content hash.
+    others: Literal["hold", "park", "land"] | None = Field(
+        None, description="What the drones not in this formation do (dark): 'hold' where they are (default), "
+        "'park' in a vertical layer behind the formation (+y, away from the audience), or 'land' on their own "
+        "home (taking off again for the next formation).",
     )
 
     @field_validator("name")
@@ -429,6 +478,11 @@ class ShowFile(_ArrayCachingModel):
         ),
     ] = Field(description="Ground start positions: a grid, explicit points or launch boxes (metres).")
     settings: Settings = Field(default_factory=Settings)
+    # Issue 21: named drone groups (None, left out of the file, keeps older shows' hashes).
+    groups: DroneGroups | None = Field(
+        None, description="Named drone groups: name -> drone indices (0-based), e.g. by launch box or drone type. "
+        "Formations may fly a group; light effects may target one.",
+    )
     formations: Annotated[list[Formation], Field(min_length=1, max_length=MAX_FORMATIONS)]
     # Issue 18: light effects over the base colours (None, left out of the file, keeps older shows' hashes).
     lights: Lights | None = Field(None, description="Drone groups and the stack of light effects (see sim.light).")
@@ -437,6 +491,11 @@ class ShowFile(_ArrayCachingModel):
     @classmethod
     def _name_ok(cls, value: str) -> str:
         return _check_name(value)
+
+    @field_validator("groups")
+    @classmethod
+    def _groups_ok(cls, value: dict[str, list[int]] | None) -> dict[str, list[int]] | None:
+        return None if value is None else check_group_names(value)
 
     @model_validator(mode="after")
     def _semantics(self) -> ShowFile:
@@ -472,6 +531,22 @@ class ShowFile(_ArrayCachingModel):
             ids = np.full(len(self.all_home_positions_m), -1, dtype=np.int64)
         ids.setflags(write=False)
         return ids
+
+    @property
+    def drone_groups(self) -> dict[str, list[int]]:
+        """Every named group: the show's ``groups`` over the older ``lights.groups`` (one lookup for all users)."""
+        older = self.lights.groups if self.lights is not None else {}
+        return {**older, **(self.groups or {})}
+
+    def formation_drones(self, k: int) -> np.ndarray | int | None:
+        """Who flies formation k: the group's drone indices (sorted, int64), a count, or None (every drone)."""
+        sel = self.formations[k].drones
+        if isinstance(sel, DronesFromGroup):
+            drones = np.sort(np.asarray(self.drone_groups[sel.group], dtype=np.int64))
+            return drones if len(drones) < self.drones else None  # validated unique: a group of all drones is all
+        if isinstance(sel, DronesByCount):
+            return sel.count if sel.count < self.drones else None
+        return None
 
     def canonical_json(self) -> str:
         """Compact, key-sorted JSON of the show: identical for identical content."""
@@ -558,11 +633,46 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                     f"home points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
 
+    if show.groups is not None:
+        problem = groups_problem(show.groups, n)
+        if problem is not None:
+            return ("groups", *problem[0]), problem[1]
+        if show.lights is not None:
+            for name in show.groups:
+                if name in show.lights.groups and show.lights.groups[name] != show.groups[name]:
+                    return ("groups", name), (f"group {name!r} is also in lights.groups with other drones; "
+                                              "keep one definition")
+    groups = show.drone_groups
     for k, f in enumerate(show.formations):
         pts = f.points_m
-        if len(pts) < n:
+        fly = n
+        if f.others is not None and f.drones is None:
+            return ("formations", k, "others"), (
+                "'others' applies to a formation flown by some of the drones: give 'drones' "
+                '({"group": name} or {"count": n}) or leave \'others\' out')
+        if f.drones is not None and f.motion is not None:
+            return ("formations", k, "motion"), (
+                "a formation that moves during its hold is flown by every drone: leave out 'drones' or 'motion'")
+        if isinstance(f.drones, DronesFromGroup):
+            if f.drones.group not in groups:
+                return ("formations", k, "drones", "group"), (
+                    f"no drone group named {f.drones.group!r} in groups"
+                    + (f" (groups: {', '.join(sorted(groups))})" if groups else " (the show has no groups)"))
+            dup = groups_problem({f.drones.group: groups[f.drones.group]}, n)
+            if dup is not None:
+                return ("formations", k, "drones", "group"), dup[1]
+            fly = len(groups[f.drones.group])
+        elif isinstance(f.drones, DronesByCount):
+            if f.drones.count > n:
+                return ("formations", k, "drones", "count"), f"count {f.drones.count} is more than drones = {n}"
+            if f.drones.count > len(pts):
+                return ("formations", k, "drones", "count"), (
+                    f"count {f.drones.count} is more than the formation's {len(pts)} points")
+            fly = f.drones.count
+        if len(pts) < fly:
+            what = f" (group {f.drones.group!r})" if isinstance(f.drones, DronesFromGroup) else ""
             return ("formations", k, "points"), (
-                f"{len(pts)} points for {n} drones; a formation needs at least as many points as drones"
+                f"{len(pts)} points for {fly} drones{what}; a formation needs at least as many points as drones"
             )
         outside = _outside_area(pts, extent)
         if outside is not None:
@@ -586,9 +696,21 @@ def _first_semantic_problem(show: ShowFile) -> tuple[tuple[str | int, ...], str]
                 return ("formations", k, "points"), (
                     f"points {i} and {j} are {d:.3f} m apart, closer than min_distance_m {s.min_distance_m} m"
                 )
+        if f.motion is not None:
+            fence = s.geofence
+            descent = s.max_descent_speed_mps if s.max_descent_speed_mps is not None else s.max_speed_z_mps
+            problem = motion_problem(
+                f.motion, pts, f.hold_s if f.leave_at_s is None else None, min_distance_m=s.min_distance_m,
+                closest_m=closest_pair(pts)[2] if len(pts) > 1 else float("inf"), floor_m=s.min_altitude_m,
+                ceiling_m=s.max_altitude_m, extent_m=extent,
+                fence=None if fence is None else (fence.x_min_m, fence.x_max_m, fence.y_min_m, fence.y_max_m),
+                v_xy=s.max_speed_xy_mps, v_z=s.max_speed_z_mps, v_down=descent, a_max=s.max_accel_mps2,
+            )
+            if problem is not None:
+                return ("formations", k, "motion", *problem[0]), problem[1]
     if show.lights is not None:
         problem = lights_problem(show.lights, n, [f.name for f in show.formations],
-                                 [len(f.points) for f in show.formations])
+                                 [len(f.points) for f in show.formations], show.groups)
         if problem is not None:
             return ("lights", *problem[0]), problem[1]
     return _pin_order_problem(show)
@@ -671,6 +793,10 @@ def _drop_union_tag(loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """pydantic puts the union member's tag in the path (home.grid.grid.rows): drop it."""
     for i in range(len(loc) - 2):
         if loc[i] == "home" and loc[i + 1] in ("grid", "points", "boxes") and loc[i + 2] == loc[i + 1]:
+            return loc[: i + 1] + loc[i + 2 :]
+    # Subset formations: formations[k].drones.group.group -> formations[k].drones.group.
+    for i in range(len(loc) - 2):
+        if loc[i] == "drones" and loc[i + 1] in ("group", "count") and loc[i + 2] == loc[i + 1]:
             return loc[: i + 1] + loc[i + 2 :]
     # Light effects: lights.effects[k].effect.<kind>.field -> lights.effects[k].effect.field (and target).
     if loc[:1] == ("lights",):

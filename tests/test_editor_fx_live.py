@@ -107,7 +107,7 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
     page.get_by_label("New drone group name").fill("diagonal")
     page.get_by_role("button", name="Make a drone group from the selection").click()
     want = sorted(d for d, p in enumerate(plan["assignment"][0]) if p in (0, 4, 8))
-    assert ui.state("s.show.lights.groups.diagonal") == want
+    assert ui.state("s.show.groups.diagonal") == want
     assert ui.state("s.show.lights.effects[0].target") == {"kind": "group", "group": "diagonal"}
     expect(page.get_by_role("list", name="Drone groups")).to_contain_text("diagonal · 3 drones")
     # In the 3D view only the group's drones stay red (the others show their own white).

@@ -92,3 +92,28 @@ def test_local_formats_keep_local_coordinates_and_state_the_heading(placed, fmt)
         float(row[1]), float(row[9]), float(row[17])]
     # Not rotated by the heading: the home as planned, in the show's own frame.
     np.testing.assert_allclose(xyz, plan.knot_positions_m[0, 0], atol=1e-3)
+
+
+def test_importing_app_exports_loads_no_numba_and_playback_still_compiles():
+    """app.exports is imported by the API and the CLI on start-up: it must not pull in numba (a
+    second or more of import); the plan track compiles its kernel on first use. A fresh
+    interpreter, since this test process has numba loaded already."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "import app.exports\n"
+        "assert 'numba' not in sys.modules, 'numba imported by app.exports'\n"
+        "from sim import plan_show\n"
+        "from tests.conftest import make_show, ring\n"
+        "show = make_show([{'name': 'r', 'hold_s': 1.0, 'points': ring(4, 6.0), 'color': '#ff0000'}],"
+        " drones=4, rows=2, cols=2, spacing_m=4.5)\n"
+        "plan = plan_show(show)\n"
+        "track = app.exports.make_track(plan, None, 'planned')\n"
+        "t = np.linspace(0, plan.duration_s, 7)\n"
+        "assert np.allclose(track.positions(t), plan.evaluate(t).positions_m)\n"
+        "assert 'numba' in sys.modules\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]

@@ -216,6 +216,33 @@ def test_raw_upload_replace_and_delete(client):
     assert client.get(f"/api/shows/{sid}/audio").status_code == 404
 
 
+def test_copy_music_to_a_saved_copy(client):
+    """The editor's "save as a copy" makes a new show and then copies the music: same bytes, name,
+    type and analysis; the original keeps its own; 204 (nothing copied) from a show without music,
+    404 naming a show that does not exist."""
+    src, dst = _new_show(client), _new_show(client)
+    y, _ = click_track(100, 0.25, duration_s=4.0, sr=22_050)
+    data = encode(y, "WAV", sr=22_050)
+    assert client.put(f"/api/shows/{src}/audio", params={"filename": "song.wav"}, content=data).status_code == 201
+    r = client.post(f"/api/shows/{dst}/audio/copy", params={"from": src})
+    assert r.status_code == 201, r.text
+    assert r.json() == {**client.get(f"/api/shows/{src}/audio/info").json(), "show_id": dst,
+                        "url": f"/api/shows/{dst}/audio", "analysis_url": f"/api/shows/{dst}/audio/analysis"}
+    assert client.get(f"/api/shows/{dst}/audio").content == data
+    analysis = client.get(f"/api/shows/{src}/audio/analysis").json()
+    assert client.get(f"/api/shows/{dst}/audio/analysis").json() == analysis
+    # independent copies: deleting one keeps the other
+    assert client.delete(f"/api/shows/{src}/audio").status_code == 204
+    assert client.get(f"/api/shows/{dst}/audio").content == data
+    # from a show without music: nothing to copy, the target keeps what it has
+    r = client.post(f"/api/shows/{dst}/audio/copy", params={"from": src})
+    assert r.status_code == 204 and client.get(f"/api/shows/{dst}/audio").content == data
+    for a, b in (("nope", dst), (dst, "nope")):
+        r = client.post(f"/api/shows/{b}/audio/copy", params={"from": a})
+        assert r.status_code == 404 and "nope" in r.text
+    assert client.post(f"/api/shows/{dst}/audio/copy").status_code == 422  # `from` is required
+
+
 def test_bad_uploads_are_4xx_naming_file_and_store_nothing(client):
     sid = _new_show(client)
     wav = encode(np.zeros(22_050, np.float32) + 0.1, "WAV", sr=22_050)

@@ -138,3 +138,26 @@ def test_takeoff_timing_is_exact() -> None:
     # Minimum time (the default), 4 m/s², 10 m/s³: 0.4 s of jerk, 0.9 s accelerating, 4.1 s at 2 m/s, 0.9 s braking.
     fast = plan_show(show.model_copy(update={"settings": show.settings.model_copy(update={"time_law": "min_time"})}))
     assert fast.segments[0].duration_s == pytest.approx(5.9)
+
+
+def test_colour_fade_over_a_zero_length_window_is_the_window_end(small_show) -> None:
+    """A window of zero length (a plan ending exactly on its last knot, e.g. one cut short) has
+    faded completely at its time: its end colour, not 0/0 (NaN and a RuntimeWarning)."""
+    import warnings
+    from dataclasses import replace
+
+    from sim.plan._plan import Segment
+
+    plan = plan_show(small_show)
+    times = plan.knot_times_s.copy()
+    times[-1] = times[-2]  # the landing window shrunk to an instant
+    last = plan.segments[-1]
+    cut = replace(plan, knot_times_s=times,
+                  segments=(*plan.segments[:-1], Segment(last.index, last.kind, last.label, last.start_s, 0.0)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = cut.evaluate([times[-1], times[-1] + 1.0]).colors_rgb
+    assert np.array_equal(got, np.broadcast_to(plan.knot_colors_rgb[-1], got.shape))
+    # the windows before it fade as before
+    t = 0.5 * (times[1] + times[2])
+    assert np.array_equal(cut.evaluate([t]).colors_rgb, plan.evaluate([t]).colors_rgb)

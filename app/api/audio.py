@@ -156,6 +156,28 @@ async def put_audio(
                         status_code=201)
 
 
+@router.post(
+    "/shows/{show_id}/audio/copy",
+    status_code=201,
+    response_model=AudioInfoOut,
+    summary="Give a show the music of another show (e.g. after saving it as a copy)",
+    responses={**error_responses(404), 204: {"description": "The other show has no music: nothing copied."}},
+)
+async def copy_audio(
+    request: Request, show_id: str,
+    from_show: str = Query(..., alias="from", min_length=1, max_length=200,
+                           description="The show whose music is copied."),
+) -> Response:
+    """Copy the stored track (bytes and analysis, replacing this show's) inside the store: no upload, no
+    second decode. 204 when ``from`` has no music; 404 naming a show that does not exist."""
+    record = await deps.write(request, deps.store(request).copy_audio, from_show, show_id)
+    if record is None:
+        return Response(status_code=204)
+    r = _record(request, show_id, analysis=True)
+    return JSONResponse(_summary(show_id, r.filename, r.media_type, r.size, r.sha256, json.loads(r.analysis)),
+                        status_code=201)
+
+
 def _record(request: Request, show_id: str, *, analysis: bool = False) -> Any:
     store = deps.store(request)
     record = store.get_audio(show_id, analysis=analysis)

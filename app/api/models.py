@@ -170,7 +170,8 @@ class PlanSummary(BaseModel):
     duration_s: float
     segments: list[SegmentOut]
     assignment: list[list[int]] | None = Field(None, description=(
-        "For each formation in show order: the point index each drone flies to (drone i -> point assignment[k][i])."))
+        "For each formation in show order: the point index each drone flies to (drone i -> point assignment[k][i]; "
+        "-1: drone i does not fly that subset formation and is dark)."))
 
 
 class CheckOut(BaseModel):

@@ -152,22 +152,41 @@ def cut_at(drone, start, duration, coef, n: int, cuts_s: np.ndarray):
     return drone, start, duration, coef
 
 
-def plan_parts(plan, drone, start, duration, n: int, names: list[str]) -> np.ndarray:
+def plan_parts(plan, drone, start, duration, n: int, names: list[str], coef: np.ndarray | None = None) -> np.ndarray:
     """Show times at which to cut every drone's trajectory so each part has <= PART_MAX_PIECES pieces.
 
-    Candidates are the middles of holds (all drones at rest); greedily, each part runs
+    Candidates are the middles of holds (all drones at rest; in a moving hold, the instants
+    where every drone rests); greedily, each part runs
     to the last candidate it can reach. Raises :class:`ExportError` naming the drones
     that need more than PART_MAX_PIECES pieces between two candidates.
     """
-    rests = [s.start_s + s.duration_s / 2 for s in plan.segments if s.kind == "hold" and s.duration_s > 0]
+    end = start + duration
+    # (coef: the pieces' (P, 3, 8) coefficients, to tell moving pieces; without them every hold is still.)
+    moving = np.zeros(len(start), bool) if coef is None else ~np.all(coef[:, :, 1:] == 0.0, axis=(1, 2))
+
+    def still(a: float, b: float) -> bool:
+        """No drone moves inside (a, b)."""
+        return not np.any(moving & (start < b - 1e-9) & (end > a + 1e-9))
+
+    def rests(a: float, b: float) -> list[float]:
+        """Instants in [a, b] at which every drone rests: a moving hold's (issue 21) piece breaks with
+        zero velocity (its start and end, and its "smooth" keys)."""
+        t = np.unique(np.r_[start, end])
+        t = t[(t >= a - 1e-9) & (t <= b + 1e-9)]
+        v = plan.motion.evaluate(t).velocities_mps
+        return [float(x) for x in t[np.abs(v).max(axis=(1, 2), initial=0.0) < 1e-9]]
+
+    cands = [
+        c for s in plan.segments if s.kind == "hold" and s.duration_s > 0
+        for c in ([s.start_s + s.duration_s / 2] if still(s.start_s, s.end_s) else rests(s.start_s, s.end_s))
+    ]
     launch = getattr(plan, "launch", None)
     if launch is not None and (launch.takeoff is not None or launch.landing is not None):
         # Takeoff / landing in waves (sim.plan._waves) add rests and pieces before the first hold: the end of
         # the takeoff and the start of the landing are instants where every drone rests too.
-        rests += [s.end_s for s in plan.segments if s.kind == "takeoff"]
-        rests += [s.start_s for s in plan.segments if s.kind == "landing"]
-    candidates = np.sort(np.array(rests))
-    end = start + duration
+        cands += [s.end_s for s in plan.segments if s.kind == "takeoff"]
+        cands += [s.start_s for s in plan.segments if s.kind == "landing"]
+    candidates = np.array(sorted(cands))
 
     def pieces_in(a: float, b: float) -> np.ndarray:
         """(N,) pieces each drone flies in [a, b] once cut at a and b."""
@@ -207,7 +226,7 @@ def export_crazyswarm(ctx: ExportContext) -> ExportResult:
     coef[:, :, 0] += offset
     cuts = np.zeros(0)
     if counts.max(initial=0) > CRAZYFLIE_MAX_PIECES:
-        cuts = plan_parts(plan, drone, start, duration, n, names)
+        cuts = plan_parts(plan, drone, start, duration, n, names, coef)
         drone, start, duration, coef = cut_at(drone, start, duration, coef, n, cuts)
     ctx.progress(0.2)
     bounds_s = np.r_[0.0, cuts, plan.duration_s]

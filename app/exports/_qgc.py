@@ -224,9 +224,21 @@ def _fence(ctx: ExportContext, origin) -> list[list[float]]:
     return [[round(float(a), 10), round(float(b), 10)] for a, b in zip(lat, lon, strict=True)]
 
 
+def require_still_holds(ctx: ExportContext) -> None:
+    """A waypoint mission holds each formation still: refuse a show whose formations move during a hold."""
+    moving = [k for k, f in enumerate(ctx.show.formations) if f.motion is not None]
+    if moving:
+        raise ExportError(
+            f"formations[{moving[0]}].motion: a waypoint mission holds every formation still, so it cannot carry "
+            f"a formation that moves during its hold ({len(moving)} do); export .skyc, Skybrush CSV or "
+            f"waypoints CSV instead, or remove the motion"
+        )
+
+
 def export_qgc_plan(ctx: ExportContext) -> ExportResult:
     """Build the zip of QGroundControl ``.plan`` files (see the module docstring)."""
     require_planned(ctx)
+    require_still_holds(ctx)
     mission = timed_mission(ctx)
     origin, it = _geodetic_items(ctx, mission)
     ctx.progress(0.15)
@@ -283,6 +295,7 @@ def export_qgc_plan(ctx: ExportContext) -> ExportResult:
 def export_qgc_wpl(ctx: ExportContext) -> ExportResult:
     """Build the zip of ``QGC WPL 110`` waypoint files (see the module docstring)."""
     require_planned(ctx)
+    require_still_holds(ctx)
     mission = timed_mission(ctx)
     origin, it = _geodetic_items(ctx, mission)
     ctx.progress(0.15)

@@ -8,10 +8,11 @@ cache (each drone's current piece), never state that changes an answer.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
-import numba as nb
 import numpy as np
 
 if TYPE_CHECKING:  # annotations only: importing app.exports stays cheap (no numba, no scipy)
@@ -57,8 +58,7 @@ class Track(Protocol):
         ...
 
 
-@nb.njit(cache=True)
-def _states_at(breaks, coeffs, times, cursor, pos, vel):  # pragma: no cover - compiled
+def _states_at_py(breaks, coeffs, times, cursor, pos, vel):  # pragma: no cover - compiled
     """Every drone's position and velocity at times (T,), each on its own piece: (T, N, 3) into pos, vel.
 
     ``cursor`` (N,) holds each drone's piece from the previous call and is moved
@@ -84,6 +84,15 @@ def _states_at(breaks, coeffs, times, cursor, pos, vel):  # pragma: no cover - c
                 vel[j, i, a] = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1]
 
 
+@functools.cache
+def _states_at() -> Callable[..., None]:
+    """:func:`_states_at_py` compiled on first use (numba is imported here, not with the module)."""
+    import numba as nb
+
+    compiled: Callable[..., None] = nb.njit(cache=True)(_states_at_py)
+    return compiled
+
+
 class PlanTrack:
     """The exact plan (every drone's own polynomial pieces, ``plan.motion``), evaluated on demand."""
 
@@ -105,12 +114,12 @@ class PlanTrack:
         n = self.drone_count
         pos, vel = np.empty((len(t), n, 3)), np.empty((len(t), n, 3))
         if n:
-            _states_at(self._breaks, self._coeffs, np.clip(t, self._breaks[0, 0], self._breaks[0, -1]),
+            _states_at()(self._breaks, self._coeffs, np.clip(t, self._breaks[0, 0], self._breaks[0, -1]),
                        cursor, pos, vel)
         # Colours fade linearly over each show-wide window, as ShowPlan.evaluate fades them.
         k = self.plan.segment_index(t)
         t0, t1 = self.plan.knot_times_s[k], self.plan.knot_times_s[k + 1]
-        tau = np.clip((t - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
+        tau = np.clip(np.divide(t - t0, t1 - t0, out=np.ones_like(t), where=t1 > t0), 0.0, 1.0)
         cols = self.plan.knot_colors_rgb
         colors = cols[k] + tau[:, None, None] * (cols[k + 1] - cols[k])
         return pos, vel, colors

@@ -15,13 +15,13 @@ import threading
 from typing import Any, Literal
 
 from fastapi import APIRouter, Body, FastAPI, Request
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from app.viewer._clock import clock_router
 from app.viewer._marks import check_report_json
 from app.viewer._relay import viewer_router
 from app.viewer._viewer import MAX_SHOWS, Viewer
-from formations import Lights, lights_problem
+from formations import DroneGroups, Lights, check_group_names, groups_problem, lights_problem
 
 Source = Literal["planned", "simulated"]
 log = logging.getLogger("swarmshow.viewer")
@@ -51,6 +51,13 @@ class LightsRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     lights: Lights | None = Field(None, description="Groups and effect stack as in the show file (None: no effects).")
+    groups: DroneGroups | None = Field(None, description="The show's drone groups (its top-level 'groups'), which "
+                                       "group targets resolve as well as lights.groups.")
+
+    @field_validator("groups")
+    @classmethod
+    def _groups_ok(cls, value: dict[str, list[int]] | None) -> dict[str, list[int]] | None:
+        return None if value is None else check_group_names(value)
 
 
 class LightsOut(BaseModel):
@@ -295,13 +302,18 @@ def playback_router() -> APIRouter:
         lights = body.lights
         if lights is not None:
             names = [seg.label for _, seg in plan.formation_segments()]
-            problem = lights_problem(lights, plan.drone_count, names)
+            if body.groups is not None:
+                problem = groups_problem(body.groups, plan.drone_count)
+                if problem is not None:
+                    path = ".".join(str(p) for p in ("groups", *problem[0]))
+                    raise ApiError(422, [{"loc": ["body", "groups", *problem[0]], "path": path, "msg": problem[1]}])
+            problem = lights_problem(lights, plan.drone_count, names, show_groups=body.groups)
             if problem is not None:
                 path = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in ("lights", *problem[0]))
                 raise ApiError(422, [{"loc": ["body", "lights", *problem[0]], "path": path.replace(".[", "["),
                                       "msg": problem[1]}])
         # Decoding images and videos is real work: off the event loop.
-        stack = await asyncio.to_thread(LightStack, lights, plan) if lights is not None else None
+        stack = await asyncio.to_thread(LightStack, lights, plan, body.groups) if lights is not None else None
         if not pb.set_lights(plan, stack):
             raise ApiError(409, "the show on screen changed meanwhile; send the effects again")
         return LightsOut(show=pb.current, effects=stack.effect_count if stack else 0, revision=pb.lights_rev)

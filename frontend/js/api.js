@@ -196,6 +196,18 @@ export async function createShow(show, opts = {}) {
 }
 
 /**
+ * Give show `id` the music of show `fromId` (a copy made in the store). Resolves to the new track's
+ * info, or null when `fromId` has no music (204: nothing to copy).
+ * @param {string} id
+ * @param {string} fromId
+ * @returns {Promise<any>}
+ */
+export async function copyAudio(id, fromId) {
+  const info = await request("POST", `/api/shows/${encodeURIComponent(id)}/audio/copy?from=${encodeURIComponent(fromId)}`);
+  return info || null;
+}
+
+/**
  * Replace a show; `revision` is the one the edit is based on (a stale one gets 409). With `draft`,
  * a show that breaks the rules is stored as a draft (the answer lists its `problems`) instead of refused.
  * @param {string} id

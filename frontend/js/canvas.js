@@ -31,6 +31,8 @@ export class CanvasView {
     this.close = new Set();
     /** @type {Set<number>} points flagged by a check violation */
     this.flagged = new Set();
+    /** @type {((f: any) => any)|null} draws a formation moved (motion.js plays a hold's motion) */
+    this.moved = null;
     /** @type {((f: any, base: string[]) => (string[]|null))|null} colours painted over the formation's (effects preview) */
     this.colorOverride = null;
     /** Transient drawing from tools: a stroke being drawn, a selection box. */
@@ -348,7 +350,8 @@ export class CanvasView {
     const prev = show.formations[this.state.current - 1];
     if (prev) this._drawPoints(prev, { ghost: true });
     const f = this.state.formation;
-    if (f) this._drawPoints(f, { ghost: false });
+    // A formation's motion during its hold (motion.js) plays by drawing it moved.
+    if (f) this._drawPoints(this.moved ? this.moved(f) : f, { ghost: false });
     this._drawOverlay();
   }
 

@@ -4,6 +4,7 @@
 
 import * as api from "./api.js";
 import { setError } from "./errors.js";
+import { allGroups } from "./groups.js";
 import { evaluateColors, evaluatePlanned, hexToRgb, planUsable, rgbToHex } from "./lighteval.js";
 
 /** Quiet time after the last edit before the 3D view is sent the effects, milliseconds. */
@@ -97,7 +98,6 @@ export class EffectsPanel {
     });
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "live" || e.detail.kind === "selection") {
-        if (e.detail.kind === "selection") this._renderGroups();
         return;
       }
       this.render();
@@ -147,7 +147,7 @@ export class EffectsPanel {
     this._sentToken = token;
     try {
       const res = await api.request("POST", `/api/viewer/${encodeURIComponent(token)}/lights`,
-        { json: { lights: s.lights || null } });
+        { json: { lights: s.lights || null, groups: s.groups || null } });
       this._sentRev = res.revision;
       setError("lights", "");
       return true;
@@ -185,9 +185,6 @@ export class EffectsPanel {
         <output id="fx-time-out" for="fx-time">0.0 s</output>
         <button id="fx-play" type="button" aria-label="Play the effect preview">▶</button>
         <span id="fx-approx" class="hint" hidden title="Check the show to preview with the planned assignment">approximate: drones on points in order</span></div>
-      <div class="row"><input id="fx-group-name" type="text" maxlength="200" placeholder="group name" aria-label="New drone group name">
-        <button id="fx-group-add" type="button" aria-label="Make a drone group from the selection">Group from selection</button></div>
-      <ul id="fx-groups" class="fx-list" aria-label="Drone groups"></ul>
       <div class="row"><select id="fx-kind" aria-label="Kind of effect to add">${KINDS.map((k) => `<option value="${k}">${k}</option>`).join("")}</select>
         <button id="fx-add" type="button" aria-label="Add a light effect">Add effect</button></div>
       <ol id="fx-list" class="fx-list" aria-label="Light effects, bottom of the stack first"></ol>
@@ -205,10 +202,6 @@ export class EffectsPanel {
     this.$play = q("#fx-play");
     q("#fx-add").addEventListener("click", () => this.add(q("#fx-kind").value));
     this.$approx = q("#fx-approx");
-    this.$groups = q("#fx-groups");
-    this.$groupName = q("#fx-group-name");
-    this.$groupAdd = q("#fx-group-add");
-    this.$groupAdd.addEventListener("click", () => this.groupFromSelection(this.$groupName.value));
   }
 
   /** The drones flying to the selected points of the formation on screen (the plan's, else drone i on point i). */
@@ -226,59 +219,18 @@ export class EffectsPanel {
   }
 
   /**
-   * Store the selection's drones as the named group `name` in lights.groups (one undo step) and, when an
-   * effect is selected, target it.
+   * A drone group was just made (the groups panel, groups.js): the selected effect, if any, targets it.
    * @param {string} name
    */
-  groupFromSelection(name) {
+  targetGroup(name) {
     const s = this.state.show;
-    name = String(name || "").trim();
-    const drones = this.selectedDrones();
-    if (!s || !name) { this.hooks.toast?.("Name the group first", { error: true }); return; }
-    if (!drones.length) { this.hooks.toast?.("Select the points whose drones form the group", { error: true }); return; }
     const k = this.selected;
-    this.state.edit(`Group "${name}" (${drones.length} drones)`, () => {
-      s.lights = { groups: {}, effects: [], ...(s.lights || {}) };
-      s.lights.groups = { ...(s.lights.groups || {}), [name]: drones };
-      if (k >= 0 && s.lights.effects[k]) {
-        const list = [...s.lights.effects];
-        list[k] = { ...list[k], target: { kind: "group", group: name } };
-        s.lights.effects = list;
-      }
+    if (!s || !s.lights || k < 0 || !s.lights.effects[k]) return;
+    this.state.edit(`Effect targets group "${name}"`, () => {
+      const list = [...s.lights.effects];
+      list[k] = { ...list[k], target: { kind: "group", group: name } };
+      s.lights = { ...s.lights, effects: list };
     });
-    this.$groupName.value = "";
-  }
-
-  /** @param {string} name */
-  removeGroup(name) {
-    const s = this.state.show;
-    if (!s || !s.lights || !s.lights.groups || !(name in s.lights.groups)) return;
-    if (s.lights.effects.some((/** @type {any} */ fx) => fx.target && fx.target.kind === "group" && fx.target.group === name)) {
-      this.hooks.toast?.(`Group "${name}" is the target of an effect`, { error: true });
-      return;
-    }
-    this.state.edit(`Remove group "${name}"`, () => {
-      const g = { ...s.lights.groups };
-      delete g[name];
-      s.lights.groups = g;
-    });
-  }
-
-  _renderGroups() {
-    const s = this.state.show;
-    const groups = (s && s.lights && s.lights.groups) || {};
-    this.$groupAdd.disabled = !this.state.selection.size;
-    this.$groups.replaceChildren(...Object.entries(groups).map(([name, idx]) => {
-      const li = document.createElement("li");
-      li.textContent = `${name} · ${idx.length} drones `;
-      const b = document.createElement("button");
-      b.type = "button";
-      b.textContent = "×";
-      b.setAttribute("aria-label", `Remove group ${name}`);
-      b.addEventListener("click", () => this.removeGroup(name));
-      li.append(b);
-      return li;
-    }));
   }
 
   /** Turn the canvas preview on or off. @param {boolean} on */
@@ -493,7 +445,6 @@ export class EffectsPanel {
       return li;
     }));
     this._renderForm();
-    this._renderGroups();
     this.$approx.hidden = !!this.plan;
     if (this.previewing) this.hooks.redraw();
   }
@@ -581,7 +532,7 @@ export class EffectsPanel {
         points: { kind: "points", formation: this.state.formation ? this.state.formation.name : names[0],
           indices: this.state.selection.size ? [...this.state.selection].sort((a, b) => a - b) : [0] },
         drones: { kind: "drones", indices: [0] },
-        group: { kind: "group", group: Object.keys(this.state.show.lights.groups || {})[0] || "group" },
+        group: { kind: "group", group: Object.keys(allGroups(this.state.show))[0] || "group" },
         box: { kind: "box", min_m: [-10, -10, 0], max_m: [10, 10, 100] },
         plane: { kind: "plane", point_m: [0, 0, 0], normal: [1, 0, 0] },
       };

@@ -7,7 +7,7 @@ export const formationProblems = new Map();
 
 /** Remove every field error shown for the show document. */
 export function clearShowErrors() {
-  for (const el of document.querySelectorAll("#form-settings [data-error-for], .timeline [data-error-for], #effects-panel [data-error-for]")) el.textContent = "";
+  for (const el of document.querySelectorAll("#form-settings [data-error-for], .timeline [data-error-for], #effects-panel [data-error-for], #groups-panel [data-error-for]")) el.textContent = "";
   for (const el of document.querySelectorAll("#form-settings .has-error")) el.classList.remove("has-error");
   formationProblems.clear();
 }
@@ -49,6 +49,7 @@ export function showShowErrors(problems, fallback) {
       if (panel) panel.open = true;
       continue;
     }
+    if (path.startsWith("groups") && setError("groups", `${path.replace(/^groups\.?/, "")}: ${p.msg}`)) continue;
     const input = document.querySelector(`#form-settings [data-path="${CSS.escape(path)}"]`);
     if (input) input.classList.add("has-error");
     // The most specific error slot: "home.grid.spacing_m", else "home.grid", else "home".

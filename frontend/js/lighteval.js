@@ -97,7 +97,8 @@ export function evaluateColors(show, formationName, points, base, t, images, ctx
     if (tg.kind === "drones" || (tg.kind === "points" && !ctx)) only = new Set(tg.indices || []);
     if (tg.kind === "points" && ctx) only = ctx.pointRows(tg.formation, tg.indices || []);
     if (tg.kind === "points" && ctx && !only) continue;
-    if (tg.kind === "group") only = new Set((lights.groups || {})[tg.group] || []);
+    // The show's groups over the older lights.groups (groups.js allGroups, ShowFile.drone_groups).
+    if (tg.kind === "group") only = new Set(({ ...(lights.groups || {}), ...(show.groups || {}) })[tg.group] || []);
     let color = e.color ? hexToRgb(e.color) : [1, 1, 1];
     let frameAlpha = a0;
     if (e.kind === "ramp") {
@@ -258,13 +259,16 @@ export function evaluatePlanned(show, k, points, base, t, plan, images) {
       const holds = plan.segments.filter((/** @type {any} */ g) => g.kind === "hold");
       const j = holds.findIndex((/** @type {any} */ g) => s >= g.start_s && s <= g.start_s + g.duration_s);
       const f = j >= 0 ? show.formations[j] : null;
-      if (!f || !Array.isArray(f.points) || f.points.length < Math.max(...plan.assignment[j]) + 1) return null;
+      // A subset formation (issue 21): drones that do not fly it (-1) are somewhere the preview does not know.
+      if (!f || !Array.isArray(f.points) || f.points.length < Math.max(...plan.assignment[j]) + 1
+        || plan.assignment[j].some((/** @type {number} */ p) => p < 0)) return null;
       return plan.assignment[j].map((/** @type {number} */ p) => f.points[p]);
     },
   };
-  const rows = evaluateColors(show, names[k], goal.map((/** @type {number} */ p) => points[p]),
-    goal.map((/** @type {number} */ p) => base[p]), t, images, ctx);
+  // Drones not flying this formation (-1, issue 21) are dark and paint no point; they keep their row (index).
+  const rows = evaluateColors(show, names[k], goal.map((/** @type {number} */ p) => points[p] || [0, 0, 0]),
+    goal.map((/** @type {number} */ p) => base[p] || [0, 0, 0]), t, images, ctx);
   const out = base.map((c) => [c[0], c[1], c[2]]);
-  goal.forEach((/** @type {number} */ p, /** @type {number} */ d) => { out[p] = rows[d]; });
+  goal.forEach((/** @type {number} */ p, /** @type {number} */ d) => { if (p >= 0) out[p] = rows[d]; });
   return out;
 }

@@ -9,7 +9,9 @@ import { clearShowErrors, formationProblems, setError, showShowErrors } from "./
 import { EffectsPanel } from "./effects.js";
 import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
+import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
+import { MotionPanel } from "./motion.js";
 import { MusicLane } from "./music.js";
 import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
@@ -34,6 +36,7 @@ const $ = (id) => document.getElementById(id);
 const state = new EditorState();
 keepUndoAcrossReloads(state);
 const view = new CanvasView(/** @type {HTMLCanvasElement} */ ($("canvas")), state);
+new MotionPanel(state, view);
 const timeline = new Timeline(/** @type {HTMLOListElement} */ ($("timeline-list")), state);
 timeline.problems = formationProblems;
 timeline.onTransition = async (k) => {
@@ -87,6 +90,13 @@ const effects = new EffectsPanel($("effects-body"), state, {
   redraw: () => view.redraw(), toast,
   plan: () => (report.result ? report.result.plan : null),
   viewer: () => preview.viewerState(),
+});
+// Drone groups and who flies each formation (issue 21); a new group becomes the selected effect's target.
+const groups = new GroupsPanel($("groups-body"), state, {
+  toast,
+  selectedDrones: () => effects.selectedDrones(),
+  ask: (title, label, value) => askText(title, label, value),
+  created: (name) => effects.targetGroup(name),
 });
 // The 3D preview paints the editor's unsaved effects: sent after each edit, and to a new viewer page
 // (a reload or a fresh preview has a new token) within a second.
@@ -220,7 +230,7 @@ function updateStatusbar() {
     $("st-selection").textContent = "";
     return;
   }
-  const n = state.show.drones;
+  const n = flyingCount(state.show, f);
   const m = f.points.length;
   pts.textContent = `"${f.name}": ${m} points / ${n} drones${m < n ? ` (need ${n - m} more: Fit to N drones)` : m > n ? ` (${m - n} stay dark)` : ""}`;
   pts.className = m < n ? "bad" : "";
@@ -481,5 +491,5 @@ async function start() {
   }
 }
 
-/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects, fxLane, report };
+/** @type {any} */ (window).swarmshow = { state, view, tools, persist, TOOLS, music, playhead, effects, fxLane, report, groups };
 start();

@@ -216,10 +216,17 @@ export class Persistence extends EventTarget {
       // The copy keeps the work as it is: a draft if it is half-finished.
       const rec = await api.createShow(doc, { draft: true });
       const oldId = st.meta.id;
+      // The music goes with the copy (before the load below, which reloads the music lane).
+      let musicLost = "";
+      try {
+        await api.copyAudio(rec.id, oldId);
+      } catch (err) {
+        musicLost = ` (its music was not copied: ${err.message})`;
+      }
       st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
       this.dropDraft(oldId);
       this.dispatchEvent(new CustomEvent("opened", { detail: rec }));
-      this.ui.status(`Saved as a new show "${rec.name}"`);
+      this.ui.status(`Saved as a new show "${rec.name}"${musicLost}`, !!musicLost);
       toast(`Your version was saved as "${rec.name}"`);
       return true;
     } catch (err) {

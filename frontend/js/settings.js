@@ -2,6 +2,7 @@
 // The show settings form: name, drone count, home grid and the safety limits, bound to the
 // document (each change is one undo step).
 
+import { flyingCount } from "./groups.js";
 import { choose } from "./dialogs.js";
 import { fitToCount } from "./geometry.js";
 import { repairSpacing } from "./spacing.js";
@@ -24,12 +25,14 @@ function setPath(obj, path, value) {
  */
 export function fitAllFormations(state) {
   const n = state.show.drones;
-  const short = state.show.formations.filter((f) => f.points.length < n).length;
+  // A subset formation (issue 21) needs points for the drones that fly it only.
+  const need = (/** @type {any} */ f) => flyingCount(state.show, f);
+  const short = state.show.formations.filter((f) => f.points.length < need(f)).length;
   if (!short) return 0;
   state.edit(`Fit ${short} formation${short > 1 ? "s" : ""} to ${n} drones`, () => {
     for (const f of state.show.formations) {
-      if (f.points.length >= n) continue;
-      const fit = fitToCount(f.points, f.colors, n);
+      if (f.points.length >= need(f)) continue;
+      const fit = fitToCount(f.points, f.colors, need(f));
       const fixed = repairSpacing(fit.points, state.show.settings.min_distance_m);
       f.points = fixed.points.map((p) => p.map((v) => Math.round(v * 1000) / 1000));
       f.colors = fit.colors;
@@ -127,7 +130,7 @@ export class SettingsForm {
       }
     });
     if (path === "drones") {
-      const short = st.show.formations.filter((f) => f.points.length < value).length;
+      const short = st.show.formations.filter((f) => f.points.length < flyingCount(st.show, f)).length;
       if (short) {
         const { choice } = await choose({
           title: "Fewer points than drones",

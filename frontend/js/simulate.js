@@ -8,6 +8,37 @@ function fmt(v, digits = 2, unit = "") {
   return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
 }
 
+/**
+ * A summary's heading (the ✓ or ✗ line) and its two-column table, as the flight and the
+ * Monte-Carlo summaries show them.
+ * @param {boolean} ok whether the heading reads as a pass
+ * @param {string} text the heading
+ * @param {string} label the table's accessible name
+ * @param {Array<[string, string, boolean?] | null | false | undefined>} rows label, value and whether
+ *   the value breaks a limit (drawn as bad); falsy rows are left out
+ * @returns {[HTMLParagraphElement, HTMLTableElement]}
+ */
+export function summaryTable(ok, text, label, rows) {
+  const head = document.createElement("p");
+  head.className = ok ? "report-ok" : "report-bad";
+  head.textContent = text;
+  const table = document.createElement("table");
+  table.setAttribute("aria-label", label);
+  for (const r of rows) {
+    if (!r) continue;
+    const [name, value, bad] = r;
+    const tr = document.createElement("tr");
+    const a = document.createElement("td");
+    a.textContent = name;
+    const b = document.createElement("td");
+    b.textContent = value;
+    if (bad) b.className = "bad-value";
+    tr.append(a, b);
+    table.append(tr);
+  }
+  return [head, table];
+}
+
 /** The simulation panel. */
 export class SimulatePanel {
   /**
@@ -195,34 +226,20 @@ export class SimulatePanel {
     const below = s.p_below_min_distance || {};
     const coll = s.p_collision || {};
     const ok = below.runs_below === 0 && !mc.diverged_count;
-    const head = document.createElement("p");
-    head.className = ok ? "report-ok" : "report-bad";
-    head.textContent = ok ? `✓ ${mc.runs} runs: every run kept the minimum distance`
-      : `✗ ${below.runs_below} of ${mc.runs} runs came closer than ${fmt(mc.min_distance_m, 1, " m")}`;
-    this.body.append(head);
-    const table = document.createElement("table");
-    table.setAttribute("aria-label", "Monte-Carlo summary");
-    const row = (label, value, bad = false) => {
-      const tr = document.createElement("tr");
-      const a = document.createElement("td");
-      a.textContent = label;
-      const b = document.createElement("td");
-      b.textContent = value;
-      if (bad) b.className = "bad-value";
-      tr.append(a, b);
-      table.append(tr);
-    };
     const q = (s.flown_min_m || {}).quantiles || {};
     const pct = (p) => p.p == null ? "—"
       : `${(100 * p.p).toFixed(1)} % (${(100 * p.ci_low).toFixed(1)}–${(100 * p.ci_high).toFixed(1)} %)`;
-    row("Flown min separation", `worst ${fmt(q["0"], 2, " m")}, median ${fmt(q["0.5"], 2, " m")}`, !ok);
-    row(`P(closer than ${fmt(mc.min_distance_m, 1, " m")})`, pct(below), below.runs_below > 0);
-    row(`P(collision, < ${fmt(mc.collision_distance_m, 1, " m")})`, pct(coll), coll.runs_below > 0);
-    row(`Extra spacing at ${Math.round(1000 * (mc.confidence || 0)) / 10} %`, fmt((s.extra_spacing || {}).extra_m, 2, " m"));
-    row("Largest deviation", fmt((mc.deviation || {}).max_m, 3, " m"));
-    row("Preset", `${mc.preset || "—"}, ${mc.controller || ""}, seeds ${mc.seed0}–${mc.seed0 + mc.runs - 1}`);
-    if (mc.wall_time_s != null) row("Computed in", `${fmt(mc.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`);
-    this.body.append(table);
+    this.body.append(...summaryTable(ok, ok ? `✓ ${mc.runs} runs: every run kept the minimum distance`
+      : `✗ ${below.runs_below} of ${mc.runs} runs came closer than ${fmt(mc.min_distance_m, 1, " m")}`,
+    "Monte-Carlo summary", [
+      ["Flown min separation", `worst ${fmt(q["0"], 2, " m")}, median ${fmt(q["0.5"], 2, " m")}`, !ok],
+      [`P(closer than ${fmt(mc.min_distance_m, 1, " m")})`, pct(below), below.runs_below > 0],
+      [`P(collision, < ${fmt(mc.collision_distance_m, 1, " m")})`, pct(coll), coll.runs_below > 0],
+      [`Extra spacing at ${Math.round(1000 * (mc.confidence || 0)) / 10} %`, fmt((s.extra_spacing || {}).extra_m, 2, " m")],
+      ["Largest deviation", fmt((mc.deviation || {}).max_m, 3, " m")],
+      ["Preset", `${mc.preset || "—"}, ${mc.controller || ""}, seeds ${mc.seed0}–${mc.seed0 + mc.runs - 1}`],
+      mc.wall_time_s != null && ["Computed in", `${fmt(mc.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
+    ]));
     const links = document.createElement("p");
     const report = document.createElement("a");
     report.id = "sim-report-link";
@@ -258,33 +275,19 @@ export class SimulatePanel {
     const f = result.flight || result;
     this.body.replaceChildren();
     const ok = f.ok !== false;
-    const head = document.createElement("p");
-    head.className = ok ? "report-ok" : "report-bad";
-    head.textContent = ok ? "✓ Flown: separation kept, no divergence" : "✗ The flown show breaks a limit";
-    this.body.append(head);
-    const table = document.createElement("table");
-    table.setAttribute("aria-label", "Flight summary");
-    const row = (label, value, bad = false) => {
-      const tr = document.createElement("tr");
-      const a = document.createElement("td");
-      a.textContent = label;
-      const b = document.createElement("td");
-      b.textContent = value;
-      if (bad) b.className = "bad-value";
-      tr.append(a, b);
-      table.append(tr);
-    };
-    row("Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m"));
-    row("Tracking error (max)", fmt(f.tracking_max_m, 3, " m"));
     const lim = f.min_distance_limit_m;
     const flown = f.flown_min_distance_m;
-    row("Flown min separation", `${fmt(flown, 2, " m")}${lim != null ? ` (≥ ${fmt(lim, 1)})` : ""}`,
-      flown != null && lim != null && flown < lim - (f.flown_distance_tolerance_m || 0));
-    if (f.flown_min_distance_pair) row("Closest flown pair", `drones ${f.flown_min_distance_pair.join(" & ")} at ${fmt(f.flown_min_distance_time_s, 1, " s")}`);
-    row("Duration", fmt(f.duration_s, 1, " s"));
-    row("Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—");
-    if (f.wall_time_s != null) row("Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`);
-    this.body.append(table);
+    this.body.append(...summaryTable(ok, ok ? "✓ Flown: separation kept, no divergence" : "✗ The flown show breaks a limit",
+      "Flight summary", [
+        ["Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m")],
+        ["Tracking error (max)", fmt(f.tracking_max_m, 3, " m")],
+        ["Flown min separation", `${fmt(flown, 2, " m")}${lim != null ? ` (≥ ${fmt(lim, 1)})` : ""}`,
+          flown != null && lim != null && flown < lim - (f.flown_distance_tolerance_m || 0)],
+        f.flown_min_distance_pair && ["Closest flown pair", `drones ${f.flown_min_distance_pair.join(" & ")} at ${fmt(f.flown_min_distance_time_s, 1, " s")}`],
+        ["Duration", fmt(f.duration_s, 1, " s")],
+        ["Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—"],
+        f.wall_time_s != null && ["Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
+      ]));
     if (Array.isArray(f.diverged) && f.diverged.length) {
       const p = document.createElement("p");
       p.className = "report-bad";

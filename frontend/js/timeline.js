@@ -2,6 +2,7 @@
 // The timeline: formations in order with hold times and names; add, duplicate, drag to reorder,
 // delete; the planned transition durations between them once the show has been checked.
 
+import { flyingCount } from "./groups.js";
 import { formationColors } from "./state.js";
 
 /**
@@ -285,10 +286,12 @@ export class Timeline {
     const count = document.createElement("span");
     const n = f.points.length;
     count.textContent = `${n} pts`;
-    if (n < st.show.drones) {
+    const flying = flyingCount(st.show, f);  // a subset formation (issue 21) needs points for its drones only
+    if (n < flying) {
       count.className = "bad-value";
-      count.title = `${st.show.drones - n} fewer points than drones: use "Fit to N drones"`;
+      count.title = `${flying - n} fewer points than drones: use "Fit to N drones"`;
     }
+    if (flying < st.show.drones) count.textContent += ` · ${flying} drones`;
     meta.append(holdLabel, count);
     if (f.arrive_at_s != null || f.leave_at_s != null) {
       // Cue times (issue 18): pinned on the music lane.

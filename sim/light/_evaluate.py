@@ -89,6 +89,21 @@ def _formation_windows(plan: ShowPlan) -> dict[str, list[tuple[float, float]]]:
     return out
 
 
+def _idle_windows(plan: ShowPlan) -> list[tuple[float, float, np.ndarray]]:
+    """[(start of the transition into a subset formation, end of its hold, (m,) its idle drones)], seconds.
+
+    Drones that do not fly a formation (issue 21: subset formations, ``goal_index`` -1) are dark there,
+    and effects leave them dark.
+    """
+    ends = {seg.index - 1: seg.end_s for seg in plan.segments if seg.kind == "hold"}
+    out = []
+    for tr in plan.transitions:
+        idle = np.flatnonzero(tr.goal_index < 0)
+        if len(idle) and tr.segment in ends:
+            out.append((tr.start_s, ends[tr.segment], idle))
+    return out
+
+
 def _drones_at_points(plan: ShowPlan, formation: str, points: list[int]) -> np.ndarray:
     """(m,) sorted drones that CAPT sent to ``points`` of the first formation named ``formation``."""
     for tr in plan.transitions:
@@ -181,11 +196,13 @@ class LightStack:
         plan: the show's plan (segments for formation targets, positions for chase orders).
     """
 
-    def __init__(self, lights: Lights | None, plan: ShowPlan) -> None:
+    def __init__(self, lights: Lights | None, plan: ShowPlan, groups: dict[str, list[int]] | None = None) -> None:
         self.drone_count = plan.drone_count
         self._effects: list[_Prepared] = []
+        self._idle = _idle_windows(plan)
         windows = _formation_windows(plan)
-        groups = lights.groups if lights is not None else {}
+        # The show's groups (``groups``) over the older ``lights.groups``: one lookup (ShowFile.drone_groups).
+        groups = {**(lights.groups if lights is not None else {}), **(groups or {})}
         for fx in lights.effects if lights is not None else []:
             if not fx.enabled or fx.opacity <= 0.0:
                 continue
@@ -217,8 +234,8 @@ class LightStack:
 
     @classmethod
     def from_show(cls, show: ShowFile, plan: ShowPlan) -> LightStack:
-        """The stack of ``show.lights`` over ``plan``."""
-        return cls(show.lights, plan)
+        """The stack of ``show.lights`` over ``plan`` (group targets resolve the show's groups)."""
+        return cls(show.lights, plan, show.drone_groups)
 
     def __bool__(self) -> bool:
         return bool(self._effects)
@@ -282,8 +299,16 @@ class LightStack:
             raise ValueError(f"base_rgb has {out.shape[1]} drones but drones selects {len(ids)}")
         if positions_m is None and self.needs_positions:
             raise ValueError("these effects need the drones' positions")
+        kept = []
+        for t0, t1, idle in self._idle if self._effects else []:
+            frames = np.flatnonzero((t >= t0) & (t < t1))
+            cols = np.flatnonzero(np.isin(ids, idle))
+            if len(frames) and len(cols):
+                kept.append((frames, cols, out[np.ix_(frames, cols)].copy()))
         for p in self._effects:
             self._paint(p, t, out, positions_m, ids)
+        for frames, cols, base in kept:  # drones out of a subset formation stay as dark as the plan has them
+            out[np.ix_(frames, cols)] = base
         return out
 
     def _paint(self, p: _Prepared, t: np.ndarray, out: np.ndarray, pos: np.ndarray | None, ids: np.ndarray) -> None:

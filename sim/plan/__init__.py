@@ -10,6 +10,8 @@ from sim.plan._assignment import certify as certify
 from sim.plan._cache import cached_plan_show as cached_plan_show
 from sim.plan._cache import clear_plan_cache as clear_plan_cache
 from sim.plan._cache import plan_cache_info as plan_cache_info
+from sim.plan._motion import FIT_TOLERANCE_M as FIT_TOLERANCE_M
+from sim.plan._motion import hold_pieces as hold_pieces
 from sim.plan._plan import PlanError as PlanError
 from sim.plan._plan import PlanSample as PlanSample
 from sim.plan._plan import Segment as Segment

@@ -14,7 +14,18 @@ assignment (eq. 11) and makes the window safe by construction (synchronised stra
 per-drone delays, or spreading the formations apart), along straight legs flown with the time
 law of ``settings.time_law`` (the jerk-limited minimum-time S-curve, or the paper's quintic
 s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, which reproduces the shared-segment plans exactly). Holds are
-windows in which every drone rests on its formation point. Colours fade linearly in time.
+windows in which every drone rests on its formation point, or, for a formation with a
+``motion`` (issue 21), follows its keyframed transform as fitted quintic pieces
+(:mod:`sim.plan._motion`): the transition into it ends at the first key's pose, the hold's
+knots are the first and last keys' poses (every drone rests there), and the transition out
+starts at the last key's pose. Between a moving hold's knots only ``trajectories`` has the
+motion (:func:`trajectories_from_knots` would fly the knots straight). Colours fade linearly
+in time.
+
+A subset formation (issue 21: a group or a count of drones, :mod:`sim.plan._subset`) is flown by
+its drones while the others hold, park behind it or land on their homes, dark; its transition is
+one fixed assignment over every drone, the holding ones stationary obstacles of the per-drone
+scheduler, and the drones that landed climb back at the start of the next transition.
 """
 
 from __future__ import annotations
@@ -31,6 +42,7 @@ from formations import HomeFromBoxes, Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
 from sim.plan._cues import earliest_window, fit_transition
+from sim.plan._motion import MotionFitError, hold_pieces, start_pose_points
 from sim.plan._schedule import (
     Limits,
     Schedule,
@@ -39,14 +51,18 @@ from sim.plan._schedule import (
     plan_transition,
     required_distance,
     round_up,
+    schedule_transition,
     sync_conflicts,
     sync_min_duration,
     synchronised,
 )
+from sim.plan._subset import choose_drones, park_slots
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 from sim.plan._waves import Waves, home_waves, layer_heights, plan_waves, takeoff_waves, wave_gap
 
 SegmentKind = Literal["takeoff", "transition", "hold", "landing"]
+#: One part of a transition window flown after another: a planned transition or a single leg.
+Stage = TransitionPlan | Schedule
 #: Shortest hold a ``leave_at_s`` pin may leave, seconds (the show file's shortest ``hold_s``).
 MIN_HOLD_S = 0.01
 ProgressFn = Callable[[float], None]
@@ -170,6 +186,10 @@ class ShowPlan:
     trajectories: Trajectories | None = field(default=None, repr=False)
     #: Launch boxes and waves (None: loose homes, everybody takes off and lands at once).
     launch: LaunchInfo | None = field(default=None, repr=False)
+    #: Drones landed mid-show (issue 21, a subset formation's ``"others": "land"``): (from, to, drones) with
+    #: from the start of their descent and to the end of their climb, seconds; the altitude floor does not
+    #: apply to them then.
+    grounded: tuple[tuple[float, float, np.ndarray], ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         if self.trajectories is None:
@@ -217,7 +237,9 @@ class ShowPlan:
         motion = self.motion.evaluate(t, sel)
         k = self.segment_index(t)
         t0 = self.knot_times_s[k]
-        tau = np.clip((t - t0) / (self.knot_times_s[k + 1] - t0), 0.0, 1.0)
+        span = self.knot_times_s[k + 1] - t0
+        # A zero-length window has faded completely at its instant (its end colour), not 0/0.
+        tau = np.clip(np.divide(t - t0, span, out=np.ones_like(t), where=span > 0.0), 0.0, 1.0)
         c0 = self.knot_colors_rgb[k][:, sel]
         dc = self.knot_colors_rgb[k + 1][:, sel] - c0
         return PlanSample(
@@ -303,9 +325,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         colors.append(col)
         return len(segments) - 1
 
-    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = ()) -> None:
-        """Append the legs (each from where the previous ends) to the trajectories, from times[-1]."""
-        t0 = times[-1]
+    def fly(legs: tuple[Schedule, ...], overlaps_s: tuple[float, ...] = (), start_s: float | None = None) -> None:
+        """Append the legs (each from where the previous ends) to the trajectories, from ``start_s``
+        (default times[-1])."""
+        t0 = times[-1] if start_s is None else start_s
         if any(overlaps_s):  # blended synchronised legs (sim.plan._blend): pieces shared by all drones
             for dur, c3 in blended_pieces(legs, overlaps_s):
                 builder.append(np.full(len(home), dur), c3)
@@ -360,30 +383,112 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration, label=label,
                                fixed_assignment=fixed, warm=first)
 
-    def commit(tp: TransitionPlan, from_name: str, to_name: str,
-               goals: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    def vertical_leg(start: np.ndarray, drones: np.ndarray, z_m: np.ndarray, label: str) -> Schedule:
+        """``drones`` straight up or down to altitudes ``z_m`` while every other drone stays, certified
+        against them (per-drone timing; what cannot be made safe is in ``unresolved``)."""
+        end = start.copy()
+        end[drones, 2] = z_m
+        return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
+
+    def prepare_formation(k: int, start: np.ndarray, from_name: str
+                          ) -> tuple[TransitionPlan, np.ndarray, np.ndarray, Schedule | None]:
+        """The transition into formation k from ``start``: (plan, its goal points, which drones fly it,
+        the landing descent of the others when they land, else None).
+
+        A subset formation (issue 21, :mod:`sim.plan._subset`) is one fixed assignment over every
+        drone: the flying ones onto their points, the others onto their own start (hold: stationary,
+        so the per-drone scheduler keeps clear of them) or a park slot behind the formation. It is
+        flown with per-drone timing only (no spreading, which would move the holding drones);
+        what cannot be made safe so is reported in ``unresolved`` like any transition. Landing others
+        fly to their own home at takeoff altitude, then descend vertically (a leg after the transition,
+        certified against the drones already in the formation).
+        """
+        f = show.formations[k]
+        where = f"formations[{k}].transition_s"
+        sel = show.formation_drones(k)
+        flying = np.ones(len(start), dtype=bool)
+        if sel is None:
+            goals = goal_points(k)  # a moving formation: its first key's pose (subsets never move)
+            return prepare(start, from_name, f.name, goals, f.transition_s, where), goals, flying, None
+        pts = f.points_m
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(start, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(start[drones], pts).goal_index
+        flying[:] = False
+        flying[drones] = True
+        others = np.flatnonzero(~flying)
+        if f.others == "park":
+            slots = park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
+                               ceiling_m=s.max_altitude_m)
+            waiting = slots[assign(start[others], slots).goal_index]
+        elif f.others == "land":
+            waiting = home[others] + lift
+        else:
+            waiting = start[others]
+        goals = np.concatenate([pts, waiting])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[drones] = point_index
+        goal_index[others] = len(pts) + np.arange(len(others))
+        label = f"{from_name!r} -> {f.name!r}"
+        duration = forced(start, goals[goal_index], f.transition_s, where, label)
+
+        def subset_plan(layers: bool) -> TransitionPlan:
+            return plan_transition(start, goals, goal_index, lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, duration_s=duration,
+                                   label=label, allow_layers=layers, fixed_assignment=True)
+
+        tp = subset_plan(False)
+        if tp.unresolved and duration is None:
+            # Holding drones stand in the flyers' way (e.g. in the middle of a launch grid): spreading both
+            # sets apart and back (every drone, the holding ones return to their place) is the fallback
+            # that keeps the show safe; still unresolved conflicts are reported as for any transition.
+            layered = subset_plan(True)
+            if not layered.unresolved:
+                tp = layered
+        descent = None
+        if f.others == "land" and len(others):
+            descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")
+        return tp, goals, flying, descent
+
+    def commit(tp: TransitionPlan, from_name: str, to_name: str, goals: np.ndarray, pre: tuple[Stage, ...] = (),
+               post: tuple[Stage, ...] = ()) -> tuple[np.ndarray, dict[str, Any]]:
+        """Fly the stages ``pre`` (e.g. landed drones climbing), the transition, then ``post`` (others landing),
+        one after the other, as one window."""
         start = positions[-1]
         goal_index = tp.goal_index
-        end = tp.legs[-1].b_m
+        last = post[-1] if post else tp
+        end = last.legs[-1].b_m if isinstance(last, TransitionPlan) else last.b_m
         t0 = times[-1]
-        fly(tp.legs, tp.overlaps_s)
+        at = t0
+        extra: list[UnresolvedConflict] = []
+        pre_s = 0.0
+        for stage in (*pre, tp, *post):
+            legs, overlaps = (stage.legs, stage.overlaps_s) if isinstance(stage, TransitionPlan) else ((stage,), ())
+            fly(legs, overlaps, start_s=at)
+            if stage is not tp:
+                extra += [replace(u, time_s=at + u.time_s) for u in stage.unresolved]
+            else:
+                pre_s = at - t0
+            at += stage.window_s
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=tp.window_s,
+            duration_s=at - t0,
             min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
             start_spacing_m=_closest_distance(start),
             goal_spacing_m=_closest_distance(end),
-            depart_s=t0 + tp.depart_s,
-            arrive_s=t0 + tp.arrive_s,
+            depart_s=t0 + pre_s + tp.depart_s,
+            arrive_s=t0 + pre_s + tp.arrive_s,
             stagger_s=tp.stagger_s,
             resolution=tp.resolution,
             unresolved=tuple(
-                replace(u, time_s=t0 + u.time_s) for u in tp.unresolved
-            ),
+                replace(u, time_s=t0 + pre_s + u.time_s) for u in tp.unresolved
+            ) + tuple(extra),
         )
         return end, info
 
@@ -405,16 +510,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             return tp, tp.legs[-1].b_m
         return replace(tp, legs=tp.legs[:-1], overlaps_s=tp.overlaps_s[:-1]), source
 
-    def pin_arrival(tp: TransitionPlan, k: int, t0: float) -> TransitionPlan:
-        """Fit the transition into formation k (starting at ``t0``) to end at its ``arrive_at_s`` (issue 18)."""
+    def pin_arrival(tp: TransitionPlan, k: int, t0: float, tail_s: float = 0.0) -> TransitionPlan:
+        """Fit the transition into formation k (starting at ``t0``, followed by ``tail_s`` of others landing)
+        to end at its ``arrive_at_s`` (issue 18)."""
         f = show.formations[k]
         if f.arrive_at_s is None:
             return tp
         label = f"into {f.name!r}"
-        fitted = fit_transition(tp, f.arrive_at_s - t0, lim, min_distance_m=s.min_distance_m, label=label)
+        fitted = fit_transition(tp, f.arrive_at_s - t0 - tail_s, lim, min_distance_m=s.min_distance_m, label=label)
         if fitted is not None:
             return fitted
-        earliest = t0 + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
+        earliest = t0 + tail_s + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
         raise PlanError(
             f"formations[{k}].arrive_at_s = {f.arrive_at_s:g} s is too early for formation {f.name!r}: the "
             f"transition into it starts at {t0:.2f} s and needs {earliest - t0:.1f} s, so the earliest feasible "
@@ -437,6 +543,35 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             )
         return f.leave_at_s - arrived
 
+    def goal_points(k: int) -> np.ndarray:
+        """Formation k's points where the transition into it ends: at its motion's first pose (issue 21)."""
+        f = show.formations[k]
+        return f.points_m if f.motion is None else start_pose_points(f.motion, f.points_m)
+
+    def move(k: int, goal_index: np.ndarray, hold_s: float, end: np.ndarray) -> np.ndarray:
+        """Fly formation k's hold (from times[-1]): at rest, or its motion as fitted pieces (sim.plan._motion).
+
+        Returns every drone's position at the end of the hold (the last key's pose).
+        """
+        f = show.formations[k]
+        if f.motion is None:
+            return end
+        if f.motion.end_s > hold_s + 1e-9:
+            last = len(f.motion.keys) - 1
+            raise PlanError(
+                f"formations[{k}].motion.keys[{last}].t_s = {f.motion.end_s:g} s is after the end of the hold of "
+                f"formation {f.name!r}, which lasts {hold_s:.2f} s (until leave_at_s): keys must lie within the hold",
+                path=f"formations[{k}].motion.keys[{last}].t_s",
+            )
+        try:
+            durations, coeffs = hold_pieces(f.motion, f.points_m, f.points_m[goal_index], hold_s)
+        except MotionFitError as exc:
+            where = f"formations[{k}].motion.keys" + (f"[{exc.key}]" if exc.key >= 0 else "")
+            raise PlanError(f"{where}: {exc} (formation {f.name!r})", path=where) from exc
+        for p in range(len(durations)):
+            builder.append(np.full(len(home), durations[p]), coeffs[:, p])
+        return builder.positions_m
+
     # Vertical takeoff: a rigid translation, so every pair keeps its ground distance; when the home
     # layout is too dense for that (launch boxes), in waves to altitude layers (sim.plan._waves).
     # When the first transition starts by spreading the lifted grid, the takeoff climbs straight
@@ -454,39 +589,138 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             f"{float(waves_up.schedule.b_m[:, 2].max()):.1f} m, above max_altitude_m {s.max_altitude_m:g} m; "
             "use fewer drones per box (or space them at least settings.min_distance_m apart), a lower "
             "takeoff_altitude_m or a higher max_altitude_m", path=path)
-    if waves_up is not None:
-        up = waves_up.schedule.b_m
-        tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
-        if first.arrive_at_s is not None:
-            tp = pin_arrival(tp, 0, waves_up.window_s)
-        fly((waves_up.schedule,))
-        add("takeoff", "takeoff", waves_up.window_s, up, colors[-1])
-    else:
+    if waves_up is None:
         up = home + lift
-        tp = prepare(up, "takeoff", first.name, first.points_m, first.transition_s, "formations[0].transition_s")
+        tp, goals, flying, post = prepare_formation(0, up, "takeoff")
         if first.arrive_at_s is None:
             tp, up = fold_first(tp, home)
         else:
             # A pinned first formation: the takeoff's length must be known before the transition is fitted
             # (folding would change it), so the takeoff climbs to the lifted grid.
-            tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)))
+            tp = pin_arrival(tp, 0, round_up(sync_min_duration(up - home, lim)), post.window_s if post else 0.0)
         add("takeoff", "takeoff", vertical(home, up), up, colors[-1])
+    else:
+        up = waves_up.schedule.b_m
+        tp, goals, flying, post = prepare_formation(0, up, "takeoff")
+        if first.arrive_at_s is not None:
+            tp = pin_arrival(tp, 0, waves_up.window_s, post.window_s if post else 0.0)
+        fly((waves_up.schedule,))
+        add("takeoff", "takeoff", waves_up.window_s, up, colors[-1])
     if progress:
         progress(1 / n_steps)
+
+    # Subset formations whose others land (issue 21): when each drone touched down (its descent's start;
+    # NaN: airborne), and every (descent start, climb end, drones) interval, which the altitude floor
+    # does not apply to.
+    down_since = np.full(len(home), np.nan)
+    grounded: list[tuple[float, float, np.ndarray]] = []
+
+    def climb(start: np.ndarray, drones: np.ndarray, label: str) -> Schedule | None:
+        """Landed ``drones`` straight up to takeoff altitude above their homes (None: none of them)."""
+        if not len(drones):
+            return None
+        return vertical_leg(start, drones, home[drones, 2] + s.takeoff_altitude_m, label)
+
+    def airborne_again(drones: np.ndarray, t_s: float) -> None:
+        """``drones`` finished climbing at ``t_s``: close their grounded intervals."""
+        for since in np.unique(down_since[drones]):
+            grounded.append((float(since), t_s, drones[down_since[drones] == since]))
+        down_since[drones] = np.nan
+
+    def prepare_swap(k: int, start: np.ndarray, from_name: str) -> tuple[
+            TransitionPlan, np.ndarray, np.ndarray, tuple[Stage, ...], np.ndarray, np.ndarray, float, float]:
+        """Into subset formation k whose others land while some of its drones are on the ground: first the
+        airborne drones fly (to their points, or to their homes and down), then the landed ones of the
+        formation climb and fly to their points; landed drones that do not fly stay down. Sequential, so
+        the drones leaving never cross the ones arriving from the ground. Returns (the arriving transition,
+        its goals, who flies, the stages before it, who lands, who climbs, when the landing starts and when
+        the climb ends, seconds into the window)."""
+        f = show.formations[k]
+        sel = show.formation_drones(k)
+        assert sel is not None
+        pts = f.points_m
+        down_now = ~np.isnan(down_since)
+        lifted = start.copy()
+        lifted[down_now] = home[down_now] + lift  # where the landed drones would start from
+        if isinstance(sel, int):
+            drones, point_index = choose_drones(lifted, pts, sel)
+        else:
+            drones = sel
+            point_index = assign(lifted[drones], pts).goal_index
+        flying = np.zeros(len(start), dtype=bool)
+        flying[drones] = True
+        point_of = np.full(len(start), -1, dtype=np.int64)
+        point_of[drones] = point_index
+        landers = np.flatnonzero(~flying & ~down_now)
+        climbers = np.flatnonzero(flying & down_now)
+        label = f"{from_name!r} -> {f.name!r}"
+
+        def stay_but(moving: np.ndarray, at: np.ndarray, targets: np.ndarray) -> TransitionPlan:
+            goals = at.copy()
+            goals[moving] = targets
+            return plan_transition(at, goals, np.arange(len(at)), lim, min_distance_m=s.min_distance_m,
+                                   ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
+                                   allow_layers=False, fixed_assignment=True)
+
+        leaving = np.flatnonzero(~down_now)  # airborne: fly to their points, or home to land
+        targets = np.where(flying[leaving, None], pts[np.maximum(point_of[leaving], 0)], home[leaving] + lift)
+        first = stay_but(leaving, start, targets)
+        stages: list[Stage] = [first]
+        at = first.legs[-1].b_m
+        t_down = t_up = first.window_s
+        if len(landers):
+            descent = vertical_leg(at, landers, home[landers, 2], f"landing the others of {f.name!r}")
+            stages.append(descent)
+            at = descent.b_m
+            t_up += descent.window_s
+        up = climb(at, climbers, f"taking off again into {f.name!r}")
+        if up is not None:
+            stages.append(up)
+            at = up.b_m
+            t_up += up.window_s
+        arrive = stay_but(climbers, at, pts[point_of[climbers]])
+        goals = np.concatenate([pts, at[~flying]])
+        goal_index = np.empty(len(start), dtype=np.int64)
+        goal_index[flying] = point_of[flying]
+        goal_index[~flying] = len(pts) + np.arange(int((~flying).sum()))
+        return (replace(arrive, goal_index=goal_index), goals, flying, tuple(stages), landers, climbers, t_down,
+                t_up)
 
     previous = "takeoff"
     homes_up = np.array(show.all_home_positions_m) + lift
     own = np.arange(len(home)) if s.landing == "own_home" else None
     for k, f in enumerate(show.formations):
-        if k > 0:
-            tp = prepare(positions[-1], previous, f.name, f.points_m, f.transition_s,
-                         f"formations[{k}].transition_s")
-            tp = pin_arrival(tp, k, times[-1])
-        end, info = commit(tp, previous, f.name, f.points_m)
-        col = f.colors_rgb[tp.goal_index]
+        pre: tuple[Stage, ...] = ()
+        posts: tuple[Stage, ...] = () if post is None else (post,)
+        t_start = times[-1]
+        down_now = np.flatnonzero(~np.isnan(down_since))
+        if k > 0 and len(down_now) and f.others == "land" and show.formation_drones(k) is not None:
+            tp, goals, flying, pre, landers, climbers, t_down, t_up = prepare_swap(k, positions[-1], previous)
+            tp = pin_arrival(tp, k, t_start + sum(x.window_s for x in pre))
+            end, info = commit(tp, previous, f.name, goals, pre)
+            if len(climbers):
+                airborne_again(climbers, t_start + t_up)
+            down_since[landers] = t_start + t_down
+        else:
+            if k > 0:
+                up = climb(positions[-1], down_now, f"taking off again into {f.name!r}")
+                pre = () if up is None else (up,)
+                tp, goals, flying, post = prepare_formation(k, positions[-1] if up is None else up.b_m, previous)
+                posts = () if post is None else (post,)
+                tp = pin_arrival(tp, k, t_start + (up.window_s if up else 0.0), post.window_s if post else 0.0)
+            end, info = commit(tp, previous, f.name, goals, pre, posts)
+            if pre:  # the landed drones are airborne again at the end of the climb
+                airborne_again(down_now, t_start + pre[0].window_s)
+            if posts:  # the others touch down from the start of the descent on
+                down_since[~flying] = t_start + info["duration_s"] - posts[0].window_s
+        # Drones not flying this formation are dark and have no point (goal_index -1).
+        info["goal_index"] = np.where(flying, tp.goal_index, -1)
+        col = np.zeros((len(home), 3))
+        col[flying] = f.colors_rgb[tp.goal_index[flying]]
         seg = add("transition", f.name, info["duration_s"], end, col)
         transitions.append(TransitionInfo(segment=seg, **info))
-        add("hold", f.name, hold_length(k), end, col)
+        held = hold_length(k)
+        add("hold", f.name, held, move(k, tp.goal_index, held, end), col)
         wait(times[-1])
         previous = f.name
         if progress:
@@ -495,6 +729,11 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
     # Landing approach onto the home positions lifted to takeoff altitude: CAPT onto any home
     # ("any_home"), or each drone onto its own ("own_home", conflicts resolved like any transition);
     # then a vertical descent (straight from the spread grid when the approach ends by contracting it).
+    # Drones landed mid-show (a subset formation's others) climb back first (issue 21).
+    down_now = np.flatnonzero(~np.isnan(down_since))
+    up_leg = climb(positions[-1], down_now, "taking off again for the landing")
+    start_l = positions[-1] if up_leg is None else up_leg.b_m
+    pre = () if up_leg is None else (up_leg,)
     # With dense homes, into the layers over the landing homes: own homes fixed, or any home chosen by
     # CAPT among the layers over every home (each home's layer from a colouring of all homes).
     # The colours may go to the layers in any order (the lowest layer lands first whatever its colour):
@@ -509,7 +748,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         heights = layer_heights(count, s.takeoff_altitude_m, gap)
         orders = [np.arange(count), np.arange(count)[::-1]]
         if own is not None:  # by the altitude the drones come from: the highest-coming colour to the top layer
-            z_from = np.bincount(colour, weights=positions[-1][:, 2], minlength=count) / np.maximum(
+            z_from = np.bincount(colour, weights=start_l[:, 2], minlength=count) / np.maximum(
                 np.bincount(colour, minlength=count), 1)
             orders.insert(0, np.argsort(np.argsort(-z_from, kind="stable"), kind="stable"))
         for order in orders:
@@ -517,9 +756,9 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             layered_all = np.array(cand)
             layered_all[:, 2] += heights[layer_of]
             if own is None:
-                tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing")
+                tp_layers = prepare(start_l, previous, "landing", layered_all, None, "landing")
             else:
-                tp_layers = prepare(positions[-1], previous, "landing", layered_all, None, "landing",
+                tp_layers = prepare(start_l, previous, "landing", layered_all, None, "landing",
                                     goal_index=np.arange(len(home)))
             if not tp_layers.unresolved:
                 break
@@ -528,10 +767,13 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         waves_down = plan_waves(show.all_home_positions_m[land_index], layer_of[tp_layers.goal_index], lim,
                                 s.takeoff_altitude_m, gap, landing=True, count=count)
     if waves_down is None:
-        tp = prepare(positions[-1], previous, "landing", homes_up, None, "landing", goal_index=own)
+        tp = prepare(start_l, previous, "landing", homes_up, None, "landing", goal_index=own)
         down = homes_up[tp.goal_index] - lift
         tp, _ = fold_last(tp, down)
-        end, info = commit(tp, previous, "landing", homes_up)
+        t_start = times[-1]
+        end, info = commit(tp, previous, "landing", homes_up, pre)
+        if up_leg is not None:
+            airborne_again(down_now, t_start + up_leg.window_s)
         seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
         transitions.append(TransitionInfo(segment=seg, **info))
         add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
@@ -539,7 +781,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         # Into the layers over the landing homes, then down in waves.
         assert tp_layers is not None
         tp = tp_layers
-        end, info = commit(tp, previous, "landing", layered_all)
+        t_start = times[-1]
+        end, info = commit(tp, previous, "landing", layered_all, pre)
+        if up_leg is not None:
+            airborne_again(down_now, t_start + up_leg.window_s)
         seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
         transitions.append(TransitionInfo(segment=seg, **info))
         fly((waves_down.schedule,))
@@ -563,6 +808,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         show_name=show.name,
         trajectories=builder.build(end_s=times[-1]),
         launch=launch,
+        grounded=tuple(grounded),
     )
 
 

@@ -189,6 +189,10 @@ def check_bounds(plan: ShowPlan, settings: Settings) -> list[Violation]:
     if floor > 0 and w0 <= w1:
         # Pieces whose hull stays above the floor cannot break it: no root finding there.
         skip = hull_lo[..., 2] > floor + _TOL_M
+        # Drones landed mid-show (a subset formation's others, issue 21) are exempt from their descent
+        # to their climb, as in takeoff and landing; their pieces start and end on those times.
+        for g0, g1, drones in getattr(plan, "grounded", ()):  # a plan-like stand-in may have none
+            skip[drones] |= (b[drones, :-1] >= g0 - 1e-9) & (b[drones, 1:] <= g1 + 1e-9)
         low, low_t, _, _ = piece_extremes(motion, start, np.where(skip, start - 1.0, end))
         out += _grouped(plan, "min_altitude", floor - low[..., 2], low[..., 2], low_t[..., 2], floor,
                         "fly below the minimum altitude")

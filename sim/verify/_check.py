@@ -495,8 +495,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
 
 
 def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[Violation], int]:
-    """Every pair inside each other's downwash ellipsoid during takeoff or landing, exact
-    (:mod:`sim.verify._downwash`).
+    """Every pair inside each other's downwash ellipsoid during takeoff or landing (and, for drones
+    landed mid-show, from their descent to their climb), exact (:mod:`sim.verify._downwash`).
 
     Returns:
         (violations: one per pair and segment, deepest first within a segment, at most
@@ -505,27 +505,36 @@ def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[
     """
     r, c = plan.settings.downwash_axes_m
     motion = scaled_motion(plan.motion, r, c)
-    segs = [s for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
-    if plan.drone_count < 2 or not segs:
+    # (start, end, segment, what, drones): takeoff and landing for every pair; drones landed mid-show
+    # (issue 21, a subset formation's others) from their descent to their climb, pairs with one of them.
+    windows: list[tuple[float, float, int, str, np.ndarray | None]] = [
+        (s.start_s, s.end_s, s.index, s.kind, None) for s in plan.segments if s.kind in DOWNWASH_SEGMENTS]
+    windows += [(g0, g1, -1, "a mid-show landing", g) for g0, g1, g in getattr(plan, "grounded", ())]
+    if plan.drone_count < 2 or not windows:
         return [], 0
     bounds = speed_bounds(motion)
     out: list[Violation] = []
     total = 0
     clear_r = plan.launch.box_clearance_m if plan.launch is not None else 0.0
     clear_motion = scaled_motion(plan.motion, clear_r, c) if clear_r > 0 else None
-    for seg in segs:
-        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, 1.0, bounds=bounds)
-        span = airborne_span(plan, seg)
+    for w0, w1, index, what, down in windows:
+        pairs = window_close_pairs(motion, w0, w1, 1.0, bounds=bounds)
         value = pairs.dist_m
         times = pairs.time_s
         rule = np.zeros(len(value), dtype=np.int64)  # 0: downwash, 1: clearance over a parked box mate
+        span = airborne_span(plan, plan.segments[index]) if index >= 0 else None
         if span is not None and len(value):
+            # Launch boxes: pairs with a parked drone follow sim.verify._parked.
+            seg = plan.segments[index]
             value, times = restrict(motion, span, pairs.i, pairs.j, value, times, 1.0)
             if clear_motion is not None:
                 cv, ct = clearance(clear_motion, span, seg, pairs.i, pairs.j)
                 worse = cv < value
                 value, times, rule = np.where(worse, cv, value), np.where(worse, ct, times), worse.astype(np.int64)
-        bad = np.flatnonzero(value < 1.0 - _TOL)
+        inside = value < 1.0 - _TOL
+        if down is not None:
+            inside &= np.isin(pairs.i, down) | np.isin(pairs.j, down)
+        bad = np.flatnonzero(inside)
         total += len(bad)
         bad = bad[np.argsort(value[bad], kind="stable")]
         for q in bad[: max(0, max_listed - len(out))]:
@@ -534,12 +543,12 @@ def downwash_violations(plan: ShowPlan, *, max_listed: int = 200) -> tuple[list[
             upper, lower = (i, j) if p[i, 2] >= p[j, 2] else (j, i)
             dz = float(p[upper, 2] - p[lower, 2])
             dxy = float(np.hypot(*(p[upper, :2] - p[lower, :2])))
-            what = (f"drone {lower} is in drone {upper}'s downwash" if not rule[q] else
-                    f"drone {upper} passes over its parked box mate {lower} (clearance {clear_r:g} m)")
+            who = (f"drone {lower} is in drone {upper}'s downwash" if not rule[q] else
+                   f"drone {upper} passes over its parked box mate {lower} (clearance {clear_r:g} m)")
             out.append(Violation(
                 kind="downwash", drones=[upper, lower], time_s=t, value=float(value[q]), limit=1.0,
-                segment=seg.index,
-                message=f"{what} during {seg.kind} at t = {t:.2f} s: "
+                segment=index if index >= 0 else int(plan.segment_index(t)),
+                message=f"{who} during {what} at t = {t:.2f} s: "
                 f"{dz:.2f} m below it and {dxy:.2f} m to the side (ellipsoid {r:g} m wide, {c:g} m high)",
             ))
     return out, total
@@ -637,7 +646,8 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
                      f"at least the downwash radius (settings.downwash_radius_m) apart")
     if "min_distance" in kinds and not unresolved:
         if kind == "hold":
-            fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m")
+            fixes.append(f"repair the spacing of formation {dst!r}: points closer than {limit_m} m "
+                         "(if it moves during its hold: keep its motion's scale up)")
         elif kind in ("takeoff", "landing"):
             fixes.append(f"space the home positions at least {limit_m} m apart")
         else:

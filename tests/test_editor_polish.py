@@ -1,0 +1,108 @@
+"""Small editor behaviours, driven with Playwright against a live server on loopback: "save as a
+copy" keeps the show's music (the copy's stored track is the same file, and the music lane shows
+it); the simulation panel's summary table (heading, rows, limits marked)."""
+
+from __future__ import annotations
+
+import io
+
+import httpx
+import numpy as np
+import pytest
+
+from tests.live_server import BROWSER_MARKS, running_server
+from tests.test_editor_browser import Page, _create_show
+
+pytestmark = BROWSER_MARKS
+
+sync_api = pytest.importorskip("playwright.sync_api")
+sf = pytest.importorskip("soundfile")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    with running_server(tmp_path_factory.mktemp("copy-music-data"), viewer=False) as base:
+        yield base
+
+
+def test_save_as_copy_copies_the_music(ui: Page):
+    page = ui.page
+    _create_show(ui, "With music", 9)
+    sr = 22_050
+    t = np.arange(4 * sr) / sr
+    buf = io.BytesIO()
+    sf.write(buf, (0.3 * np.sin(2 * np.pi * 440 * t)).astype(np.float32), sr, format="WAV")
+    track = ui.tmp / "tone.wav"
+    track.write_bytes(buf.getvalue())
+    page.set_input_files("#music-file", str(track))
+    page.wait_for_function("() => (window.swarmshow.music.info || {}).filename === 'tone.wav'", timeout=240_000)
+    old_id = ui.state("s.meta.id")
+
+    assert page.evaluate("() => window.swarmshow.persist.saveCopy()") is True
+    new_id = ui.state("s.meta.id")
+    assert new_id != old_id and ui.state("s.show.name") == "With music (copy)"
+    got = httpx.get(f"{ui.base}/api/shows/{new_id}/audio")
+    assert got.status_code == 200 and got.content == track.read_bytes()
+    # the lane reloaded the copy's own track
+    page.wait_for_function(f"() => (window.swarmshow.music.info || {{}}).url === '/api/shows/{new_id}/audio'")
+    assert ui.state("window.swarmshow.music.info.filename") == "tone.wav"
+    # the original keeps its music
+    assert httpx.get(f"{ui.base}/api/shows/{old_id}/audio").content == track.read_bytes()
+
+
+def test_summary_table_builds_the_heading_and_rows(ui: Page):
+    """simulate.js's one helper for the flight and Monte-Carlo summaries: the heading's class and
+    text, one row per truthy entry (falsy ones left out), breaking values marked bad."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { summaryTable } = await import('/js/simulate.js');
+        const out = {};
+        for (const ok of [true, false]) {
+          const [head, table] = summaryTable(ok, ok ? 'fine' : 'broken', 'Some summary',
+            [['Speed', '3 m/s'], null, false, ['Gap', '1 m', true], undefined, ['Time', '2 s', false]]);
+          out[ok] = { cls: head.className, text: head.textContent, label: table.getAttribute('aria-label'),
+            rows: [...table.rows].map((r) => [...r.cells].map((c) => [c.textContent, c.className])) };
+        }
+        return out; }""")
+    rows = [[["Speed", ""], ["3 m/s", ""]], [["Gap", ""], ["1 m", "bad-value"]], [["Time", ""], ["2 s", ""]]]
+    assert got["true"] == {"cls": "report-ok", "text": "fine", "label": "Some summary", "rows": rows}
+    assert got["false"] == {"cls": "report-bad", "text": "broken", "label": "Some summary", "rows": rows}
+
+
+def test_flight_and_monte_carlo_summaries_render_through_the_helper(ui: Page):
+    """The two call sites with fixed results (no simulation needed): the rows, their values, and the
+    limits marked bad where the figures break them."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { SimulatePanel } = await import('/js/simulate.js');
+        const dump = (body) => ({ head: [body.firstChild.className, body.firstChild.textContent],
+          rows: [...body.querySelector('table').rows].map((r) => [r.cells[0].textContent, r.cells[1].textContent,
+                                                                  r.cells[1].className]),
+          label: body.querySelector('table').getAttribute('aria-label') });
+        const flight = document.createElement('div');
+        SimulatePanel.prototype._summary.call({ body: flight }, { flight: { ok: false, tracking_rms_m: 0.0123,
+          tracking_max_m: 0.2, min_distance_limit_m: 3, flown_min_distance_m: 2.5, duration_s: 61.25,
+          controller: 'pid', engine: 'numba', wall_time_s: 4 } }, true);
+        const mc = document.createElement('div');
+        SimulatePanel.prototype._monteCarlo.call({ body: mc, state: { meta: null } }, 'job1', { runs: 20,
+          min_distance_m: 3, collision_distance_m: 0.5, confidence: 0.95, preset: 'calm-rtk', controller: 'pid',
+          seed0: 1, show_min: { p_below_min_distance: { runs_below: 0, p: 0, ci_low: 0, ci_high: 0.14 },
+          p_collision: { runs_below: 0, p: 0, ci_low: 0, ci_high: 0.14 },
+          flown_min_m: { quantiles: { 0: 3.2, 0.5: 3.6 } },
+          extra_spacing: { extra_m: 0.25 } }, deviation: { max_m: 0.3 } }, false);
+        return { flight: dump(flight), mc: dump(mc) }; }""")
+    assert got["flight"]["head"] == ["report-bad", "✗ The flown show breaks a limit"]
+    assert got["flight"]["label"] == "Flight summary"
+    assert got["flight"]["rows"] == [
+        ["Tracking error (RMS)", "0.012 m", ""], ["Tracking error (max)", "0.200 m", ""],
+        ["Flown min separation", "2.50 m (≥ 3.0)", "bad-value"], ["Duration", "61.3 s", ""],
+        ["Controller", "pid, numba", ""], ["Computed in", "4.0 s (cached)", ""]]
+    assert got["mc"]["head"] == ["report-ok", "✓ 20 runs: every run kept the minimum distance"]
+    assert got["mc"]["label"] == "Monte-Carlo summary"
+    assert got["mc"]["rows"] == [
+        ["Flown min separation", "worst 3.20 m, median 3.60 m", ""],
+        ["P(closer than 3.0 m)", "0.0 % (0.0–14.0 %)", ""], ["P(collision, < 0.5 m)", "0.0 % (0.0–14.0 %)", ""],
+        ["Extra spacing at 95 %", "0.25 m", ""], ["Largest deviation", "0.300 m", ""],
+        ["Preset", "calm-rtk, pid, seeds 1–20", ""]]
