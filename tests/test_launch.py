@@ -343,3 +343,20 @@ def test_too_many_waves_for_the_ceiling_is_a_plan_error_naming_the_field():
     with pytest.raises(plan_module.PlanError) as err:
         plan_show(show)
     assert err.value.path == "home.boxes.per_box" and "8 takeoff waves" in str(err.value)
+
+
+@pytest.mark.parametrize("others", ["hold", "park", "land"])
+def test_subset_formations_on_launch_boxes(others):
+    """Others holding or parking fly safe beside the waves; landing mid-show onto box homes (not yet in
+    waves) is refused naming the field rather than planned unsafe."""
+    doc = boxes_show(drones=16, rows=1, cols=2).model_dump(mode="json", exclude_none=True)
+    few = dict(doc["formations"][1], name="few", drones={"count": 8}, others=others)
+    doc["formations"].insert(1, few)
+    show = parse_show(doc)
+    if others == "land":
+        with pytest.raises(plan_module.PlanError) as err:
+            plan_show(show)
+        assert err.value.path == "formations[1].others"
+        return
+    report = check_plan(plan_show(show))
+    assert report.violations_total == 0, [v.message for v in report.violations[:3]]

@@ -589,6 +589,15 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             f"{float(waves_up.schedule.b_m[:, 2].max()):.1f} m, above max_altitude_m {s.max_altitude_m:g} m; "
             "use fewer drones per box (or space them at least settings.min_distance_m apart), a lower "
             "takeoff_altitude_m or a higher max_altitude_m", path=path)
+    if waves_up is not None:
+        # Mid-show landings (a subset formation's others) descend together onto their homes: not yet in
+        # waves, so on a dense layout they would land beside and over their box mates. Refused by name.
+        for k, f in enumerate(show.formations):
+            if show.formation_drones(k) is not None and f.others == "land":
+                raise PlanError(
+                    f"formations[{k}].others: 'land' lands drones mid-show onto homes too close to climb or land "
+                    f"together ({waves_up.count} takeoff waves); use 'hold' or 'park' for formation {f.name!r}, "
+                    "or space the homes at least settings.min_distance_m apart", path=f"formations[{k}].others")
     if waves_up is None:
         up = home + lift
         tp, goals, flying, post = prepare_formation(0, up, "takeoff")
