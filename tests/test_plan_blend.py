@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sim.bench._dense import dense_show
-from sim.plan import plan_show
+from sim.plan import _blend, plan_show
 from sim.plan._blend import (
     SAFE_CHUNK,
     SUB_WINDOW_S,
@@ -215,15 +215,22 @@ def _safe_reference(junction: Junction, q: int) -> bool:
 
 
 @settings(max_examples=15, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 12), required=st.floats(0.5, 4.0))
-def test_junction_safe_matches_an_all_pairs_reference(seed, n, required) -> None:
-    """The compiled refinement (pruned candidates, halving) decides every overlap like the all-pairs,
-    sub-window-by-sub-window reference: pruning and refinement miss nothing and add nothing."""
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 12), required=st.floats(0.5, 4.0),
+       threads=st.booleans())
+def test_junction_safe_matches_an_all_pairs_reference(seed, n, required, threads) -> None:
+    """The compiled refinement (pruned candidates, halving; chunks in batches on threads or one by one)
+    decides every overlap like the all-pairs, sub-window-by-sub-window reference: pruning, refinement and
+    batching miss nothing and add nothing."""
     rng = np.random.default_rng(seed)
     a, b, c, _ = _random_legs(rng, n)
     junction = Junction(_leg(a, b), _leg(b, c), None, required)
-    for q in range(1, junction.count + 1):
-        assert junction.safe(q) == _safe_reference(junction, q), q
+    saved = _blend.PARALLEL_MIN_DRONES
+    _blend.PARALLEL_MIN_DRONES = 0 if threads else saved
+    try:
+        for q in range(1, junction.count + 1):
+            assert junction.safe(q) == _safe_reference(junction, q), q
+    finally:
+        _blend.PARALLEL_MIN_DRONES = saved
 
 
 @pytest.mark.parametrize("n", [40, 100])

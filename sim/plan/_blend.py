@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
+from sim.plan._threads import pool, workers
 from sim.plan._timelaw import Profiles
 
 
@@ -79,6 +80,8 @@ class Limits(Protocol):
 
 #: Sub-windows per candidate-pair search in :meth:`Junction.safe`.
 SAFE_CHUNK = 4
+#: Drones from which :meth:`Junction.safe` examines several chunks at once on threads.
+PARALLEL_MIN_DRONES = 500
 #: Limits are certified with this relative margin (the verifier's peaks are exact).
 LIMIT_MARGIN = 1e-6
 
@@ -253,15 +256,23 @@ class Junction:
         b1, b2 = self._boxes(q, 0)
         len1, len2 = np.linalg.norm(d1, axis=1), np.linalg.norm(d2, axis=1)
         need = self.required_m**2
-        for c0 in range(0, q, SAFE_CHUNK):
+
+        def chunk_unsafe(c0: int) -> bool:
             c1 = min(q, c0 + SAFE_CHUNK)
             s1_lo, s1_hi, s2_lo, s2_hi = float(b1[c0, 0]), float(b1[c1 - 1, 1]), float(b2[c0, 0]), float(b2[c1 - 1, 1])
             start = a + s1_lo * d1 + s2_lo * d2
             reach = (s1_hi - s1_lo) * len1 + (s2_hi - s2_lo) * len2
             pairs = cKDTree(start).query_pairs(self.required_m + 2.0 * float(reach.max()), output_type="ndarray")
-            if len(pairs) == 0:
-                continue
-            if _chunk_unsafe(start, a, d1, d2, b1, b2, pairs.astype(np.int64), reach, c0, c1, self.required_m, need):
+            return len(pairs) > 0 and bool(
+                _chunk_unsafe(start, a, d1, d2, b1, b2, pairs.astype(np.int64), reach, c0, c1, self.required_m, need))
+
+        # Chunks are independent (the k-d tree and the kernel release the GIL): a batch of them per core at a
+        # time, stopping after the first batch with an unsafe chunk (the answer does not depend on the order).
+        chunks = list(range(0, q, SAFE_CHUNK))
+        batch = workers() if len(a) >= PARALLEL_MIN_DRONES else 1
+        for k in range(0, len(chunks), batch):
+            part = chunks[k:k + batch]
+            if any(pool().map(chunk_unsafe, part) if len(part) > 1 else map(chunk_unsafe, part)):
                 return False
         return True
 

@@ -58,16 +58,15 @@ drone's minimum time under per-axis limits, the bottleneck gain on dense shows i
 from __future__ import annotations
 
 import heapq
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
+
+from sim.plan._threads import pool
 
 if TYPE_CHECKING:
     from sim.plan._assignment import Assignment
@@ -429,12 +428,6 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
 PARALLEL_MIN_WORK = 20_000
 
 
-@lru_cache(maxsize=1)
-def _pool() -> ThreadPoolExecutor:
-    """One process-wide thread pool (as many workers as cores, at most 4) for independent searches."""
-    return ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1)), thread_name_prefix="swarmshow-plan")
-
-
 def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.ndarray:
     """(K, 2) pairs i < j that come closer than ``required_m`` when all drones share one profile (exact).
 
@@ -466,7 +459,7 @@ def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.nd
     # The slices are independent and the k-d tree releases the GIL: both cores (the keys are sorted by
     # np.unique below, so the result does not depend on the order the threads finish in).
     if slices > 1 and n * slices >= PARALLEL_MIN_WORK:
-        found = [f for f in _pool().map(slice_keys, range(slices)) if len(f)]
+        found = [f for f in pool().map(slice_keys, range(slices)) if len(f)]
     else:
         found = [f for f in map(slice_keys, range(slices)) if len(f)]
     if not found:
