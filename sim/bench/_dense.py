@@ -427,9 +427,17 @@ def cold_and_warm(n: int, *, formations: int = 6) -> dict[str, Any]:
             proc = subprocess.run([sys.executable, "-c", _FIRST_RUN.format(n=n, formations=formations)], env=env,
                                   capture_output=True, text=True, check=True)
             out[label] = json.loads(proc.stdout)
+    out["load_avg_1m"] = _load_average()
     out["same_plan"] = (out["cold"]["duration_s"] == out["warm"]["duration_s"]
                         and out["cold"]["violations"] == out["warm"]["violations"])
     return out
+
+
+def _load_average() -> float:
+    """The machine's 1-minute load average (times on a shared machine mean little without it)."""
+    import os
+
+    return float(os.getloadavg()[0])
 
 
 def _peak_rss_mb() -> float:
@@ -489,6 +497,7 @@ def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = Non
         "check_cpu_s": c2 - c1,
         "plan_and_check_cpu_s": c2 - c0,
         "peak_rss_mb": peak,
+        "load_avg_1m": _load_average(),
         **load,
     }
     if compare_kdtree if compare_kdtree is not None else n <= 1000:
