@@ -403,9 +403,13 @@ plan = plan_show(show)
 c1, t1 = time.process_time(), time.perf_counter()
 report = check_plan(plan)
 c2, t2 = time.process_time(), time.perf_counter()
+try:  # this process's own peak (ru_maxrss would include the parent's, inherited across fork and exec)
+    peak = int(next(x for x in open("/proc/self/status") if x.startswith("VmHWM")).split()[1]) / 1024.0
+except (OSError, StopIteration):
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 json.dump({{"plan_s": t1 - t0, "plan_cpu_s": c1 - c0, "check_s": t2 - t1, "check_cpu_s": c2 - c1,
            "violations": report.violations_total, "duration_s": plan.duration_s,
-           "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}}, sys.stdout)
+           "peak_rss_mb": peak}}, sys.stdout)
 """
 
 
