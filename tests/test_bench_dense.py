@@ -72,3 +72,14 @@ def test_cli_bench_plan_dense_table(capsys) -> None:
     assert cli_main(["bench", "plan", "--dense", "--drones", "20"]) == 0
     text = capsys.readouterr().out
     assert "kdtree x" in text and "per transition" in text
+
+
+@pytest.mark.slow
+def test_cli_bench_plan_dense_cold_and_warm_processes(capsys) -> None:
+    """--cold plans in fresh processes: the first compiles every kernel into an empty numba cache, the second
+    loads them, so it is much cheaper, and both give the same plan."""
+    assert cli_main(["bench", "plan", "--dense", "--drones", "12", "--cold", "--json"]) == 0
+    (fresh,) = json.loads(capsys.readouterr().out)["fresh"]
+    cold, warm = fresh["cold"], fresh["warm"]
+    assert fresh["same_plan"] is True and cold["violations"] == warm["violations"] == 0
+    assert warm["plan_cpu_s"] + warm["check_cpu_s"] < 0.5 * (cold["plan_cpu_s"] + cold["check_cpu_s"])

@@ -113,6 +113,9 @@ def _plan_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dense", action="store_true",
                    help="the dense suite: 6 formations at exactly min_distance_m, 100/300/1000/5000 drones "
                         "(or --drones N), planned + checked, show length vs a lower bound")
+    p.add_argument("--cold", action="store_true",
+                   help="with --dense: also plan + check each show in fresh processes, first with an empty "
+                        "numba cache (compiling, once per install), then with a filled one (loading)")
 
 
 def _bench_plan(args: argparse.Namespace) -> dict:
@@ -122,7 +125,12 @@ def _bench_plan(args: argparse.Namespace) -> dict:
         from sim.bench._dense import DENSE_SIZES, bench_dense
 
         sizes = DENSE_SIZES if args.drones is None else (_check_drones(args),)
-        return {"kind": "plan-dense", "shows": [bench_dense(n, formations=6) for n in sizes]}
+        out = {"kind": "plan-dense", "shows": [bench_dense(n, formations=6) for n in sizes]}
+        if args.cold:
+            from sim.bench._dense import cold_and_warm
+
+            out["fresh"] = [cold_and_warm(n, formations=6) for n in sizes]
+        return out
     if args.drones is None:
         args.drones = 2000
     n = _check_drones(args)
@@ -134,7 +142,8 @@ def _format_plan(r: dict) -> str:
     if r["kind"] == "plan-dense":
         lines = [
             "bench plan --dense: 6 formations drawn at exactly min_distance_m (disc, star, ball, text, image, wall)",
-            "  (times: wall clock, CPU in brackets; kdtree x: the reference k-d-tree check's CPU over ours, same plan)",
+            "  (times: wall clock, CPU in brackets, kernels already loaded; kdtree x: the reference k-d-tree check's "
+            "CPU over ours, same plan; ratio: show length over the lower bound)",
             f"  {'drones':>6} {'violations':>10} {'unresolved':>10} {'show s':>8} {'bound s':>8} {'ratio':>6} "
             f"{'plan s':>14} {'check s':>14} {'kdtree x':>8} {'peak MB':>8} {'sampled min m':>13}",
         ]
@@ -150,6 +159,17 @@ def _format_plan(r: dict) -> str:
         for f in r["shows"]:
             lines.append(f"  {f['drones']} drones, per transition (planned / lower bound, s): " + ", ".join(
                 f"{t['to']} {t['duration_s']:.1f}/{t['bound_s']:.1f} {t['resolution']}" for t in f["transitions"]))
+        if r["shows"] and r["shows"][0].get("kernel_load_s"):
+            f = r["shows"][0]
+            lines.append(f"  loading (or compiling) the kernels before the first show: {f['kernel_load_s']:.2f} s "
+                         f"({f['kernel_load_cpu_s']:.2f} s CPU)")
+        for f in r.get("fresh", []):
+            c, w = f["cold"], f["warm"]
+            lines.append(
+                f"  {f['drones']} drones in a fresh process, plan + check, wall (CPU) s: cold numba cache "
+                f"{c['plan_s']:.2f} ({c['plan_cpu_s']:.2f}) + {c['check_s']:.2f} ({c['check_cpu_s']:.2f}); warm cache "
+                f"{w['plan_s']:.2f} ({w['plan_cpu_s']:.2f}) + {w['check_s']:.2f} ({w['check_cpu_s']:.2f}); "
+                f"peak {w['peak_rss_mb']:.0f} MB; same plan: {f['same_plan']}")
         return "\n".join(lines)
     lines = [
         f"bench plan: one ground-grid -> sphere CAPT transition, {r['drones']} drones",

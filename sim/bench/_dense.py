@@ -371,22 +371,77 @@ def show_lower_bound(show: ShowFile) -> dict[str, Any]:
     return {"lower_bound_s": holds + sum(terms), "holds_s": holds, "transition_bounds_s": terms}
 
 
-def _warm_up() -> None:
+def _warm_up() -> dict[str, float]:
     """Plan and check a tiny dense show once per process, both candidate searches, so that loading the
-    compiled (numba) kernels is not timed as part of the first show."""
+    compiled (numba) kernels is not timed as part of the first show. Returns what that cost in this
+    process (wall and CPU seconds; zero after the first call): loading the kernels from numba's
+    on-disk cache, or compiling them when the cache is cold."""
     global _WARM
     if _WARM:
-        return
+        return {"kernel_load_s": 0.0, "kernel_load_cpu_s": 0.0}
     from sim.plan import plan_show
     from sim.verify import check_plan
 
+    c0, t0 = time.process_time(), time.perf_counter()
     plan = plan_show(dense_show(12, formations=2))
     check_plan(plan)
     check_plan(plan, candidates="kdtree")
     _WARM = True
+    return {"kernel_load_s": time.perf_counter() - t0, "kernel_load_cpu_s": time.process_time() - c0}
 
 
 _WARM = False
+
+_FIRST_RUN = """
+import json, resource, sys, time
+from sim.bench._dense import dense_show
+show = dense_show({n}, formations={formations})
+from sim.plan import plan_show
+from sim.verify import check_plan
+c0, t0 = time.process_time(), time.perf_counter()
+plan = plan_show(show)
+c1, t1 = time.process_time(), time.perf_counter()
+report = check_plan(plan)
+c2, t2 = time.process_time(), time.perf_counter()
+try:  # this process's own peak (ru_maxrss would include the parent's, inherited across fork and exec)
+    peak = int(next(x for x in open("/proc/self/status") if x.startswith("VmHWM")).split()[1]) / 1024.0
+except (OSError, StopIteration):
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+json.dump({{"plan_s": t1 - t0, "plan_cpu_s": c1 - c0, "check_s": t2 - t1, "check_cpu_s": c2 - c1,
+           "violations": report.violations_total, "duration_s": plan.duration_s,
+           "peak_rss_mb": peak}}, sys.stdout)
+"""
+
+
+def cold_and_warm(n: int, *, formations: int = 6) -> dict[str, Any]:
+    """Plan + check one dense show as a command-line user does: in a fresh process, first with an empty
+    numba cache (every kernel compiled: once per install), then again with the cache that run filled
+    (kernels loaded from disk: every later process). Times include that compiling or loading, not the
+    show's construction. Both runs must give the same plan (same length, same violations)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    out: dict[str, Any] = {"drones": n, "formations": formations}
+    with tempfile.TemporaryDirectory(prefix="swarmshow-numba-") as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        for label in ("cold", "warm"):
+            proc = subprocess.run([sys.executable, "-c", _FIRST_RUN.format(n=n, formations=formations)], env=env,
+                                  capture_output=True, text=True, check=True)
+            out[label] = json.loads(proc.stdout)
+    out["load_avg_1m"] = _load_average()
+    out["same_plan"] = (out["cold"]["duration_s"] == out["warm"]["duration_s"]
+                        and out["cold"]["violations"] == out["warm"]["violations"])
+    return out
+
+
+def _load_average() -> float:
+    """The machine's 1-minute load average (times on a shared machine mean little without it)."""
+    import os
+
+    return float(os.getloadavg()[0])
 
 
 def _peak_rss_mb() -> float:
@@ -400,7 +455,9 @@ def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = Non
                 **settings: Any) -> dict[str, Any]:
     """Plan + check one dense show: violations, show length vs the lower bound, time and peak memory.
 
-    Times are wall clock and process CPU (the CPU time is what to compare on a shared machine).
+    Times are wall clock and process CPU (the CPU time is what to compare on a shared machine), with the
+    compiled kernels already loaded (``kernel_load_s``: what loading them cost this process, if it was the
+    first show; :func:`cold_and_warm` measures fresh processes).
     Memory is the process's peak resident set (``ru_maxrss``), an upper bound on what the show
     needed; no tracemalloc, which slowed the numpy-heavy check 2-3x. ``compare_kdtree`` (default:
     up to 1,000 drones) re-runs the check with the reference k-d-tree candidate search, same input,
@@ -410,7 +467,7 @@ def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = Non
     from sim.verify import check_plan
 
     show = dense_show(n, formations=formations, **settings)
-    _warm_up()
+    load = _warm_up()
     c0, t0 = time.process_time(), time.perf_counter()
     plan = plan_show(show)
     c1, t1 = time.process_time(), time.perf_counter()
@@ -444,6 +501,8 @@ def bench_dense(n: int, *, formations: int = 6, sampled_check: bool | None = Non
         "check_cpu_s": c2 - c1,
         "plan_and_check_cpu_s": c2 - c0,
         "peak_rss_mb": peak,
+        "load_avg_1m": _load_average(),
+        **load,
     }
     if compare_kdtree if compare_kdtree is not None else n <= 1000:
         c3, t3 = time.process_time(), time.perf_counter()

@@ -38,8 +38,10 @@ from math import comb
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
+from sim.plan._threads import pool, workers
 from sim.plan._timelaw import Profiles
 
 
@@ -78,6 +80,8 @@ class Limits(Protocol):
 
 #: Sub-windows per candidate-pair search in :meth:`Junction.safe`.
 SAFE_CHUNK = 4
+#: Drones from which :meth:`Junction.safe` examines several chunks at once on threads.
+PARALLEL_MIN_DRONES = 500
 #: Limits are certified with this relative margin (the verifier's peaks are exact).
 LIMIT_MARGIN = 1e-6
 
@@ -252,30 +256,24 @@ class Junction:
         b1, b2 = self._boxes(q, 0)
         len1, len2 = np.linalg.norm(d1, axis=1), np.linalg.norm(d2, axis=1)
         need = self.required_m**2
-        for c0 in range(0, q, SAFE_CHUNK):
+
+        def chunk_unsafe(c0: int) -> bool:
             c1 = min(q, c0 + SAFE_CHUNK)
             s1_lo, s1_hi, s2_lo, s2_hi = float(b1[c0, 0]), float(b1[c1 - 1, 1]), float(b2[c0, 0]), float(b2[c1 - 1, 1])
             start = a + s1_lo * d1 + s2_lo * d2
             reach = (s1_hi - s1_lo) * len1 + (s2_hi - s2_lo) * len2
             pairs = cKDTree(start).query_pairs(self.required_m + 2.0 * float(reach.max()), output_type="ndarray")
-            if len(pairs) == 0:
-                continue
-            i, j = pairs[:, 0], pairs[:, 1]
-            near = np.linalg.norm(start[j] - start[i], axis=1) < self.required_m + reach[i] + reach[j]
-            i, j = i[near], j[near]
-            r0, e1, e2 = a[j] - a[i], d1[j] - d1[i], d2[j] - d2[i]
-            stack = [(c0, c1, np.arange(len(i)))]
-            while stack:
-                lo, hi, idx = stack.pop()
-                box1 = (float(b1[lo:hi, 0].min()), float(b1[lo:hi, 1].max()))
-                box2 = (float(b2[lo:hi, 0].min()), float(b2[lo:hi, 1].max()))
-                idx = idx[_box_min_sq(r0[idx], e1[idx], e2[idx], box1, box2) < need]
-                if len(idx) == 0:
-                    continue
-                if hi - lo == 1:
-                    return False
-                mid = (lo + hi) // 2
-                stack += [(lo, mid, idx), (mid, hi, idx)]
+            return len(pairs) > 0 and bool(
+                _chunk_unsafe(start, a, d1, d2, b1, b2, pairs.astype(np.int64), reach, c0, c1, self.required_m, need))
+
+        # Chunks are independent (the k-d tree and the kernel release the GIL): a batch of them per core at a
+        # time, stopping after the first batch with an unsafe chunk (the answer does not depend on the order).
+        chunks = list(range(0, q, SAFE_CHUNK))
+        batch = workers() if len(a) >= PARALLEL_MIN_DRONES else 1
+        for k in range(0, len(chunks), batch):
+            part = chunks[k:k + batch]
+            if any(pool().map(chunk_unsafe, part) if len(part) > 1 else map(chunk_unsafe, part)):
+                return False
         return True
 
 
@@ -323,6 +321,102 @@ def _box_min_sq(r0: np.ndarray, c1: np.ndarray, c2: np.ndarray, r1: tuple[float,
     if inside.any():
         best[inside] = np.minimum(best[inside], sq(u[inside], w[inside], inside))
     return best
+
+
+@njit(cache=True, nogil=True)
+def _box_min_sq_one(r0: np.ndarray, e1: np.ndarray, e2: np.ndarray, u_lo: float, u_hi: float, w_lo: float,
+                    w_hi: float) -> float:  # pragma: no cover - numba
+    """Exact min over (u, w) in [u_lo, u_hi] x [w_lo, w_hi] of |r0 + u·e1 + w·e2|² (one pair of
+    :func:`_box_min_sq`, same candidates: the four clamped edges and the interior stationary point)."""
+    a11 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]
+    a22 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2]
+    a12 = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]
+    b1 = r0[0] * e1[0] + r0[1] * e1[1] + r0[2] * e1[2]
+    b2 = r0[0] * e2[0] + r0[1] * e2[1] + r0[2] * e2[2]
+    best = np.inf
+    for side in range(4):
+        if side < 2:
+            w = w_lo if side == 0 else w_hi
+            u = -(b1 + w * a12) / a11 if a11 > 0 else u_lo
+            u = min(max(u, u_lo), u_hi)
+        else:
+            u = u_lo if side == 2 else u_hi
+            w = -(b2 + u * a12) / a22 if a22 > 0 else w_lo
+            w = min(max(w, w_lo), w_hi)
+        v0 = r0[0] + u * e1[0] + w * e2[0]
+        v1 = r0[1] + u * e1[1] + w * e2[1]
+        v2 = r0[2] + u * e1[2] + w * e2[2]
+        best = min(best, v0 * v0 + v1 * v1 + v2 * v2)
+    det = a11 * a22 - a12 * a12
+    if det > 1e-12 * max(a11 * a22, 1e-300):
+        u = (-b1 * a22 + b2 * a12) / det
+        w = (-b2 * a11 + b1 * a12) / det
+        if u_lo <= u <= u_hi and w_lo <= w <= w_hi:
+            v0 = r0[0] + u * e1[0] + w * e2[0]
+            v1 = r0[1] + u * e1[1] + w * e2[1]
+            v2 = r0[2] + u * e1[2] + w * e2[2]
+            best = min(best, v0 * v0 + v1 * v1 + v2 * v2)
+    return best
+
+
+@njit(cache=True, nogil=True)
+def _chunk_unsafe(start: np.ndarray, a: np.ndarray, d1: np.ndarray, d2: np.ndarray, b1: np.ndarray,
+                  b2: np.ndarray, pairs: np.ndarray, reach: np.ndarray, c0: int, c1: int, required_m: float,
+                  need: float) -> bool:  # pragma: no cover - numba
+    """True when some candidate pair's box minimum is below ``need`` (= required²) on a single sub-window
+    of ``[c0, c1)`` (see :meth:`Junction.safe`).
+
+    Per pair (i, j) of ``pairs`` (K, 2) within ``required + reach_i + reach_j`` at the chunk's start
+    ``start`` (N, 3) (a pair farther apart cannot close the distance in the chunk), the sub-windows are refined by
+    halving, depth first: a box spanning several sub-windows contains each of theirs, so a pair whose
+    minimum over it is >= ``need`` is safe in all of them. Boxes: ``b1``/``b2`` (q, 2) ranges of the
+    two profiles per sub-window.
+    """
+    r0 = np.empty(3)
+    e1 = np.empty(3)
+    e2 = np.empty(3)
+    st = np.empty(c1 - c0 + 4, dtype=np.int64)
+    sh = np.empty(c1 - c0 + 4, dtype=np.int64)
+    for p in range(pairs.shape[0]):
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        dist_sq = 0.0
+        for x in range(3):
+            r0[x] = a[j, x] - a[i, x]
+            e1[x] = d1[j, x] - d1[i, x]
+            e2[x] = d2[j, x] - d2[i, x]
+            g = start[j, x] - start[i, x]
+            dist_sq += g * g
+        if np.sqrt(dist_sq) >= required_m + reach[i] + reach[j]:
+            continue
+        top = 0
+        st[0] = c0
+        sh[0] = c1
+        while top >= 0:
+            lo = st[top]
+            hi = sh[top]
+            top -= 1
+            u_lo = np.inf
+            u_hi = -np.inf
+            w_lo = np.inf
+            w_hi = -np.inf
+            for k in range(lo, hi):
+                u_lo = min(u_lo, b1[k, 0])
+                u_hi = max(u_hi, b1[k, 1])
+                w_lo = min(w_lo, b2[k, 0])
+                w_hi = max(w_hi, b2[k, 1])
+            if _box_min_sq_one(r0, e1, e2, u_lo, u_hi, w_lo, w_hi) >= need:
+                continue
+            if hi - lo == 1:
+                return True
+            mid = (lo + hi) // 2
+            top += 1
+            st[top] = lo
+            sh[top] = mid
+            top += 1
+            st[top] = mid
+            sh[top] = hi
+    return False
 
 
 def blendable(leg: Schedule) -> bool:

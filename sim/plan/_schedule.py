@@ -66,6 +66,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from sim.plan._threads import pool
+
 if TYPE_CHECKING:
     from sim.plan._assignment import Assignment
 from sim.plan._pairs import close_path_pairs, pair_conflict, point_seg_dists
@@ -422,6 +424,10 @@ def schedule_transition(a_m: np.ndarray, b_m: np.ndarray, lim: Limits, *, min_di
     )
 
 
+#: Drones x slices from which :func:`sync_conflicts` searches its slices on several threads.
+PARALLEL_MIN_WORK = 20_000
+
+
 def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.ndarray:
     """(K, 2) pairs i < j that come closer than ``required_m`` when all drones share one profile (exact).
 
@@ -441,13 +447,21 @@ def sync_conflicts(a_m: np.ndarray, b_m: np.ndarray, required_m: float) -> np.nd
     l_max = float(np.sqrt((motion**2).sum(axis=1).max()))
     slices = max(1, int(np.ceil(l_max / required_m))) if l_max > 1e-12 else 1
     h = 1.0 / slices
-    found = []
-    for k in range(slices):
+    radius = required_m + l_max * h
+
+    def slice_keys(k: int) -> np.ndarray:
         centre = a_m + ((k + 0.5) * h) * motion
-        pairs = cKDTree(centre).query_pairs(required_m + l_max * h, output_type="ndarray")
-        if len(pairs):
-            lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
-            found.append(lo.astype(np.int64) * n + hi)
+        pairs = cKDTree(centre).query_pairs(radius, output_type="ndarray")
+        lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+        out: np.ndarray = lo.astype(np.int64) * n + hi
+        return out
+
+    # The slices are independent and the k-d tree releases the GIL: both cores (the keys are sorted by
+    # np.unique below, so the result does not depend on the order the threads finish in).
+    if slices > 1 and n * slices >= PARALLEL_MIN_WORK:
+        found = [f for f in pool().map(slice_keys, range(slices)) if len(f)]
+    else:
+        found = [f for f in map(slice_keys, range(slices)) if len(f)]
     if not found:
         return empty
     keys = np.unique(np.concatenate(found))

@@ -44,12 +44,14 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 from pydantic import BaseModel, Field
 from scipy.spatial import cKDTree
 
 from formations import ShowFile
 from sim.plan._plan import ShowPlan
+from sim.plan._threads import pool, workers
 from sim.plan._trajectory import Trajectories
 from sim.verify import _poly, _sweep
 from sim.verify._bounds import check_bounds
@@ -380,6 +382,21 @@ def _limit_violations(
     return out, peaks
 
 
+#: Drones from which :func:`check_plan` searches the segments on threads.
+PARALLEL_MIN_DRONES = 200
+
+
+def _threads_ok(n: int) -> bool:
+    """Segments on threads: enough drones, and numba's threading layer safe for concurrent parallel kernels
+    (OpenMP or TBB; the fallback work queue is not)."""
+    if n < PARALLEL_MIN_DRONES or workers() < 2:
+        return False
+    try:
+        return numba.threading_layer() in ("omp", "tbb")
+    except ValueError:  # no parallel kernel has run yet
+        return False
+
+
 def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = None,
                candidates: str = "sweep") -> CheckReport:
     """Verify a plan exactly against its show's limits.
@@ -407,18 +424,28 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
     best = (math.inf, (0, 0), 0.0)
     seg_min: dict[int, tuple[float, tuple[int, int], float]] = {}
     closest = [_closest_pair_distance(P[0])]
+    radii = []
     for k, seg in enumerate(plan.segments):
         moving = not np.array_equal(P[k], P[k + 1]) or seg.kind != "hold"
         closest.append(_closest_pair_distance(P[k + 1]) if moving else closest[-1])
         upper = min(closest[-2], closest[-1])
         # (a hair over, so that the pair at a boundary's exact closest distance survives rounding)
-        radius = (max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9)
-        pairs = window_close_pairs(motion, seg.start_s, seg.end_s, radius, bounds=bounds, method=candidates)
+        radii.append((max(limit_d, upper) if math.isfinite(upper) else limit_d) * (1 + 1e-9))
+
+    def search(k: int) -> ClosePairs:
+        seg = plan.segments[k]
+        return window_close_pairs(motion, seg.start_s, seg.end_s, radii[k], bounds=bounds, method=candidates)
+
+    # The segments' searches are independent: on threads when the kernels may run concurrently (results are
+    # consumed in segment order, so the report does not depend on which thread finishes first).
+    searches = (pool().map(search, range(len(plan.segments))) if _threads_ok(motion.drone_count)
+                else map(search, range(len(plan.segments))))
+    for k, (seg, pairs) in enumerate(zip(plan.segments, searches, strict=True)):
         span = airborne_span(plan, seg)
         if span is not None and len(pairs.dist_m):
             # Launch boxes: a pair of one box keeps its distance only while both fly (sim.verify._parked).
-            d_r, t_r = restrict(motion, span, pairs.i, pairs.j, pairs.dist_m, pairs.time_s, radius)
-            keep = d_r <= radius
+            d_r, t_r = restrict(motion, span, pairs.i, pairs.j, pairs.dist_m, pairs.time_s, radii[k])
+            keep = d_r <= radii[k]
             pairs = ClosePairs(pairs.i[keep], pairs.j[keep], d_r[keep], t_r[keep])
         if len(pairs.dist_m):
             m = int(np.argmin(pairs.dist_m))

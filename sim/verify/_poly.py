@@ -164,7 +164,7 @@ def _square_sum(rel: np.ndarray, f: np.ndarray) -> None:  # pragma: no cover - n
                 f[a + b] += ra * rel[ax, b]
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, nogil=True)
 def pair_minima(
     pi: np.ndarray, pj: np.ndarray, t0: np.ndarray, t1: np.ndarray, cutoff2: np.ndarray,
     breaks: np.ndarray, coeffs: np.ndarray, w: np.ndarray, out_d2: np.ndarray, out_t: np.ndarray,

@@ -48,7 +48,7 @@ CELLS_PER_SLICE = 4
 MAX_CELLS = 8192
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def greedy_slices(env: _F, t0: float, cell_s: float, radius_m: float) -> tuple[_F, _F, _F]:  # pragma: no cover
     """Slices [a, b] made of whole cells, greedily as wide as V_s·h <= radius allows: (a, b, V_s)."""
     cells = env.shape[0]
@@ -71,7 +71,7 @@ def greedy_slices(env: _F, t0: float, cell_s: float, radius_m: float) -> tuple[_
     return a[:k], b[:k], v[:k]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _first_piece(breaks: _F, i: int, t: float) -> int:  # pragma: no cover - numba
     """Drone i's first piece whose end is >= t (P if none)."""
     lo, hi = 0, breaks.shape[1] - 1
@@ -84,7 +84,7 @@ def _first_piece(breaks: _F, i: int, t: float) -> int:  # pragma: no cover - num
     return lo
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _window_speed(breaks: _F, bounds: _F, t0: float, t1: float) -> float:  # pragma: no cover - numba
     """Largest speed bound of any drone on any piece overlapping [t0, t1]."""
     n, p_count, parts = bounds.shape
@@ -99,7 +99,7 @@ def _window_speed(breaks: _F, bounds: _F, t0: float, t1: float) -> float:  # pra
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def envelope(breaks: _F, bounds: _F, t0: float, cell_s: float, cells: int, out: _F) -> None:  # pragma: no cover
     """out[c] = max bound of any part overlapping cell c = [t0 + c·cell_s, t0 + (c+1)·cell_s] (closed, and
     one cell of slack each side for rounding); only the pieces that meet the window are visited."""
@@ -124,7 +124,7 @@ def envelope(breaks: _F, bounds: _F, t0: float, cell_s: float, cells: int, out: 
             p += 1
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _position(breaks: _F, coeffs: _F, i: int, t: float, out: _F) -> None:  # pragma: no cover - numba
     p_count = breaks.shape[1] - 1
     if t >= breaks[i, p_count]:
@@ -140,7 +140,7 @@ def _position(breaks: _F, coeffs: _F, i: int, t: float, out: _F) -> None:  # pra
         out[ax] = acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _drone_speed(breaks: _F, bounds: _F, i: int, a: float, b: float) -> float:  # pragma: no cover - numba
     """Largest speed bound of drone i over the parts of its pieces that meet [a, b] (closed, with slack)."""
     p_count, parts = bounds.shape[1], bounds.shape[2]
@@ -168,7 +168,7 @@ def _drone_speed(breaks: _F, bounds: _F, i: int, a: float, b: float) -> float:  
     return v
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def slice_candidates(breaks: _F, coeffs: _F, bounds: _F, sa: _F, sb: _F, radius_m: float,
                      ) -> tuple[_I, _I, _I, _I]:  # pragma: no cover - numba
     """Every pair (i < j) that is a candidate in some slice (claims 1 and 2): (i, j, first slice, last slice)."""
