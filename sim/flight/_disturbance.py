@@ -262,7 +262,7 @@ class WindField:
         uy = self.mean_mps * np.sin(self.direction_rad)
         # Frozen turbulence swept by the mean wind at the reference height.
         x, y, z = pts[:, 0] - ux * t, pts[:, 1] - uy * t, pts[:, 2]
-        # The mode sum, fused (sim.flight._windsum; imported here: numba loads in ~1 s).
+        # The mode sum, compiled and vectorised (sim.flight._windsum; imported here: numba loads in ~1 s).
         from sim.flight._windsum import turbulence_sum
 
         turbulence_sum(out, np.ascontiguousarray(x), np.ascontiguousarray(y), np.ascontiguousarray(z),
