@@ -34,7 +34,7 @@ _BLOCK = 1024
 
 @numba.njit(inline="always", cache=True)
 def _cos(a: float) -> float:  # pragma: no cover - compiled
-    r = a - _TWO_PI * np.floor(a * _INV_TWO_PI + 0.5)
+    r = a - _TWO_PI * float(np.floor(a * _INV_TWO_PI + 0.5))
     r2 = r * r
     c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12 = _COS_COEFFS
     return ((((((((((((c0 * r2 + c1) * r2 + c2) * r2 + c3) * r2 + c4) * r2 + c5) * r2 + c6) * r2 + c7) * r2
