@@ -1,17 +1,28 @@
 """Monte-Carlo benchmark (issue 20): a 1,000-drone, 10-minute show flown 20 times, target <= 15 minutes.
 
 ``make bench`` or ``pytest -m slow benchmarks/bench_montecarlo.py``. The show is the benchmark
-show of ``sim.bench`` (five formations) with its holds stretched to 10 minutes. On a shared
-machine the full 20 runs are not measured by default: ``MC_BENCH_RUNS`` runs (default 2) are
-flown with ``sim.flight.monte_carlo`` and the 20-run time is extrapolated from the time per run
-(the runs are independent and identical in cost: the extrapolation is linear), and the figures
-say so (``extrapolated``) with the load average at the time. ``MC_BENCH_RUNS=20`` measures all;
-``MC_BENCH_DRONES=250`` flies a smaller fleet on the same 10-minute show and scales the time
-linearly to 1,000 drones (the kernel and the per-frame closest pair are both linear in drones).
+show of ``sim.bench`` (five formations) with its holds stretched to ``MC_BENCH_SHOW_S`` seconds
+(default 600). On a shared machine the full 20 runs are not flown by default: ``MC_BENCH_RUNS``
+runs (default 2) are flown with ``sim.flight.monte_carlo`` and the 20-run time is an
+**extrapolation**, stated as such in the figures (``extrapolated``), with the load average at
+the time. ``MC_BENCH_RUNS=20`` (and the default drones and length) measures the target case.
 
-Figures, all from one run of the benchmark: seconds per Monte-Carlo run, the same run flown
-alone by ``fly_show`` (the flight without the Monte-Carlo reduction), their ratio (the
-reduction's overhead), drone-steps per second, and the 20-run estimate against the target.
+The extrapolation (all terms measured in this benchmark run, each run's timings from
+``RunStats``)::
+
+    T_20 = 20 · S_target / R  +  (P + 20 · O) · (N_target · F_target) / (N · F)
+
+* ``S_target = 1,000 · (600 s / 1 ms + 1)`` drone-steps of one target run;
+* ``R`` = drone-steps per second of the engine loop (the kernel and its per-chunk GNSS and
+  wind tables: ``flight_wall_time_s`` of the runs), measured on ``N`` drones;
+* ``O`` = the rest of a run (setup, closest pair of every frame, speeds, folds: ``wall_time_s -
+  flight_wall_time_s``), linear in drones times frames ``F`` (the closest pair is O(N) per frame);
+* ``P`` = the per-show work done once (the plan's own minimum at every frame, in ``monte_carlo``:
+  the wall time of the whole call less the runs' own), also linear in drones times frames.
+
+The plan itself is made once before ``monte_carlo`` (``plan_s``, reported, not in T_20: the
+designer has it already). Kernel speed-ups (a SIMD kernel) change ``R`` only; the figures
+give the split ``per_run_engine_fraction`` so both parts can be followed.
 """
 
 from __future__ import annotations
@@ -30,7 +41,7 @@ SHOW_S = 600.0
 TARGET_RUNS = 20
 
 
-def _ten_minute_show(n: int, seconds: float):
+def _stretched_show(n: int, seconds: float):
     """The benchmark show with every hold lengthened so that the plan lasts ``seconds``."""
     from sim import plan_show
     from sim.bench._shows import benchmark_show
@@ -44,49 +55,65 @@ def _ten_minute_show(n: int, seconds: float):
 
 
 def test_bench_montecarlo_1000_drones_10_minutes(record_result) -> None:
-    from sim.flight import FlightOptions, fly_show, monte_carlo, options_for_preset
+    from sim.flight import FlightOptions, monte_carlo, options_for_preset
+    from sim.flight.engines import warm_up
 
     runs = int(os.environ.get("MC_BENCH_RUNS", "2"))
     drones = int(os.environ.get("MC_BENCH_DRONES", str(DRONES)))
-    plan = _ten_minute_show(drones, SHOW_S)
+    show_s = float(os.environ.get("MC_BENCH_SHOW_S", str(SHOW_S)))
+    start = time.perf_counter()
+    plan = _stretched_show(drones, show_s)
+    plan_s = time.perf_counter() - start
     options = options_for_preset("gusty-rtk", FlightOptions())
+    warm_up()  # compile time is not a run's
     load_before = os.getloadavg()[0]
 
     start = time.perf_counter()
     mc = monte_carlo(plan, options, runs=runs, seed0=0)
     mc_s = time.perf_counter() - start
-    # The first run's flight alone, in the same benchmark run: what the reduction adds.
-    start = time.perf_counter()
-    single = fly_show(plan, options.with_(seed=0, flown_distance=False))
-    single_s = time.perf_counter() - start
     load_after = os.getloadavg()[0]
 
-    per_run_s = mc_s / runs
-    # Flight and reduction are linear in the drones (kernel per drone, O(N) closest pair per frame).
-    scale = DRONES / plan.drone_count
-    estimate_s = per_run_s * TARGET_RUNS * scale
-    steps = (round(plan.duration_s / 1e-3) + 1) * plan.drone_count
     j = mc.to_json()
+    rows = j["run_list"]
+    engine_s = sum(r["flight_wall_time_s"] for r in rows)
+    runs_s = sum(r["wall_time_s"] for r in rows)
+    once_s = max(mc_s - runs_s, 0.0)
+    steps = round(plan.duration_s / 1e-3) + 1
+    every = max(round(1.0 / (options.output_hz * 1e-3)), 1)
+    frames = (steps - 1) // every + 1
+    drone_steps = plan.drone_count * steps
+    rate = drone_steps * runs / engine_s
+    rest_per_run = (runs_s - engine_s) / runs
+    target_steps = DRONES * (round(SHOW_S / 1e-3) + 1)
+    target_frames = round(SHOW_S / 1e-3) // every + 1
+    scale_nf = (DRONES * target_frames) / (plan.drone_count * frames)
+    estimate_s = TARGET_RUNS * target_steps / rate + (once_s + TARGET_RUNS * rest_per_run) * scale_nf
+    measured_target = runs >= TARGET_RUNS and plan.drone_count == DRONES and abs(plan.duration_s - SHOW_S) < 1.0
     record_result({
         "drones": plan.drone_count,
         "show_s": plan.duration_s,
+        "plan_s": plan_s,
         "runs_measured": runs,
-        "extrapolated": runs < TARGET_RUNS or plan.drone_count != DRONES,
-        "drones_scale_to_1000": scale,
+        "extrapolated": not measured_target,
+        "formula": "T_20 = 20 * S_target / R + (P + 20 * O) * (N_target*F_target) / (N*F)",
+        "drones_frames_scale": scale_nf,
         "monte_carlo_s": mc_s,
-        "per_run_s": per_run_s,
-        "single_flight_s": single_s,
-        "per_run_over_single_flight": per_run_s / single_s,
-        "drone_steps_per_s": steps * runs / mc_s,
-        "estimate_20_runs_s": estimate_s,
+        "per_run_s": runs_s / runs,
+        "per_run_engine_s": engine_s / runs,
+        "per_run_engine_fraction": engine_s / runs_s,
+        "R_engine_drone_steps_per_s": rate,
+        "O_rest_per_run_s": rest_per_run,
+        "P_once_s": once_s,
+        "S_target_drone_steps": target_steps,
+        "estimate_20_runs_s": mc_s if measured_target else estimate_s,
         "target_s": TARGET_S,
-        "estimate_over_target": estimate_s / TARGET_S,
+        "estimate_over_target": (mc_s if measured_target else estimate_s) / TARGET_S,
         "load_average_1min": [load_before, load_after],
         "cpus": os.cpu_count(),
         "flown_min_m": j["show_min"]["flown_min_m"]["quantiles"]["0"],
         "diverged": j["diverged_count"],
     })
-    assert j["diverged_count"] == 0 and not single.diverged
-    assert [r["seed"] for r in j["run_list"]] == list(range(runs))
+    assert j["diverged_count"] == 0
+    assert [r["seed"] for r in rows] == list(range(runs))
     # The reduction (closest pair per frame, speeds, folds) costs little next to the flight.
-    assert per_run_s / single_s < 1.5
+    assert engine_s / runs_s > 0.8

@@ -245,3 +245,56 @@ def test_fly_show_subset_flies_like_the_whole_fleet_with_errors_on():
     np.testing.assert_array_equal(part.positions_m, whole.positions_m[:, [1, 6]])
     np.testing.assert_array_equal(part.tracking_rms_m, whole.tracking_rms_m[[1, 6]])
     assert whole.diverged == [] and whole.tracking_max_m.max() > 1e-3  # the errors do act
+
+
+def test_fused_wind_mode_sum_equals_the_mode_by_mode_formula():
+    # WindField.velocity sums its Fourier modes in a compiled loop with a polynomial cosine
+    # (sim.flight._windsum); the
+    # formula of its docstring, written out mode by mode in numpy with libm cosines, agrees to 1e-12 m/s.
+    f = WindField.dryden(mean_mps=7.7, direction_rad=0.4, sigma_mps=1.3, length_m=152.0, modes=96, seed=8)
+    rng = np.random.default_rng(2)
+    pts = rng.uniform(-150.0, 150.0, size=(500, 3))
+    pts[:, 2] = np.abs(pts[:, 2])
+    t = rng.uniform(0.0, 600.0, size=500)
+    want = f.mean_velocity(pts[:, 2])
+    ux, uy = f.mean_mps * np.cos(f.direction_rad), f.mean_mps * np.sin(f.direction_rad)
+    x, y, z = pts[:, 0] - ux * t, pts[:, 1] - uy * t, pts[:, 2]
+    for m in range(f.omega_rad_s.size):
+        kx, ky, kz = f.wavevectors[m]
+        c = np.cos(kx * x + ky * y + kz * z + f.omega_rad_s[m] * t + f.phase_rad[m])
+        want += f.amplitudes[m][None, :] * c[:, None]
+    got = f.velocity(pts, t)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    # A point's wind does not depend on the points evaluated with it.
+    np.testing.assert_array_equal(f.velocity(pts[17:18], t[17:18]), got[17:18])
+
+
+@pytest.mark.parametrize(("preset", "tolerance_m"), [("gps-only", 0.25), ("gusty-rtk", 0.01)])
+def test_a_gnss_drone_flies_with_its_gnss_error_and_nothing_more(preset, tolerance_m):
+    # Known answer: the controller tracks the estimate, the estimate has unit DC gain on the GNSS
+    # error (complementary filter), so over a window the drone's true error p - p_ref averages to
+    # minus the GNSS error's average. Before the drones started on their estimate, seed 3 of
+    # "gps-only" handed 50 ISMC drones a step of the whole first-fix error (up to 7 m) and three
+    # of them tumbled and ran away within 15 s (issue 20).
+    from sim.flight.engines._tables import ErrorTables
+
+    n, duration, seed = 50, 20.0, 3
+    pts = np.zeros((n, 3))
+    pts[:, 0] = np.arange(n) * 5.0
+    pts[:, 2] = 30.0
+    ref = TrackingReference.circle(pts, radius_m=3.0, omega_rad_s=0.3)
+    model = error_preset(preset)
+    res = simulate(ref, duration_s=duration, errors=model, seed=seed, gains=IsmcGains(), engine="numba",
+                   output_every=100, telemetry=True)
+    assert res.diverged() == []
+    steps = int(round(duration / 1e-3)) + 1
+    tables = ErrorTables(model, seed=seed, drone_ids=np.arange(n), plant=QuadrotorParams(), dt_s=1e-3,
+                         duration_s=duration)
+    fix0 = tables.initial_gnss_error()
+    # It starts where its estimate puts the start: off by exactly the first fix's error.
+    np.testing.assert_allclose(res.telemetry[0, :, 0:3], -fix0, atol=1e-9)
+    chunk = tables.chunk(0, steps, ref)
+    epoch_t = (chunk.gnss_first + np.arange(chunk.gnss.shape[0]) * chunk.gnss_every) * 1e-3
+    gnss_mean = chunk.gnss[epoch_t >= 10.0].mean(axis=0)
+    flown_mean = res.telemetry[res.frame_times_s >= 10.0, :, 0:3].mean(axis=0)
+    assert np.abs(flown_mean + gnss_mean).max() < tolerance_m

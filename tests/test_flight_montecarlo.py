@@ -67,9 +67,19 @@ def test_frame_min_distances_brute_force() -> None:
         assert {i[f], j[f]} == {a, b}
     # A "dead" drone placed on top of another is ignored when left out of the alive set.
     pos[:, 5] = pos[:, 7]
-    alive = np.delete(np.arange(40), 5)
-    d2, i2, j2 = frame_min_distances(pos, lambda f: alive)
+    dead = np.full(40, -1)
+    dead[5] = 0
+    d2, i2, j2 = frame_min_distances(pos, dead)
     assert np.all(d2 > 0) and not np.any(i2 == 5) and not np.any(j2 == 5)
+    # Drone 7 stops counting from step 100 (frame 10 at 10 steps per frame) on.
+    dead[7] = 100
+    d3, i3, j3 = frame_min_distances(pos, dead, every=10)
+    for f in range(pos.shape[0]):
+        keep = np.flatnonzero((dead < 0) | (dead > f * 10))
+        m = squareform(pdist(pos[f, keep].astype(np.float64)))
+        np.fill_diagonal(m, np.inf)
+        a, b = np.unravel_index(np.argmin(m), m.shape)
+        assert d3[f] == pytest.approx(m[a, b], rel=1e-12) and {i3[f], j3[f]} == {keep[a], keep[b]}
 
 
 def test_non_finite_drones_are_left_out() -> None:
@@ -223,6 +233,8 @@ def test_dask_gives_identical_numbers(plan) -> None:
         j.pop("engine")
         for r in j["run_list"]:
             r.pop("wall_time_s")
+            r.pop("flight_wall_time_s")
         j["show_min"]["worst_run"].pop("wall_time_s", None)  # the same dict as its run_list row
+        j["show_min"]["worst_run"].pop("flight_wall_time_s", None)
     assert remote == local
     assert seen[-1] == 1.0

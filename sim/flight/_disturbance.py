@@ -262,11 +262,12 @@ class WindField:
         uy = self.mean_mps * np.sin(self.direction_rad)
         # Frozen turbulence swept by the mean wind at the reference height.
         x, y, z = pts[:, 0] - ux * t, pts[:, 1] - uy * t, pts[:, 2]
-        for mode in range(self.omega_rad_s.size):
-            kx, ky, kz = self.wavevectors[mode]
-            arg = kx * x + ky * y + kz * z + self.omega_rad_s[mode] * t + self.phase_rad[mode]
-            c = np.cos(arg)
-            out[:, 0] += self.amplitudes[mode, 0] * c
-            out[:, 1] += self.amplitudes[mode, 1] * c
-            out[:, 2] += self.amplitudes[mode, 2] * c
+        # The mode sum, compiled and vectorised (sim.flight._windsum; imported here: numba loads in ~1 s).
+        from sim.flight._windsum import turbulence_sum
+
+        turbulence_sum(out, np.ascontiguousarray(x), np.ascontiguousarray(y), np.ascontiguousarray(z),
+                       np.ascontiguousarray(t), np.ascontiguousarray(self.wavevectors, dtype=np.float64),
+                       np.ascontiguousarray(self.amplitudes, dtype=np.float64),
+                       np.ascontiguousarray(self.omega_rad_s, dtype=np.float64),
+                       np.ascontiguousarray(self.phase_rad, dtype=np.float64))
         return out
