@@ -299,6 +299,7 @@ def _kernel(
         i0 = b * L
         cnt = min(L, n - i0)
         sc = np.zeros(NF * L)
+        nl = sc.size // NF
         cur = np.zeros(L, dtype=np.int64)
         nxt = np.zeros(L)
         prv = np.zeros(L)
@@ -385,8 +386,10 @@ def _kernel(
             d2x, d2y, d2z = dist[j, 6], dist[j, 7], dist[j, 8]
             kf_step = float(k)
 
-            # ---- the vector part: one control + integration step of every lane
-            for lane in range(L):
+            # ---- the vector part: one control + integration step of every lane. (The trip
+            # count is read from the scratch's size, not the constant LANES: LLVM fully
+            # unrolls a loop with a small constant trip count before it could vectorise it.)
+            for lane in range(nl):
                 px, py, pz = sc[0 * L + lane], sc[1 * L + lane], sc[2 * L + lane]
                 vx, vy, vz = sc[3 * L + lane], sc[4 * L + lane], sc[5 * L + lane]
                 ph, th, ps = sc[6 * L + lane], sc[7 * L + lane], sc[8 * L + lane]

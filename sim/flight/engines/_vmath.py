@@ -36,7 +36,10 @@ Floating point: these functions are compiled with FMA contraction only. They mus
 be compiled with ``reassoc`` (it would fold the split constants back together) and are
 not ``inline='always'`` into the kernel for that reason: numba compiles them as separate
 functions with their own flags, and LLVM then inlines them into the kernel's loop
-keeping each instruction's flags.
+keeping each instruction's flags. ``vasin`` and ``vpow`` are inlined into their caller at
+numba's level instead (their only own arithmetic is a product and a square root): as
+separate functions they would hold both callees inlined and grow past LLVM's inlining
+threshold, and a call left in the loop stops the vectoriser.
 """
 
 from __future__ import annotations
@@ -155,7 +158,7 @@ def vatan2(y: float, x: float) -> float:
     return x + y if bad else r
 
 
-@nb.njit(cache=True, fastmath=_FLAGS, error_model="numpy")
+@nb.njit(cache=True, inline="always")
 def vasin(x: float) -> float:
     """``asin(x)`` for ``|x| <= 1`` within 4 ulp, as ``atan2(x, sqrt((1-x)(1+x)))``."""
     return vatan2(x, math.sqrt((1.0 - x) * (1.0 + x)))
@@ -229,7 +232,7 @@ def vlog(x: float) -> float:
     return x if x != x else out
 
 
-@nb.njit(cache=True, fastmath=_FLAGS, error_model="numpy")
+@nb.njit(cache=True, inline="always")
 def vpow(x: float, a: float) -> float:
     """``x^a`` for ``x > 0`` as ``exp(a log x)`` (within 8 ulp while ``|a log x| < 50``)."""
     return vexp(a * vlog(x))
