@@ -8,6 +8,7 @@ in the same run, and the wall time of a whole 1000-drone show flight.
 from __future__ import annotations
 
 import argparse
+import functools
 import re
 import time
 
@@ -155,8 +156,10 @@ def _peak_packed_fma_flops() -> float:
 _PACKED_ARITH = re.compile(r"^\s*(v(?:fn?m(?:add|sub)\w*|add|sub|mul|div|sqrt)pd)\s[^\n]*%([yz])mm", re.M)
 
 
+@functools.cache
 def _kernel_lane_asm() -> str:
-    """The machine code of the flight kernel, compiled afresh (numba does not disassemble cached code)."""
+    """The machine code of the flight kernel, compiled afresh once per session (numba does not
+    disassemble cached code)."""
     import numba as nb
 
     import sim.flight.engines._numba as kernel_module

@@ -12,8 +12,12 @@ so the work is laid out for the vector units:
   ``if`` of the numpy step is a select (the saturation, the limiter, the anti-windup,
   ``sig`` at 0, the divergence masks), and the transcendental functions are the plain
   arithmetic of :mod:`sim.flight.engines._vmath` (libm calls would stop the vectoriser;
-  the pip llvmlite has no SVML). ``tests/test_flight_engines.py`` fails if the lane
-  loop's machine code stops using packed vector instructions.
+  the pip llvmlite has no SVML). The lane loop's trip count is a runtime value (a
+  small constant one is fully unrolled before the vectoriser sees it); with AVX-512 it
+  compiles to 8-wide zmm arithmetic. ``benchmarks/bench_sim.py``
+  (``test_kernel_lane_loop_is_vectorised``, slow: it compiles the kernel afresh) fails if
+  its machine code stops using packed arithmetic; ``tests/test_flight_vmath.py`` checks
+  the same for the functions in a loop of the kernel's pattern.
 * The block's state lives in one scratch array laid out *structure of arrays*, field
   by field with the block's drones contiguous (``sc[field * LANES + lane]``). That
   bends the project's drones-on-the-first-axis rule *inside* the kernel only: a vector
@@ -35,7 +39,7 @@ tracking error against a ~150 m correlation length); sampling at the flown posit
 would need the turbulence modes' cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
-run on a machine pays the compile time (about 20-40 s).
+run on a machine pays the compile time (about a minute of CPU).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
