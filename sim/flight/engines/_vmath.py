@@ -198,7 +198,7 @@ def vexp(x: float) -> float:
     n1 = np.int64(n) >> 1
     n2 = np.int64(n) - n1
     s1: float = _i2f((n1 + 1023) << 52)  # type: ignore[call-arg]
-    s2: float = _i2f((n2 + 1023) << 52)  # type: ignore[call-arg]
+    s2: float = _i2f((n2 + 1023) << 52)
     out = (p * s1) * s2
     out = math.inf if x > _EXP_MAX else out
     out = 0.0 if x < _EXP_MIN else out
