@@ -8,6 +8,8 @@ in the same run, and the wall time of a whole 1000-drone show flight.
 from __future__ import annotations
 
 import argparse
+import functools
+import re
 import time
 
 import numpy as np
@@ -112,8 +114,108 @@ def _rate(ref, n: int, seconds: float, engine: str, errors) -> tuple[float, floa
     return steps / wall, steps / cpu
 
 
+def _peak_packed_fma_flops() -> tuple[float, float]:
+    """Measured peak of packed double FMAs on every core: (flop per wall s, per CPU s) of a tiny numba loop.
+
+    64 lanes held in L1, eight chained FMAs per lane and pass: LLVM vectorises the lane
+    loop, and the eight independent vectors keep both FMA pipes busy.
+    """
+    import numba as nb
+
+    # FMA contraction only: with reassociation LLVM folds the chain of FMAs into fewer ops.
+    @nb.njit(parallel=True, fastmath={"contract"})
+    def peak(reps: int, out: np.ndarray) -> None:
+        for tno in nb.prange(out.size):
+            acc = np.empty(64)
+            for lane in range(64):
+                acc[lane] = 1.0 + lane * 1e-3
+            m, c = 0.999999, 1e-7
+            for _ in range(reps):
+                for lane in range(64):
+                    x = acc[lane]
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    x = x * m + c
+                    acc[lane] = x
+            out[tno] = acc.sum()
+
+    out = np.zeros(nb.get_num_threads())
+    peak(10, out)
+    reps, best, best_cpu = 1_000_000, 0.0, 0.0
+    for _ in range(3):
+        wall, cpu = time.perf_counter(), time.process_time()
+        peak(reps, out)
+        flops = out.size * reps * 64 * 8 * 2
+        best = max(best, flops / (time.perf_counter() - wall))
+        best_cpu = max(best_cpu, flops / (time.process_time() - cpu))
+    return best, best_cpu
+
+
+_PACKED_ARITH = re.compile(r"^\s*(v(?:fn?m(?:add|sub)\w*|add|sub|mul|div|sqrt)pd)\s[^\n]*%([yz])mm", re.M)
+
+
+@functools.cache
+def _kernel_lane_asm() -> str:
+    """The machine code of the flight kernel, compiled afresh once per session (numba does not
+    disassemble cached code)."""
+    import numba as nb
+
+    import sim.flight.engines._numba as kernel_module
+    from sim.flight import TrackingReference, error_preset, simulate
+
+    fresh = nb.njit(parallel=True, error_model="numpy", fastmath={"nsz", "afn", "contract", "reassoc"})(
+        kernel_module._kernel.py_func)
+    saved = kernel_module._kernel
+    kernel_module._kernel = fresh
+    try:
+        simulate(TrackingReference.hover(np.zeros((2, 3))), duration_s=0.002, engine="numba",
+                 errors=error_preset("gusty-rtk"))
+    finally:
+        kernel_module._kernel = saved
+    asm: str = fresh.inspect_asm(fresh.signatures[0])
+    return asm
+
+
+def _flops_per_drone_step(asm: str) -> tuple[float, int]:
+    """(flops per drone-step of the vectorised lane loop, vector copies of it) from its packed instructions.
+
+    Each packed add/sub/mul/div/sqrt is one flop per lane and each FMA two; the loop body
+    holds ``copies`` interleaved copies of the step (the lane loop has 10 roundings per
+    step: 3 sin/cos reductions with their quadrant, 4 exp reductions), so one drone-step
+    is the sum over lanes divided by the lanes per instruction and the copies.
+    """
+    flops = 0.0
+    for name, _ in _PACKED_ARITH.findall(asm):
+        flops += 2.0 if name.startswith("vf") else 1.0
+    copies = max(len(re.findall(r"vrndscalepd\s[^\n]*%[yz]mm", asm)) // 10, 1)
+    return flops / copies, copies
+
+
+def test_kernel_lane_loop_is_vectorised() -> None:
+    """The lane loop compiles to packed (ymm/zmm) arithmetic: a libm call or a branch that stops the
+    vectoriser would leave it scalar (issue 20 item 6). Slow: compiles the kernel afresh (~1 min)."""
+    asm = _kernel_lane_asm()
+    packed = len(_PACKED_ARITH.findall(asm))
+    rounds = len(re.findall(r"vrndscalepd\s[^\n]*%[yz]mm", asm))
+    # ~400 flops per drone-step: at least 300 packed arithmetic instructions and the 10
+    # vector roundings of the sin/cos and exp reductions.
+    assert packed >= 300, packed
+    assert rounds >= 10, rounds
+
+
 def test_bench_kernel_against_numpy_with_error_models(record_result) -> None:
-    """numba kernel vs the numpy reference step, "gusty-rtk" on, 4,000 drones, same run (issue 20 item 6).
+    """Lane kernel vs the numpy reference step, "gusty-rtk" on, 4,000 drones, same run (issue 20 item 6).
+
+    Also the ratio to a measured vector ceiling: the peak packed-FMA flop rate of this
+    machine (``_peak_packed_fma_flops``) divided by the kernel's own flops per drone-step
+    (counted from its vectorised machine code), i.e. the drone-steps/s the same arithmetic
+    would reach if every instruction were a full-width FMA issued at peak. Per CPU second
+    as well: the shared machine's load moves the wall-clock peak as much as the kernel.
 
     CPU time as well as wall time: the machine is shared with other jobs, so the wall
     ratio moves with their load; per CPU second the numba kernel (2 threads) is compared
@@ -128,13 +230,20 @@ def test_bench_kernel_against_numpy_with_error_models(record_result) -> None:
     ref = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.5)
     errors = error_preset("gusty-rtk")
     simulate(ref.subset(np.arange(8)), duration_s=0.01, engine="numba", errors=errors)  # compile
-    numba_wall, numba_cpu = max(_rate(ref, n, 1.0, "numba", errors) for _ in range(2))
+    numba_wall, numba_cpu = max(_rate(ref, n, 1.0, "numba", errors) for _ in range(3))
     numpy_wall, numpy_cpu = _rate(ref, n, 0.05, "numpy", errors)
+    peak, peak_cpu = _peak_packed_fma_flops()
+    flops, copies = _flops_per_drone_step(_kernel_lane_asm())
+    ceiling, ceiling_cpu = peak / flops, peak_cpu / flops
     fig = {
         "drones": n, "preset": "gusty-rtk",
         "numba_drone_steps_per_wall_s": numba_wall, "numba_drone_steps_per_cpu_s": numba_cpu,
         "numpy_drone_steps_per_wall_s": numpy_wall, "numpy_drone_steps_per_cpu_s": numpy_cpu,
         "speedup_wall": numba_wall / numpy_wall, "speedup_cpu": numba_cpu / numpy_cpu,
+        "peak_packed_fma_flops_per_s": peak, "kernel_flops_per_drone_step": flops, "vector_copies": copies,
+        "peak_packed_fma_flops_per_cpu_s": peak_cpu,
+        "vector_ceiling_drone_steps_per_s": ceiling, "ratio_to_vector_ceiling": numba_wall / ceiling,
+        "vector_ceiling_drone_steps_per_cpu_s": ceiling_cpu, "ratio_to_vector_ceiling_cpu": numba_cpu / ceiling_cpu,
         "target_drone_steps_per_s": 5e7, "target_speedup": 35.0,
     }
     record_result(fig)

@@ -1,7 +1,8 @@
-"""Simulation engines: the plain-numpy reference step and the fused numba kernel, and the driver.
+"""Simulation engines: the plain-numpy reference step, the numba lane kernel, and the driver.
 
 ``_state`` holds what both engines share (controller-state layout, reference type,
-result); ``_numpy`` and ``_numba`` each import it and never each other; ``_driver``
+result); ``_numpy`` and ``_numba`` each import it and never each other (``_vmath`` holds
+the kernel's vectorisable elementary functions); ``_driver``
 runs a flight in chunks with either (numba is imported only when it is asked for).
 """
 

@@ -1,35 +1,68 @@
-"""The fast engine: one fused numba kernel, parallel over drones.
+"""The fast engine: one numba kernel that runs drones in SIMD lanes.
 
-The kernel computes exactly what :func:`sim.flight.engines._numpy.numpy_step` computes (same
+The kernel computes what :func:`sim.flight.engines._numpy.numpy_step` computes (same
 controller, same mixer and saturation, same semi-implicit Euler step, same divergence
-rules), but with the loops the other way round: ``prange`` over drones, and for each
-drone a serial loop over the steps of the chunk with the whole state in registers.
-Drones are independent (disturbances depend on time only), so no synchronisation is
-needed inside a chunk; the driver (:func:`sim.flight.engines._driver.simulate`) calls the
-kernel once per chunk of steps, which bounds the memory of the reference and
-disturbance tables and gives progress granularity.
+rules). Drones are independent within a chunk (the disturbances depend on time only),
+so the work is laid out for the vector units:
+
+* ``prange`` over *blocks* of ``LANES`` drones (the two cores share the blocks);
+* per block, a serial loop over the chunk's steps, and inside it one loop over the
+  block's lanes that LLVM vectorises (AVX2/AVX-512: 4/8 drones per instruction, the
+  rest by unrolling). The loop body has no calls and no data-dependent branches: every
+  ``if`` of the numpy step is a select (the saturation, the limiter, the anti-windup,
+  ``sig`` at 0, the divergence masks), and the transcendental functions are the plain
+  arithmetic of :mod:`sim.flight.engines._vmath` (libm calls would stop the vectoriser;
+  the pip llvmlite has no SVML). The lane loop's trip count is a runtime value (a
+  small constant one is fully unrolled before the vectoriser sees it); with AVX-512 it
+  compiles to 8-wide zmm arithmetic. ``benchmarks/bench_sim.py``
+  (``test_kernel_lane_loop_is_vectorised``, slow: it compiles the kernel afresh) fails if
+  its machine code stops using packed arithmetic; ``tests/test_flight_vmath.py`` checks
+  the same for the functions in a loop of the kernel's pattern.
+* The block's state lives in one scratch array laid out *structure of arrays*, field
+  by field with the block's drones contiguous (``sc[field * LANES + lane]``). That
+  bends the project's drones-on-the-first-axis rule *inside* the kernel only: a vector
+  load needs the same field of consecutive drones next to each other, and one array
+  with compile-time offsets lets LLVM prove that no two fields alias. The kernel's
+  inputs and outputs keep the ``(N, ...)`` layout; the scratch is filled and written
+  back once per chunk.
+* What depends on a drone's data but not on its arithmetic stays scalar and outside
+  the lane loop: finding each drone's polynomial piece (a cursor that only moves
+  forward with time; the piece's coefficients are copied into the scratch when it
+  changes), the GNSS table rows at an epoch, the wind table rows when the 10 Hz wind
+  grid advances, the frames and telemetry rows. The reference is evaluated by one
+  helper, :func:`_ref_at`, at the true time (the flown error is measured against it)
+  and at the drone's own clock (what the controller flies when a clock offset is on).
+
+The wind of the quadratic drag is interpolated from tables sampled at each drone's
+*planned* position (:mod:`sim.flight.engines._tables` explains why: centimetres of
+tracking error against a ~150 m correlation length); sampling at the flown position
+would need the turbulence modes' cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
-run on a machine pays the compile time (about 10-20 s).
+run on a machine pays the compile time (about a minute of CPU).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
-without disturbances) and from arbitrary states for a few steps.
+without disturbances), from arbitrary states for a few steps, and with the error models
+on.
 
 Floating point: ``fastmath`` allows reassociation, FMA contraction, approximate
-functions and signed-zero freedom (about 15 % faster), but *not* ``nnan``/``ninf`` (the
-divergence checks need NaN and inf to behave) nor ``arcp`` (reciprocal instead of
-division: it changes the mixer's rounding so that the hover thrust no longer comes
-back as exactly m·g, and hover would drift by ~1e-7 m in a second). The kernel
-therefore holds hover bit-exactly, like the reference, and otherwise differs from it
-by rounding: libm's transcendental functions here, numpy's own SIMD versions there
-(asin, atan2 and pow differ by an ulp). That is invisible while errors are above the
-discrete chattering floor of the finite-time laws, but once an error sits at that
-floor (``sig(e, 1/2)`` has unbounded gain at 0, so the sampled loop chatters at about
-1e-9 rad/s) the closed loop amplifies an ulp by ~7 % per step: from there the two
-engines give equally valid trajectories that drift apart at the 1e-5 level inside
-the chatter, with the same tracking statistics. Two runs of the same engine are
-bit-identical.
+functions and signed-zero freedom, but *not* ``nnan``/``ninf`` (the divergence checks
+need NaN and inf to behave) nor ``arcp`` (reciprocal instead of division: it changes the
+mixer's rounding so that the hover thrust no longer comes back as exactly m·g, and hover
+would drift by ~1e-7 m in a second). The elementary functions of ``_vmath`` are compiled
+separately with FMA contraction only (reassociation would undo their exact argument
+reductions) and inlined by LLVM with their own flags. The kernel holds hover
+bit-exactly, like the reference (``sin 0 = 0``, ``cos 0 = 1``, ``asin 0 = atan2(0, u_z) = 0``
+exactly), and otherwise differs from it by rounding: ``_vmath``'s functions here (within
+4 ulp of numpy's, tested), numpy's own there, FMA contraction and reassociation here.
+That is invisible while errors are above the discrete chattering floor of the
+finite-time laws, but once an error sits at that floor (``sig(e, 1/2)`` has unbounded
+gain at 0, so the sampled loop chatters at about 1e-9 rad/s) the closed loop amplifies
+an ulp by ~7 % per step: from there the two engines give equally valid trajectories
+that drift apart at the 1e-5 level inside the chatter, with the same tracking
+statistics. Two runs of the same engine are bit-identical, and a drone's result does
+not depend on the block or lane it runs in (lanes never mix).
 """
 
 from __future__ import annotations
@@ -57,6 +90,7 @@ from sim.flight.engines._state import (
     C_UD,
     C_UDA,
     C_VHAT,
+    CTRL_SIZE,
     D_CLOCK,
     D_DRAG,
     D_IX,
@@ -65,6 +99,7 @@ from sim.flight.engines._state import (
     D_MASS,
     D_MOTOR,
     D_SAG_RATE,
+    D_SIZE,
     D_THRUST,
     DIVERGED_NONFINITE,
     DIVERGED_RUNAWAY,
@@ -72,37 +107,60 @@ from sim.flight.engines._state import (
     STAT_DTHRUST,
     STAT_MAX,
     STAT_SUMSQ,
+    STATS_SIZE,
     TEL_SIZE,
     ErrorSwitches,
     RefChunk,
     TrackingReference,
 )
 from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
+from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
 
-__all__ = ["run_chunk_numba"]
+__all__ = ["LANES", "run_chunk_numba"]
+
+#: Drones per block: the lane loop's trip count (2 AVX-512 or 4 AVX2 vectors of float64).
+LANES = 16
+
+# ---- scratch layout: field f of lane l at sc[f * LANES + l] ------------------------------
+F_STATE = 0  # the 12 plant states (p, v, Θ, Ω)
+F_CTRL = 12  # the CTRL_SIZE controller states, in engines._state's order
+F_DRONE = F_CTRL + CTRL_SIZE  # the D_SIZE per-drone constants
+F_INV = F_DRONE + D_SIZE  # 1/I_x, 1/I_y, 1/I_z, 1/m of the true plant
+F_TF, F_TL = F_INV + 4, F_INV + 5  # the drone's first and last break (s)
+F_STAT = F_INV + 6  # the STATS_SIZE running statistics
+F_ALIVE = F_STAT + STATS_SIZE  # 1.0 while flying
+F_DSTEP = F_ALIVE + 1  # divergence step (-1 while flying)
+F_REASON = F_ALIVE + 2  # divergence reason code
+# A reference cache: the piece's start (s), then per axis the 13 coefficients of
+# position c0..c5, velocity d2..d5 (d_k = k c_k) and acceleration 4 d5, 3 d4, 2 d3.
+REF_SIZE = 1 + 3 * 13
+F_REF = F_ALIVE + 3  # the piece at the true time
+F_REFC = F_REF + REF_SIZE  # the piece at the drone's own clock
+F_GNSS = F_REFC + REF_SIZE  # GNSS measurement error of the current epoch (m)
+F_WA, F_WB = F_GNSS + 3, F_GNSS + 6  # wind at the two grid times around t (m/s)
+F_TEL = F_GNSS + 9  # the TEL_SIZE telemetry values of the last step
+F_TELOK = F_TEL + TEL_SIZE  # 1.0 when the last step computed them (the drone flew it)
+NF = F_TELOK + 1
 
 
 @nb.njit(inline="always", cache=True)
 def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
-    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (same branches as ``sim.flight.control._ismc.sig``)."""
+    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (``sim.flight.control._ismc.sig``), as selects."""
     n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    if not n > 0.0:
-        return 0.0
-    if r == 1.0:
-        return 1.0
-    if r == 0.5:
-        return 1.0 / math.sqrt(n)
-    # exp(log) is about twice as fast as libm pow here and equal to within a few ulp.
-    return math.exp((r - 1.0) * math.log(n))
+    pos = n > 0.0
+    nn = n if pos else 1.0
+    gen = vpow(nn, r - 1.0)
+    out = 1.0 / math.sqrt(nn) if r == 0.5 else gen
+    out = 1.0 if r == 1.0 else out
+    return out if pos else 0.0
 
 
 @nb.njit(inline="always", cache=True)
 def _unit_scale(x0: float, x1: float, x2: float, eps: float) -> float:
-    """Factor ``1/max(||x||, eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``)."""
+    """Factor ``1/max(||x||, eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``), as a select."""
     n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    if not n > 0.0:
-        return 0.0
-    return 1.0 / max(n, eps)
+    inv = 1.0 / max(n, eps)
+    return inv if n > 0.0 else 0.0
 
 
 @nb.njit(inline="always", cache=True)
@@ -142,21 +200,76 @@ def _ismc_law(
 
 
 @nb.njit(inline="always", cache=True)
-def _piece_state(coeffs: np.ndarray, i: int, p: int, a: int, u: float, inside: bool) -> tuple[float, float, float]:
-    """Position, velocity, acceleration of axis ``a`` of drone i's piece p at local time u (Horner).
-
-    The derivative coefficients are formed as ``Trajectories.evaluate`` forms them (k·c_k, then
-    (k-1)·(k·c_k)), so both engines round alike; velocity and acceleration are 0 outside the show.
-    """
-    c0, c1, c2 = coeffs[i, p, a, 0], coeffs[i, p, a, 1], coeffs[i, p, a, 2]
-    c3, c4, c5 = coeffs[i, p, a, 3], coeffs[i, p, a, 4], coeffs[i, p, a, 5]
+def _axis_at(sc: np.ndarray, o: int, u: float, inside: bool) -> tuple[float, float, float]:
+    """Position, velocity, acceleration of one axis of a cached piece (13 fields from ``o``) at u."""
+    c0, c1, c2, c3 = sc[o], sc[o + LANES], sc[o + 2 * LANES], sc[o + 3 * LANES]
+    c4, c5 = sc[o + 4 * LANES], sc[o + 5 * LANES]
+    d2, d3, d4, d5 = sc[o + 6 * LANES], sc[o + 7 * LANES], sc[o + 8 * LANES], sc[o + 9 * LANES]
+    a3, a2, a1 = sc[o + 10 * LANES], sc[o + 11 * LANES], sc[o + 12 * LANES]
     pos = ((((c5 * u + c4) * u + c3) * u + c2) * u + c1) * u + c0
-    if not inside:
-        return pos, 0.0, 0.0
-    d5, d4, d3, d2 = 5.0 * c5, 4.0 * c4, 3.0 * c3, 2.0 * c2
     vel = (((d5 * u + d4) * u + d3) * u + d2) * u + c1
-    acc = ((4.0 * d5 * u + 3.0 * d4) * u + 2.0 * d3) * u + d2
-    return pos, vel, acc
+    acc = ((a3 * u + a2) * u + a1) * u + d2
+    return pos, (vel if inside else 0.0), (acc if inside else 0.0)
+
+
+@nb.njit(inline="always", cache=True)
+def _ref_at(sc: np.ndarray, base: int, lane: int, t: float, tf: float, tl: float) -> tuple[float, ...]:
+    """The reference from the lane's cached piece at ``base`` at time t: (p x, y, z, v x, y, z, a x, y, z).
+
+    ``Trajectories.evaluate`` by Horner's rule: clamped to the drone's show ``[tf, tl]``,
+    at rest outside it. The derivative coefficients were formed as
+    ``Trajectories.evaluate`` forms them (k·c_k, then (k-1)·(k·c_k)), so both engines
+    round alike. The one evaluation for the true time and the drone's own clock.
+    """
+    inside = (t >= tf) & (t <= tl)
+    u = min(max(t, tf), tl) - sc[base * LANES + lane]
+    px, vx, ax = _axis_at(sc, (base + 1) * LANES + lane, u, inside)
+    py, vy, ay = _axis_at(sc, (base + 14) * LANES + lane, u, inside)
+    pz, vz, az = _axis_at(sc, (base + 27) * LANES + lane, u, inside)
+    return px, py, pz, vx, vy, vz, ax, ay, az
+
+
+@nb.njit(inline="always", cache=True)
+def _commit(sc: np.ndarray, field: int, lane: int, value: float, ok: bool) -> None:
+    """Store ``value`` into the lane's field when ``ok`` (a select: the store itself is unconditional)."""
+    idx = field * LANES + lane
+    sc[idx] = value if ok else sc[idx]
+
+
+@nb.njit(inline="always", cache=True)
+def _load_piece(sc: np.ndarray, base: int, lane: int, coeffs: np.ndarray, breaks: np.ndarray, i: int,
+                p: int) -> None:
+    """Copy drone i's piece p into the lane's reference cache at ``base`` (see ``_ref_at``)."""
+    sc[base * LANES + lane] = breaks[i, p]
+    for a in range(3):
+        o = (base + 1 + 13 * a) * LANES + lane
+        for c in range(6):
+            sc[o + c * LANES] = coeffs[i, p, a, c]
+        d5, d4, d3, d2 = 5.0 * coeffs[i, p, a, 5], 4.0 * coeffs[i, p, a, 4], 3.0 * coeffs[i, p, a, 3], \
+            2.0 * coeffs[i, p, a, 2]
+        sc[o + 6 * LANES], sc[o + 7 * LANES], sc[o + 8 * LANES], sc[o + 9 * LANES] = d2, d3, d4, d5
+        sc[o + 10 * LANES], sc[o + 11 * LANES], sc[o + 12 * LANES] = 4.0 * d5, 3.0 * d4, 2.0 * d3
+
+
+@nb.njit(inline="always", cache=True)
+def _seek(sc: np.ndarray, base: int, lane: int, cur: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
+          coeffs: np.ndarray, breaks: np.ndarray, i: int, tc: float, last_piece: int) -> None:
+    """Move the lane's piece cursor to the piece holding ``tc`` (the later one at a break), if it left it.
+
+    A cursor only moves forward with time, so this costs two comparisons per step; it
+    moves backwards only if the chunk's starting search (done in a row-offset key space)
+    rounded past a break.
+    """
+    if tc >= nxt[lane] or tc < prv[lane]:
+        c = cur[lane]
+        while c < last_piece and breaks[i, c + 1] <= tc:
+            c += 1
+        while c > 0 and breaks[i, c] > tc:
+            c -= 1
+        cur[lane] = c
+        nxt[lane] = breaks[i, c + 1] if c < last_piece else math.inf
+        prv[lane] = breaks[i, c] if c > 0 else -math.inf
+        _load_piece(sc, base, lane, coeffs, breaks, i, c)
 
 
 @nb.njit(parallel=True, cache=True, error_model="numpy",
@@ -183,374 +296,467 @@ def _kernel(
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
     n_wind = wtab.shape[0]
+    blocks = (n + LANES - 1) // LANES
+    L = LANES
 
-    for i in nb.prange(n):
-        px, py, pz = state[i, 0], state[i, 1], state[i, 2]
-        vx, vy, vz = state[i, 3], state[i, 4], state[i, 5]
-        ph, th, ps = state[i, 6], state[i, 7], state[i, 8]
-        wx, wy, wz = state[i, 9], state[i, 10], state[i, 11]
-        alive = dstep[i] < 0
-        # This drone's true plant and error-model constants (engines._tables).
-        pix, piy, piz = drone[i, D_IX], drone[i, D_IY], drone[i, D_IZ]
-        inv_pix, inv_piy, inv_piz, inv_pm = 1.0 / pix, 1.0 / piy, 1.0 / piz, 1.0 / drone[i, D_MASS]
-        thr0, sag, clk = drone[i, D_THRUST], drone[i, D_SAG_RATE], drone[i, D_CLOCK]
-        mot, drg = drone[i, D_MOTOR], drone[i, D_DRAG]
-        # Controller state in locals for the whole chunk (stored back below): keeps it in
-        # registers instead of re-reading memory the compiler must assume aliased.
-        e200, e201, e202 = ctrl[i, C_E2_0], ctrl[i, C_E2_0 + 1], ctrl[i, C_E2_0 + 2]
-        ip0, ip1, ip2 = ctrl[i, C_IPOS], ctrl[i, C_IPOS + 1], ctrl[i, C_IPOS + 2]
-        ud0, ud1, ud2 = ctrl[i, C_UD], ctrl[i, C_UD + 1], ctrl[i, C_UD + 2]
-        sp0, sp1, sp2 = ctrl[i, C_SPREV], ctrl[i, C_SPREV + 1], ctrl[i, C_SPREV + 2]
-        e400, e401, e402 = ctrl[i, C_E4_0], ctrl[i, C_E4_0 + 1], ctrl[i, C_E4_0 + 2]
-        ia0, ia1, ia2 = ctrl[i, C_IATT], ctrl[i, C_IATT + 1], ctrl[i, C_IATT + 2]
-        uda0, uda1, uda2 = ctrl[i, C_UDA], ctrl[i, C_UDA + 1], ctrl[i, C_UDA + 2]
-        sap0, sap1, sap2 = ctrl[i, C_SAPREV], ctrl[i, C_SAPREV + 1], ctrl[i, C_SAPREV + 2]
-        thc0, thc1, thc2 = ctrl[i, C_THC], ctrl[i, C_THC + 1], ctrl[i, C_THC + 2]
-        thcd0, thcd1, thcd2 = ctrl[i, C_THC_DOT], ctrl[i, C_THC_DOT + 1], ctrl[i, C_THC_DOT + 2]
-        last_thrust = ctrl[i, C_LAST_THRUST]
-        ie0, ie1, ie2 = ctrl[i, C_IERR], ctrl[i, C_IERR + 1], ctrl[i, C_IERR + 2]
-        ph0, ph1, ph2 = ctrl[i, C_PHAT], ctrl[i, C_PHAT + 1], ctrl[i, C_PHAT + 2]
-        vh0, vh1, vh2 = ctrl[i, C_VHAT], ctrl[i, C_VHAT + 1], ctrl[i, C_VHAT + 2]
-        in0, in1, in2 = ctrl[i, C_INNOV], ctrl[i, C_INNOV + 1], ctrl[i, C_INNOV + 2]
-        ro1, ro2 = ctrl[i, C_ROTOR], ctrl[i, C_ROTOR + 1]
-        ro3, ro4 = ctrl[i, C_ROTOR + 2], ctrl[i, C_ROTOR + 3]
-        next_gnss = gnss_first
-        gidx = 0
-        curc = cursor0[i]
-        ssum, smax = stats[i, STAT_SUMSQ], stats[i, STAT_MAX]
-        sdth, scount = stats[i, STAT_DTHRUST], stats[i, STAT_COUNT]
+    for b in nb.prange(blocks):
+        i0 = b * L
+        cnt = min(L, n - i0)
+        sc = np.zeros(NF * L)
+        nl = sc.size // NF
+        cur = np.zeros(L, dtype=np.int64)
+        nxt = np.zeros(L)
+        prv = np.zeros(L)
+        curc = np.zeros(L, dtype=np.int64)
+        nxtc = np.zeros(L)
+        prvc = np.zeros(L)
+        # ---- fill the scratch (lanes past the fleet fly a copy of its last drone, never stored)
+        for lane in range(L):
+            i = min(i0 + lane, n - 1)
+            for f in range(12):
+                sc[(F_STATE + f) * L + lane] = state[i, f]
+            for f in range(CTRL_SIZE):
+                sc[(F_CTRL + f) * L + lane] = ctrl[i, f]
+            for f in range(D_SIZE):
+                sc[(F_DRONE + f) * L + lane] = drone[i, f]
+            sc[(F_INV + 0) * L + lane] = 1.0 / drone[i, D_IX]
+            sc[(F_INV + 1) * L + lane] = 1.0 / drone[i, D_IY]
+            sc[(F_INV + 2) * L + lane] = 1.0 / drone[i, D_IZ]
+            sc[(F_INV + 3) * L + lane] = 1.0 / drone[i, D_MASS]
+            sc[F_TF * L + lane] = breaks[i, 0]
+            sc[F_TL * L + lane] = breaks[i, last_piece + 1]
+            for f in range(STATS_SIZE):
+                sc[(F_STAT + f) * L + lane] = stats[i, f]
+            sc[F_ALIVE * L + lane] = 1.0 if dstep[i] < 0 else 0.0
+            sc[F_DSTEP * L + lane] = float(dstep[i])
+            sc[F_REASON * L + lane] = float(dreason[i])
+            c0 = cursor0[i]
+            cur[lane], curc[lane] = c0, c0
+            nxt[lane] = breaks[i, c0 + 1] if c0 < last_piece else math.inf
+            prv[lane] = breaks[i, c0] if c0 > 0 else -math.inf
+            nxtc[lane], prvc[lane] = nxt[lane], prv[lane]
+            _load_piece(sc, F_REF, lane, coeffs, breaks, i, c0)
+            _load_piece(sc, F_REFC, lane, coeffs, breaks, i, c0)
         # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
         next_rec = ((step0 + every - 1) // every) * every
-        # This drone's own pieces: a cursor that only moves forward with time (steps are
-        # increasing), so finding the piece costs one comparison per step, no search.
-        cur = cursor0[i]
-        t_first, t_last = breaks[i, 0], breaks[i, last_piece + 1]
+        next_gnss = gnss_first
+        gidx = 0
+        iw_loaded = -1
         for j in range(steps):
             k = step0 + j
+            t = times[j]
             rec = k == next_rec
             if rec:
                 next_rec += every
                 fr = k // every
-                frames[fr, i, 0] = px
-                frames[fr, i, 1] = py
-                frames[fr, i, 2] = pz
-            if not alive:
-                continue
-
-            # ---- reference: the drone's piece at t (Trajectories.evaluate: clamped to the
-            # show, at rest outside it, the later piece at a break), plus the shared offset
-            t = times[j]
-            inside = t >= t_first and t <= t_last
-            tc = min(max(t, t_first), t_last)
-            while cur < last_piece and breaks[i, cur + 1] <= tc:
-                cur += 1
-            # (Backwards only if the chunk's starting search, done in a row-offset key
-            # space, rounded past a break: then the piece is still this drone's exact one.)
-            while cur > 0 and breaks[i, cur] > tc:
-                cur -= 1
-            u = tc - breaks[i, cur]
-            prx, vrx, arx = _piece_state(coeffs, i, cur, 0, u, inside)
-            pry, vry, ary = _piece_state(coeffs, i, cur, 1, u, inside)
-            prz, vrz, arz = _piece_state(coeffs, i, cur, 2, u, inside)
-            prx += offset[j, 0]
-            pry += offset[j, 1]
-            prz += offset[j, 2]
-            vrx += offset[j, 3]
-            vry += offset[j, 4]
-            vrz += offset[j, 5]
-            arx += offset[j, 6]
-            ary += offset[j, 7]
-            arz += offset[j, 8]
-
-            # The plan at the true time: the flown error is measured against it.
-            qx, qy, qz = px - prx, py - pry, pz - prz
-            err = math.sqrt(qx * qx + qy * qy + qz * qz)
-            if not err <= limit:  # NaN (a non-finite reference) or a runaway drone
-                dstep[i] = k
-                dreason[i] = DIVERGED_RUNAWAY if err > limit else DIVERGED_NONFINITE
-                alive = False
-                continue
-            if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
-                tcl = t + clk
-                inside_c = tcl >= t_first and tcl <= t_last
-                tcc = min(max(tcl, t_first), t_last)
-                while curc < last_piece and breaks[i, curc + 1] <= tcc:
-                    curc += 1
-                while curc > 0 and breaks[i, curc] > tcc:
-                    curc -= 1
-                uc = tcc - breaks[i, curc]
-                prx, vrx, arx = _piece_state(coeffs, i, curc, 0, uc, inside_c)
-                pry, vry, ary = _piece_state(coeffs, i, curc, 1, uc, inside_c)
-                prz, vrz, arz = _piece_state(coeffs, i, curc, 2, uc, inside_c)
-                prx += offset[j, 0]
-                pry += offset[j, 1]
-                prz += offset[j, 2]
-                vrx += offset[j, 3]
-                vry += offset[j, 4]
-                vrz += offset[j, 5]
-                arx += offset[j, 6]
-                ary += offset[j, 7]
-                arz += offset[j, 8]
-            # What the controller sees: the GNSS/accelerometer estimate, or the true state.
-            if use_gnss:
-                if k == next_gnss:  # a GNSS epoch: the innovation z - p̂, held until the next
-                    in0 = (px + gnss[gidx, i, 0]) - ph0
-                    in1 = (py + gnss[gidx, i, 1]) - ph1
-                    in2 = (pz + gnss[gidx, i, 2]) - ph2
-                    next_gnss += gnss_every
-                    gidx += 1
-                cpx, cpy, cpz, cvx, cvy, cvz = ph0, ph1, ph2, vh0, vh1, vh2
-            else:
-                cpx, cpy, cpz, cvx, cvy, cvz = px, py, pz, vx, vy, vz
-            e1x, e1y, e1z = cpx - prx, cpy - pry, cpz - prz
-
-            # ---- position ISMC (spec 4)
-            e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
-            fx, fy, fz = -arx, -ary, -arz - g
-            unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
-                e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, r1, r2,
-                e200, e201, e202, ip0, ip1, ip2, sp0, sp1, sp2, alpha, eps_p, eps_pq,
-            )
-            ux = unx + ud0
-            uy = uny + ud1
-            uz = unz + ud2
-            ux = ux - ki * ie0  # the PID baseline's integral (0 for the ISMC)
-            uy = uy - ki * ie1
-            uz = uz - ki * ie2
-            # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
-            wux, wuy, wuz = ux, uy, uz
-            limited = uz < uz_min
-            if limited:
-                uz = uz_min
-            hxy = math.sqrt(ux * ux + uy * uy)
-            if hxy > uz * tan_tilt:
-                limited = True
-                sc = uz * tan_tilt / hxy
-                ux = ux * sc
-                uy = uy * sc
-            # While limited, s integrates the nominal law minus what the limiter took away.
-            inx, iny, inz = unx, uny, unz
-            if limited:
-                inx = unx + (ux - wux)
-                iny = uny + (uy - wuy)
-                inz = unz + (uz - wuz)
-
-            sph, cph = math.sin(ph), math.cos(ph)
-            sth, cth = math.sin(th), math.cos(th)
-            sps, cps = math.sin(ps), math.cos(ps)
-            zbx = cph * sth * cps + sph * sps
-            zby = cph * sth * sps - sph * cps
-            zbz = cph * cth
-            thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
-
-            # ---- attitude resolution (spec 5) and command filter
-            ysin, ycos = yaw[j, 1], yaw[j, 2]
-            un = math.sqrt(ux * ux + uy * uy + uz * uz)
-            ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
-            ratio = min(max(ratio, -1.0), 1.0)
-            rph = math.asin(ratio)
-            rth = math.atan2(ux * ycos + uy * ysin, uz)
-            rps = yaw[j, 0]
-            cx, cy, cz = thc0, thc1, thc2
-            cdx, cdy, cdz = thcd0, thcd1, thcd2
-            cddx = wn * wn * (rph - cx) - 2.0 * zeta * wn * cdx
-            cddy = wn * wn * (rth - cy) - 2.0 * zeta * wn * cdy
-            cddz = wn * wn * (rps - cz) - 2.0 * zeta * wn * cdz
-
-            # ---- attitude ISMC (spec 6)
-            # One division for every 1/cos θ term (W, Ẇ): divisions dominate the arithmetic.
-            icth = 1.0 / cth
-            tth = sth * icth
-            w01, w02 = sph * tth, cph * tth
-            w11, w12 = cph, -sph
-            w21, w22 = sph * icth, cph * icth
-            edx = wx + w01 * wy + w02 * wz
-            edy = w11 * wy + w12 * wz
-            edz = w21 * wy + w22 * wz
-            e3x, e3y, e3z = ph - cx, th - cy, ps - cz
-            e4x, e4y, e4z = edx - cdx, edy - cdy, edz - cdz
-            gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
-            gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
-            gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
-            # Ẇ Ω (see sim.flight._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
-            sec2 = icth * icth
-            wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
-            wd1 = -sph * edx * wy - cph * edx * wz
-            wd2 = (w22 * edx + sph * sth * sec2 * edy) * wy + (
-                -w21 * edx + cph * sth * sec2 * edy
-            ) * wz
-            fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
-            fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
-            faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
-            unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
-                e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, r3, r4,
-                e400, e401, e402, ia0, ia1, ia2, sap0, sap1, sap2, beta_g, eps_a, eps_aq,
-            )
-            uax = unax + uda0
-            uay = unay + uda1
-            uaz = unaz + uda2
-            # τ = I W⁻¹ u_a
-            tcx = ix * (uax - sth * uaz)
-            tcy = iy * (cph * uay + sph * cth * uaz)
-            tcz = iz * (-sph * uay + cph * cth * uaz)
-
-            # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
-            # Divisions kept here: the same rounding as the reference mixer is what makes the
-            # hover thrust come back as exactly m·g (hover is held bit-exactly).
-            base = thrust_cmd / (4.0 * kf)
-            roll = tcx / (2.0 * arm * kf)
-            pitch = tcy / (2.0 * arm * kf)
-            yw = tcz / (4.0 * km)
-            o1 = base - pitch + yw
-            o2 = base + roll - yw
-            o3 = base + pitch + yw
-            o4 = base - roll - yw
-            clipped = (o1 < 0.0 or o1 > wmax2 or o2 < 0.0 or o2 > wmax2
-                       or o3 < 0.0 or o3 > wmax2 or o4 < 0.0 or o4 > wmax2)
-            sat = limited or clipped
-            o1 = min(max(o1, 0.0), wmax2)
-            o2 = min(max(o2, 0.0), wmax2)
-            o3 = min(max(o3, 0.0), wmax2)
-            o4 = min(max(o4, 0.0), wmax2)
-            if use_motor:  # first-order lag of the squared rotor speeds toward the command
-                o1 = ro1 + mot * (o1 - ro1)
-                o2 = ro2 + mot * (o2 - ro2)
-                o3 = ro3 + mot * (o3 - ro3)
-                o4 = ro4 + mot * (o4 - ro4)
-            # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
-            rg = thr0 * (1.0 - sag * t)
-            thrust = kf * (o1 + o2 + o3 + o4) * rg
-            tqx = arm * kf * (o2 - o4) * rg
-            tqy = arm * kf * (o3 - o1) * rg
-            tqz = km * (o1 - o2 + o3 - o4) * rg
-
-            # ---- plant, semi-implicit Euler with the inputs held
-            tpm = thrust * inv_pm
-            ax = tpm * zbx + dist[j, 0] + drag * (dist[j, 3] - vx)
-            ay = tpm * zby + dist[j, 1] + drag * (dist[j, 4] - vy)
-            az = tpm * zbz + dist[j, 2] + drag * (dist[j, 5] - vz)
-            if use_drag:  # quadratic drag on the air-relative velocity (wind interpolated on its grid)
+                for lane in range(cnt):
+                    frames[fr, i0 + lane, 0] = sc[(F_STATE + 0) * L + lane]
+                    frames[fr, i0 + lane, 1] = sc[(F_STATE + 1) * L + lane]
+                    frames[fr, i0 + lane, 2] = sc[(F_STATE + 2) * L + lane]
+            # ---- the scalar part: pieces, GNSS and wind table rows (uniform or rare)
+            for lane in range(L):
+                i = min(i0 + lane, n - 1)
+                tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
+                _seek(sc, F_REF, lane, cur, nxt, prv, coeffs, breaks, i, min(max(t, tf), tl), last_piece)
+                if use_clock:
+                    tcc = min(max(t + sc[(F_DRONE + D_CLOCK) * L + lane], tf), tl)
+                    _seek(sc, F_REFC, lane, curc, nxtc, prvc, coeffs, breaks, i, tcc, last_piece)
+            epoch = use_gnss and k == next_gnss
+            if epoch:  # a GNSS epoch: the lanes take a new innovation z - p̂, held until the next
+                for lane in range(L):
+                    i = min(i0 + lane, n - 1)
+                    for a in range(3):
+                        sc[(F_GNSS + a) * L + lane] = gnss[gidx, i, a]
+                next_gnss += gnss_every
+                gidx += 1
+            fw = 0.0
+            if use_drag:  # the wind, linear on its grid: the rows around t
                 xw = t / wind_dt
                 iw = min(max(int(math.floor(xw)) - wind_k0, 0), n_wind - 2)
                 fw = xw - (wind_k0 + iw)
-                rlx = vx - (wtab[iw, i, 0] + fw * (wtab[iw + 1, i, 0] - wtab[iw, i, 0]))
-                rly = vy - (wtab[iw, i, 1] + fw * (wtab[iw + 1, i, 1] - wtab[iw, i, 1]))
-                rlz = vz - (wtab[iw, i, 2] + fw * (wtab[iw + 1, i, 2] - wtab[iw, i, 2]))
-                dsp = drg * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
-                ax -= dsp * rlx
-                ay -= dsp * rly
-                az -= dsp * rlz
-            az -= pg
+                if iw != iw_loaded:
+                    iw_loaded = iw
+                    for lane in range(L):
+                        i = min(i0 + lane, n - 1)
+                        for a in range(3):
+                            sc[(F_WA + a) * L + lane] = wtab[iw, i, a]
+                            sc[(F_WB + a) * L + lane] = wtab[iw + 1, i, a]
+            off0, off1, off2 = offset[j, 0], offset[j, 1], offset[j, 2]
+            off3, off4, off5 = offset[j, 3], offset[j, 4], offset[j, 5]
+            off6, off7, off8 = offset[j, 6], offset[j, 7], offset[j, 8]
+            rps, ysin, ycos = yaw[j, 0], yaw[j, 1], yaw[j, 2]
+            dx0, dx1, dx2 = dist[j, 0], dist[j, 1], dist[j, 2]
+            dw0, dw1, dw2 = dist[j, 3], dist[j, 4], dist[j, 5]
             d2x, d2y, d2z = dist[j, 6], dist[j, 7], dist[j, 8]
-            odx = (tqx - (wy * (wz * piz) - wz * (wy * piy))) * inv_pix + (d2x - sth * d2z)
-            ody = (tqy - (wz * (wx * pix) - wx * (wz * piz))) * inv_piy + (cph * d2y + sph * cth * d2z)
-            odz = (tqz - (wx * (wy * piy) - wy * (wx * pix))) * inv_piz + (-sph * d2y + cph * cth * d2z)
-            nvx, nvy, nvz = vx + dt * ax, vy + dt * ay, vz + dt * az
-            npx, npy, npz = px + dt * nvx, py + dt * nvy, pz + dt * nvz
-            nwx, nwy, nwz = wx + dt * odx, wy + dt * ody, wz + dt * odz
-            nph = ph + dt * (nwx + w01 * nwy + w02 * nwz)
-            nth = th + dt * (w11 * nwy + w12 * nwz)
-            nps = ps + dt * (w21 * nwy + w22 * nwz)
-            if use_gnss:  # estimator: accelerometer prediction plus the held innovation
-                nvh0 = cvx + dt * (ax + est_kv * in0)
-                nvh1 = cvy + dt * (ay + est_kv * in1)
-                nvh2 = cvz + dt * (az + est_kv * in2)
-                nph0 = cpx + dt * (nvh0 + est_kp * in0)
-                nph1 = cpy + dt * (nvh1 + est_kp * in1)
-                nph2 = cpz + dt * (nvh2 + est_kp * in2)
-            else:
-                nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
+            kf_step = float(k)
 
-            # ---- controller state candidates
-            ipx = ip0 + dt * (inx + fx)
-            ipy = ip1 + dt * (iny + fy)
-            ipz = ip2 + dt * (inz + fz)
-            iax = ia0 + dt * (unax + fax)
-            iay = ia1 + dt * (unay + fay)
-            iaz = ia2 + dt * (unaz + faz)
-            ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
-            ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
-            # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
-            # while the command is limited or a rotor clips, the attitude u_d only while a
-            # rotor clips.
-            if sat:
-                udx, udy, udz = ud0, ud1, ud2
-                nie0, nie1, nie2 = ie0, ie1, ie2
-            else:
+            # ---- the vector part: one control + integration step of every lane. (The trip
+            # count is read from the scratch's size, not the constant LANES: LLVM fully
+            # unrolls a loop with a small constant trip count before it could vectorise it.)
+            for lane in range(nl):
+                px, py, pz = sc[0 * L + lane], sc[1 * L + lane], sc[2 * L + lane]
+                vx, vy, vz = sc[3 * L + lane], sc[4 * L + lane], sc[5 * L + lane]
+                ph, th, ps = sc[6 * L + lane], sc[7 * L + lane], sc[8 * L + lane]
+                wx, wy, wz = sc[9 * L + lane], sc[10 * L + lane], sc[11 * L + lane]
+                alive = sc[F_ALIVE * L + lane] > 0.5
+                tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
+
+                # The plan at the true time (+ the shared offset): the flown error is measured
+                # against it.
+                prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(sc, F_REF, lane, t, tf, tl)
+                prx, pry, prz = prx + off0, pry + off1, prz + off2
+                qx, qy, qz = px - prx, py - pry, pz - prz
+                err = math.sqrt(qx * qx + qy * qy + qz * qz)
+                err_ok = err <= limit  # false for NaN (a non-finite reference) or a runaway drone
+                if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
+                    prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(
+                        sc, F_REFC, lane, t + sc[(F_DRONE + D_CLOCK) * L + lane], tf, tl)
+                    prx, pry, prz = prx + off0, pry + off1, prz + off2
+                vrx, vry, vrz = vrx + off3, vry + off4, vrz + off5
+                arx, ary, arz = arx + off6, ary + off7, arz + off8
+
+                # What the controller sees: the GNSS/accelerometer estimate, or the true state.
+                ph0 = sc[(F_CTRL + C_PHAT) * L + lane]
+                ph1 = sc[(F_CTRL + C_PHAT + 1) * L + lane]
+                ph2 = sc[(F_CTRL + C_PHAT + 2) * L + lane]
+                in0 = sc[(F_CTRL + C_INNOV) * L + lane]
+                in1 = sc[(F_CTRL + C_INNOV + 1) * L + lane]
+                in2 = sc[(F_CTRL + C_INNOV + 2) * L + lane]
+                if epoch:
+                    in0 = (px + sc[(F_GNSS + 0) * L + lane]) - ph0
+                    in1 = (py + sc[(F_GNSS + 1) * L + lane]) - ph1
+                    in2 = (pz + sc[(F_GNSS + 2) * L + lane]) - ph2
+                if use_gnss:
+                    cpx, cpy, cpz = ph0, ph1, ph2
+                    cvx = sc[(F_CTRL + C_VHAT) * L + lane]
+                    cvy = sc[(F_CTRL + C_VHAT + 1) * L + lane]
+                    cvz = sc[(F_CTRL + C_VHAT + 2) * L + lane]
+                else:
+                    cpx, cpy, cpz, cvx, cvy, cvz = px, py, pz, vx, vy, vz
+                e1x, e1y, e1z = cpx - prx, cpy - pry, cpz - prz
+
+                # ---- position ISMC (spec 4)
+                ud0 = sc[(F_CTRL + C_UD) * L + lane]
+                ud1 = sc[(F_CTRL + C_UD + 1) * L + lane]
+                ud2 = sc[(F_CTRL + C_UD + 2) * L + lane]
+                ie0 = sc[(F_CTRL + C_IERR) * L + lane]
+                ie1 = sc[(F_CTRL + C_IERR + 1) * L + lane]
+                ie2 = sc[(F_CTRL + C_IERR + 2) * L + lane]
+                e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
+                fx, fy, fz = -arx, -ary, -arz - g
+                unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
+                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, r1, r2,
+                    sc[(F_CTRL + C_E2_0) * L + lane], sc[(F_CTRL + C_E2_0 + 1) * L + lane],
+                    sc[(F_CTRL + C_E2_0 + 2) * L + lane],
+                    sc[(F_CTRL + C_IPOS) * L + lane], sc[(F_CTRL + C_IPOS + 1) * L + lane],
+                    sc[(F_CTRL + C_IPOS + 2) * L + lane],
+                    sc[(F_CTRL + C_SPREV) * L + lane], sc[(F_CTRL + C_SPREV + 1) * L + lane],
+                    sc[(F_CTRL + C_SPREV + 2) * L + lane], alpha, eps_p, eps_pq,
+                )
+                ux = unx + ud0
+                uy = uny + ud1
+                uz = unz + ud2
+                ux = ux - ki * ie0  # the PID baseline's integral (0 for the ISMC)
+                uy = uy - ki * ie1
+                uz = uz - ki * ie2
+                # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
+                wux, wuy, wuz = ux, uy, uz
+                floor_hit = uz < uz_min
+                uz = uz_min if floor_hit else uz
+                hxy = math.sqrt(ux * ux + uy * uy)
+                tilt_hit = hxy > uz * tan_tilt
+                tsc = uz * tan_tilt / hxy
+                ux = ux * tsc if tilt_hit else ux
+                uy = uy * tsc if tilt_hit else uy
+                limited = floor_hit | tilt_hit
+                # While limited, s integrates the nominal law minus what the limiter took away.
+                inx = unx + (ux - wux) if limited else unx
+                iny = uny + (uy - wuy) if limited else uny
+                inz = unz + (uz - wuz) if limited else unz
+
+                sph, cph = vsincos(ph)
+                sth, cth = vsincos(th)
+                sps, cps = vsincos(ps)
+                zbx = cph * sth * cps + sph * sps
+                zby = cph * sth * sps - sph * cps
+                zbz = cph * cth
+                thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
+
+                # ---- attitude resolution (spec 5) and command filter
+                un = math.sqrt(ux * ux + uy * uy + uz * uz)
+                ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
+                ratio = min(max(ratio, -1.0), 1.0)
+                rph = vasin(ratio)
+                rth = vatan2(ux * ycos + uy * ysin, uz)
+                cx = sc[(F_CTRL + C_THC) * L + lane]
+                cy = sc[(F_CTRL + C_THC + 1) * L + lane]
+                cz = sc[(F_CTRL + C_THC + 2) * L + lane]
+                cdx = sc[(F_CTRL + C_THC_DOT) * L + lane]
+                cdy = sc[(F_CTRL + C_THC_DOT + 1) * L + lane]
+                cdz = sc[(F_CTRL + C_THC_DOT + 2) * L + lane]
+                cddx = wn * wn * (rph - cx) - 2.0 * zeta * wn * cdx
+                cddy = wn * wn * (rth - cy) - 2.0 * zeta * wn * cdy
+                cddz = wn * wn * (rps - cz) - 2.0 * zeta * wn * cdz
+
+                # ---- attitude ISMC (spec 6)
+                # One division for every 1/cos θ term (W, Ẇ): divisions dominate the arithmetic.
+                icth = 1.0 / cth
+                tth = sth * icth
+                w01, w02 = sph * tth, cph * tth
+                w11, w12 = cph, -sph
+                w21, w22 = sph * icth, cph * icth
+                edx = wx + w01 * wy + w02 * wz
+                edy = w11 * wy + w12 * wz
+                edz = w21 * wy + w22 * wz
+                e3x, e3y, e3z = ph - cx, th - cy, ps - cz
+                e4x, e4y, e4z = edx - cdx, edy - cdy, edz - cdz
+                gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
+                gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
+                gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
+                # Ẇ Ω (see sim.flight._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
+                sec2 = icth * icth
+                wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
+                wd1 = -sph * edx * wy - cph * edx * wz
+                wd2 = (w22 * edx + sph * sth * sec2 * edy) * wy + (
+                    -w21 * edx + cph * sth * sec2 * edy
+                ) * wz
+                fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
+                fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
+                faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
+                unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
+                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, r3, r4,
+                    sc[(F_CTRL + C_E4_0) * L + lane], sc[(F_CTRL + C_E4_0 + 1) * L + lane],
+                    sc[(F_CTRL + C_E4_0 + 2) * L + lane],
+                    sc[(F_CTRL + C_IATT) * L + lane], sc[(F_CTRL + C_IATT + 1) * L + lane],
+                    sc[(F_CTRL + C_IATT + 2) * L + lane],
+                    sc[(F_CTRL + C_SAPREV) * L + lane], sc[(F_CTRL + C_SAPREV + 1) * L + lane],
+                    sc[(F_CTRL + C_SAPREV + 2) * L + lane], beta_g, eps_a, eps_aq,
+                )
+                uda0 = sc[(F_CTRL + C_UDA) * L + lane]
+                uda1 = sc[(F_CTRL + C_UDA + 1) * L + lane]
+                uda2 = sc[(F_CTRL + C_UDA + 2) * L + lane]
+                uax = unax + uda0
+                uay = unay + uda1
+                uaz = unaz + uda2
+                # τ = I W⁻¹ u_a
+                tcx = ix * (uax - sth * uaz)
+                tcy = iy * (cph * uay + sph * cth * uaz)
+                tcz = iz * (-sph * uay + cph * cth * uaz)
+
+                # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
+                # Divisions kept here: the same rounding as the reference mixer is what makes the
+                # hover thrust come back as exactly m·g (hover is held bit-exactly).
+                base = thrust_cmd / (4.0 * kf)
+                roll = tcx / (2.0 * arm * kf)
+                pitch = tcy / (2.0 * arm * kf)
+                yw = tcz / (4.0 * km)
+                o1 = base - pitch + yw
+                o2 = base + roll - yw
+                o3 = base + pitch + yw
+                o4 = base - roll - yw
+                clipped = (((o1 < 0.0) | (o1 > wmax2)) | ((o2 < 0.0) | (o2 > wmax2))) | (
+                    ((o3 < 0.0) | (o3 > wmax2)) | ((o4 < 0.0) | (o4 > wmax2)))
+                sat = limited | clipped
+                o1 = min(max(o1, 0.0), wmax2)
+                o2 = min(max(o2, 0.0), wmax2)
+                o3 = min(max(o3, 0.0), wmax2)
+                o4 = min(max(o4, 0.0), wmax2)
+                if use_motor:  # first-order lag of the squared rotor speeds toward the command
+                    mot = sc[(F_DRONE + D_MOTOR) * L + lane]
+                    ro1 = sc[(F_CTRL + C_ROTOR) * L + lane]
+                    ro2 = sc[(F_CTRL + C_ROTOR + 1) * L + lane]
+                    ro3 = sc[(F_CTRL + C_ROTOR + 2) * L + lane]
+                    ro4 = sc[(F_CTRL + C_ROTOR + 3) * L + lane]
+                    o1 = ro1 + mot * (o1 - ro1)
+                    o2 = ro2 + mot * (o2 - ro2)
+                    o3 = ro3 + mot * (o3 - ro3)
+                    o4 = ro4 + mot * (o4 - ro4)
+                # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
+                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t)
+                thrust = kf * (o1 + o2 + o3 + o4) * rg
+                tqx = arm * kf * (o2 - o4) * rg
+                tqy = arm * kf * (o3 - o1) * rg
+                tqz = km * (o1 - o2 + o3 - o4) * rg
+
+                # ---- plant, semi-implicit Euler with the inputs held
+                pix = sc[(F_DRONE + D_IX) * L + lane]
+                piy = sc[(F_DRONE + D_IY) * L + lane]
+                piz = sc[(F_DRONE + D_IZ) * L + lane]
+                tpm = thrust * sc[(F_INV + 3) * L + lane]
+                ax = tpm * zbx + dx0 + drag * (dw0 - vx)
+                ay = tpm * zby + dx1 + drag * (dw1 - vy)
+                az = tpm * zbz + dx2 + drag * (dw2 - vz)
+                if use_drag:  # quadratic drag on the air-relative velocity (wind interpolated on its grid)
+                    wa0, wa1, wa2 = sc[F_WA * L + lane], sc[(F_WA + 1) * L + lane], sc[(F_WA + 2) * L + lane]
+                    wb0, wb1, wb2 = sc[F_WB * L + lane], sc[(F_WB + 1) * L + lane], sc[(F_WB + 2) * L + lane]
+                    rlx = vx - (wa0 + fw * (wb0 - wa0))
+                    rly = vy - (wa1 + fw * (wb1 - wa1))
+                    rlz = vz - (wa2 + fw * (wb2 - wa2))
+                    dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
+                    ax -= dsp * rlx
+                    ay -= dsp * rly
+                    az -= dsp * rlz
+                az -= pg
+                odx = (tqx - (wy * (wz * piz) - wz * (wy * piy))) * sc[F_INV * L + lane] + (d2x - sth * d2z)
+                ody = (tqy - (wz * (wx * pix) - wx * (wz * piz))) * sc[(F_INV + 1) * L + lane] + (
+                    cph * d2y + sph * cth * d2z)
+                odz = (tqz - (wx * (wy * piy) - wy * (wx * pix))) * sc[(F_INV + 2) * L + lane] + (
+                    -sph * d2y + cph * cth * d2z)
+                nvx, nvy, nvz = vx + dt * ax, vy + dt * ay, vz + dt * az
+                npx, npy, npz = px + dt * nvx, py + dt * nvy, pz + dt * nvz
+                nwx, nwy, nwz = wx + dt * odx, wy + dt * ody, wz + dt * odz
+                nph = ph + dt * (nwx + w01 * nwy + w02 * nwz)
+                nth = th + dt * (w11 * nwy + w12 * nwz)
+                nps = ps + dt * (w21 * nwy + w22 * nwz)
+                if use_gnss:  # estimator: accelerometer prediction plus the held innovation
+                    nvh0 = cvx + dt * (ax + est_kv * in0)
+                    nvh1 = cvy + dt * (ay + est_kv * in1)
+                    nvh2 = cvz + dt * (az + est_kv * in2)
+                    nph0 = cpx + dt * (nvh0 + est_kp * in0)
+                    nph1 = cpy + dt * (nvh1 + est_kp * in1)
+                    nph2 = cpz + dt * (nvh2 + est_kp * in2)
+                else:
+                    nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
+
+                # ---- controller state candidates
+                ipx = sc[(F_CTRL + C_IPOS) * L + lane] + dt * (inx + fx)
+                ipy = sc[(F_CTRL + C_IPOS + 1) * L + lane] + dt * (iny + fy)
+                ipz = sc[(F_CTRL + C_IPOS + 2) * L + lane] + dt * (inz + fz)
+                iax = sc[(F_CTRL + C_IATT) * L + lane] + dt * (unax + fax)
+                iay = sc[(F_CTRL + C_IATT + 1) * L + lane] + dt * (unay + fay)
+                iaz = sc[(F_CTRL + C_IATT + 2) * L + lane] + dt * (unaz + faz)
+                ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
+                ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
+                # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
+                # while the command is limited or a rotor clips, the attitude u_d only while a
+                # rotor clips.
                 nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
                 nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
                 nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
-                udx = ud0 + dt * wpx
-                udy = ud1 + dt * wpy
-                udz = ud2 + dt * wpz
-            if clipped:
-                uadx, uady, uadz = uda0, uda1, uda2
-            else:
-                uadx = uda0 + dt * wax
-                uady = uda1 + dt * way
-                uadz = uda2 + dt * waz
+                nie0 = ie0 if sat else nie0
+                nie1 = ie1 if sat else nie1
+                nie2 = ie2 if sat else nie2
+                udx = ud0 if sat else ud0 + dt * wpx
+                udy = ud1 if sat else ud1 + dt * wpy
+                udz = ud2 if sat else ud2 + dt * wpz
+                uadx = uda0 if clipped else uda0 + dt * wax
+                uady = uda1 if clipped else uda1 + dt * way
+                uadz = uda2 if clipped else uda2 + dt * waz
+
+                # Telemetry of this step (copied out at frame steps for the drones that flew it).
+                sc[(F_TEL + 0) * L + lane] = qx
+                sc[(F_TEL + 1) * L + lane] = qy
+                sc[(F_TEL + 2) * L + lane] = qz
+                sc[(F_TEL + 3) * L + lane] = e3x
+                sc[(F_TEL + 4) * L + lane] = e3y
+                sc[(F_TEL + 5) * L + lane] = e3z
+                sc[(F_TEL + 6) * L + lane] = ph - rph
+                sc[(F_TEL + 7) * L + lane] = th - rth
+                sc[(F_TEL + 8) * L + lane] = ps - rps
+                sc[(F_TEL + 9) * L + lane] = thrust
+                sc[(F_TEL + 10) * L + lane] = tqx
+                sc[(F_TEL + 11) * L + lane] = tqy
+                sc[(F_TEL + 12) * L + lane] = tqz
+                sc[(F_TEL + 13) * L + lane] = 1.0 if sat else 0.0
+                sc[F_TELOK * L + lane] = 1.0 if alive & err_ok else 0.0
+
+                # A step that is not finite everywhere is not committed (the drone stops here).
+                # (Any NaN or inf makes the sum non-finite; independent partial sums keep the
+                # dependency chain short.)
+                check = (((npx + npy + npz) + (nvx + nvy + nvz)) + ((nph + nth + nps) + (nwx + nwy + nwz))
+                         + ((ipx + ipy + ipz) + (iax + iay + iaz)) + ((udx + udy + udz) + (uadx + uady + uadz))
+                         + ((ncx + ncy + ncz) + (ncdx + ncdy + ncdz)) + ((sx + sy + sz) + (sax + say + saz))
+                         + thrust + ((nph0 + nph1 + nph2) + (nvh0 + nvh1 + nvh2)) + (nie0 + nie1 + nie2))
+                finite = math.isfinite(check)
+                ok = alive & err_ok & finite
+                died = alive and not ok
+                sc[F_ALIVE * L + lane] = 1.0 if ok else 0.0
+                sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
+                why = DIVERGED_RUNAWAY if (not err_ok) and err > limit else DIVERGED_NONFINITE
+                sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
+
+                # Statistics and the commit, for the drones that flew this step.
+                so = F_STAT * L + lane
+                ssum, smax = sc[so + STAT_SUMSQ * L], sc[so + STAT_MAX * L]
+                sdth, scount = sc[so + STAT_DTHRUST * L], sc[so + STAT_COUNT * L]
+                last_thrust = sc[(F_CTRL + C_LAST_THRUST) * L + lane]
+                sc[so + STAT_SUMSQ * L] = ssum + err * err if ok else ssum
+                sc[so + STAT_MAX * L] = max(smax, err) if ok else smax
+                sc[so + STAT_DTHRUST * L] = max(sdth, abs(thrust - last_thrust)) if ok else sdth
+                sc[so + STAT_COUNT * L] = scount + 1.0 if ok else scount
+
+                _commit(sc, F_STATE + 0, lane, npx, ok)
+                _commit(sc, F_STATE + 1, lane, npy, ok)
+                _commit(sc, F_STATE + 2, lane, npz, ok)
+                _commit(sc, F_STATE + 3, lane, nvx, ok)
+                _commit(sc, F_STATE + 4, lane, nvy, ok)
+                _commit(sc, F_STATE + 5, lane, nvz, ok)
+                _commit(sc, F_STATE + 6, lane, nph, ok)
+                _commit(sc, F_STATE + 7, lane, nth, ok)
+                _commit(sc, F_STATE + 8, lane, nps, ok)
+                _commit(sc, F_STATE + 9, lane, nwx, ok)
+                _commit(sc, F_STATE + 10, lane, nwy, ok)
+                _commit(sc, F_STATE + 11, lane, nwz, ok)
+                _commit(sc, F_CTRL + C_IPOS, lane, ipx, ok)
+                _commit(sc, F_CTRL + C_IPOS + 1, lane, ipy, ok)
+                _commit(sc, F_CTRL + C_IPOS + 2, lane, ipz, ok)
+                _commit(sc, F_CTRL + C_UD, lane, udx, ok)
+                _commit(sc, F_CTRL + C_UD + 1, lane, udy, ok)
+                _commit(sc, F_CTRL + C_UD + 2, lane, udz, ok)
+                _commit(sc, F_CTRL + C_SPREV, lane, sx, ok)
+                _commit(sc, F_CTRL + C_SPREV + 1, lane, sy, ok)
+                _commit(sc, F_CTRL + C_SPREV + 2, lane, sz, ok)
+                _commit(sc, F_CTRL + C_IATT, lane, iax, ok)
+                _commit(sc, F_CTRL + C_IATT + 1, lane, iay, ok)
+                _commit(sc, F_CTRL + C_IATT + 2, lane, iaz, ok)
+                _commit(sc, F_CTRL + C_UDA, lane, uadx, ok)
+                _commit(sc, F_CTRL + C_UDA + 1, lane, uady, ok)
+                _commit(sc, F_CTRL + C_UDA + 2, lane, uadz, ok)
+                _commit(sc, F_CTRL + C_SAPREV, lane, sax, ok)
+                _commit(sc, F_CTRL + C_SAPREV + 1, lane, say, ok)
+                _commit(sc, F_CTRL + C_SAPREV + 2, lane, saz, ok)
+                _commit(sc, F_CTRL + C_THC, lane, ncx, ok)
+                _commit(sc, F_CTRL + C_THC + 1, lane, ncy, ok)
+                _commit(sc, F_CTRL + C_THC + 2, lane, ncz, ok)
+                _commit(sc, F_CTRL + C_THC_DOT, lane, ncdx, ok)
+                _commit(sc, F_CTRL + C_THC_DOT + 1, lane, ncdy, ok)
+                _commit(sc, F_CTRL + C_THC_DOT + 2, lane, ncdz, ok)
+                _commit(sc, F_CTRL + C_LAST_THRUST, lane, thrust, ok)
+                _commit(sc, F_CTRL + C_IERR, lane, nie0, ok)
+                _commit(sc, F_CTRL + C_IERR + 1, lane, nie1, ok)
+                _commit(sc, F_CTRL + C_IERR + 2, lane, nie2, ok)
+                _commit(sc, F_CTRL + C_PHAT, lane, nph0, ok)
+                _commit(sc, F_CTRL + C_PHAT + 1, lane, nph1, ok)
+                _commit(sc, F_CTRL + C_PHAT + 2, lane, nph2, ok)
+                _commit(sc, F_CTRL + C_VHAT, lane, nvh0, ok)
+                _commit(sc, F_CTRL + C_VHAT + 1, lane, nvh1, ok)
+                _commit(sc, F_CTRL + C_VHAT + 2, lane, nvh2, ok)
+                _commit(sc, F_CTRL + C_INNOV, lane, in0, ok)
+                _commit(sc, F_CTRL + C_INNOV + 1, lane, in1, ok)
+                _commit(sc, F_CTRL + C_INNOV + 2, lane, in2, ok)
+                _commit(sc, F_CTRL + C_ROTOR, lane, o1, ok)
+                _commit(sc, F_CTRL + C_ROTOR + 1, lane, o2, ok)
+                _commit(sc, F_CTRL + C_ROTOR + 2, lane, o3, ok)
+                _commit(sc, F_CTRL + C_ROTOR + 3, lane, o4, ok)
 
             if use_tel and rec:
                 fr = k // every
-                tel[fr, i, 0], tel[fr, i, 1], tel[fr, i, 2] = qx, qy, qz
-                tel[fr, i, 3], tel[fr, i, 4], tel[fr, i, 5] = e3x, e3y, e3z
-                tel[fr, i, 6], tel[fr, i, 7], tel[fr, i, 8] = ph - rph, th - rth, ps - rps
-                tel[fr, i, 9], tel[fr, i, 10], tel[fr, i, 11], tel[fr, i, 12] = thrust, tqx, tqy, tqz
-                tel[fr, i, 13] = 1.0 if sat else 0.0
+                for lane in range(cnt):
+                    if sc[F_TELOK * L + lane] > 0.5:
+                        for f in range(TEL_SIZE):
+                            tel[fr, i0 + lane, f] = sc[(F_TEL + f) * L + lane]
 
-            # A step that is not finite everywhere is not committed (the drone stops here).
-            # (Any NaN or inf makes the sum non-finite; independent partial sums keep the
-            # dependency chain short.)
-            check = (((npx + npy + npz) + (nvx + nvy + nvz)) + ((nph + nth + nps) + (nwx + nwy + nwz))
-                     + ((ipx + ipy + ipz) + (iax + iay + iaz)) + ((udx + udy + udz) + (uadx + uady + uadz))
-                     + ((ncx + ncy + ncz) + (ncdx + ncdy + ncdz)) + ((sx + sy + sz) + (sax + say + saz))
-                     + thrust + ((nph0 + nph1 + nph2) + (nvh0 + nvh1 + nvh2)) + (nie0 + nie1 + nie2))
-            if not math.isfinite(check):
-                dstep[i] = k
-                dreason[i] = DIVERGED_NONFINITE
-                alive = False
-                continue
-
-            ssum += err * err
-            smax = max(smax, err)
-            sdth = max(sdth, abs(thrust - last_thrust))
-            scount += 1.0
-
-            ip0, ip1, ip2 = ipx, ipy, ipz
-            ud0, ud1, ud2 = udx, udy, udz
-            sp0, sp1, sp2 = sx, sy, sz
-            ia0, ia1, ia2 = iax, iay, iaz
-            uda0, uda1, uda2 = uadx, uady, uadz
-            sap0, sap1, sap2 = sax, say, saz
-            thc0, thc1, thc2 = ncx, ncy, ncz
-            thcd0, thcd1, thcd2 = ncdx, ncdy, ncdz
-            last_thrust = thrust
-            ie0, ie1, ie2 = nie0, nie1, nie2
-            ph0, ph1, ph2, vh0, vh1, vh2 = nph0, nph1, nph2, nvh0, nvh1, nvh2
-            ro1, ro2, ro3, ro4 = o1, o2, o3, o4
-            px, py, pz, vx, vy, vz = npx, npy, npz, nvx, nvy, nvz
-            ph, th, ps, wx, wy, wz = nph, nth, nps, nwx, nwy, nwz
-
-        ctrl[i, C_IPOS], ctrl[i, C_IPOS + 1], ctrl[i, C_IPOS + 2] = ip0, ip1, ip2
-        ctrl[i, C_UD], ctrl[i, C_UD + 1], ctrl[i, C_UD + 2] = ud0, ud1, ud2
-        ctrl[i, C_SPREV], ctrl[i, C_SPREV + 1], ctrl[i, C_SPREV + 2] = sp0, sp1, sp2
-        ctrl[i, C_IATT], ctrl[i, C_IATT + 1], ctrl[i, C_IATT + 2] = ia0, ia1, ia2
-        ctrl[i, C_UDA], ctrl[i, C_UDA + 1], ctrl[i, C_UDA + 2] = uda0, uda1, uda2
-        ctrl[i, C_SAPREV], ctrl[i, C_SAPREV + 1], ctrl[i, C_SAPREV + 2] = sap0, sap1, sap2
-        ctrl[i, C_THC], ctrl[i, C_THC + 1], ctrl[i, C_THC + 2] = thc0, thc1, thc2
-        ctrl[i, C_THC_DOT], ctrl[i, C_THC_DOT + 1], ctrl[i, C_THC_DOT + 2] = thcd0, thcd1, thcd2
-        ctrl[i, C_LAST_THRUST] = last_thrust
-        ctrl[i, C_IERR], ctrl[i, C_IERR + 1], ctrl[i, C_IERR + 2] = ie0, ie1, ie2
-        ctrl[i, C_PHAT], ctrl[i, C_PHAT + 1], ctrl[i, C_PHAT + 2] = ph0, ph1, ph2
-        ctrl[i, C_VHAT], ctrl[i, C_VHAT + 1], ctrl[i, C_VHAT + 2] = vh0, vh1, vh2
-        ctrl[i, C_INNOV], ctrl[i, C_INNOV + 1], ctrl[i, C_INNOV + 2] = in0, in1, in2
-        ctrl[i, C_ROTOR], ctrl[i, C_ROTOR + 1], ctrl[i, C_ROTOR + 2], ctrl[i, C_ROTOR + 3] = ro1, ro2, ro3, ro4
-        stats[i, STAT_SUMSQ], stats[i, STAT_MAX] = ssum, smax
-        stats[i, STAT_DTHRUST], stats[i, STAT_COUNT] = sdth, scount
-        state[i, 0], state[i, 1], state[i, 2] = px, py, pz
-        state[i, 3], state[i, 4], state[i, 5] = vx, vy, vz
-        state[i, 6], state[i, 7], state[i, 8] = ph, th, ps
-        state[i, 9], state[i, 10], state[i, 11] = wx, wy, wz
+        # ---- write the block back
+        for lane in range(cnt):
+            i = i0 + lane
+            for f in range(12):
+                state[i, f] = sc[(F_STATE + f) * L + lane]
+            for f in range(CTRL_SIZE):
+                ctrl[i, f] = sc[(F_CTRL + f) * L + lane]
+            for f in range(STATS_SIZE):
+                stats[i, f] = sc[(F_STAT + f) * L + lane]
+            dstep[i] = int(sc[F_DSTEP * L + lane])
+            dreason[i] = int(sc[F_REASON * L + lane])
 
 
 def run_chunk_numba(
@@ -559,7 +765,7 @@ def run_chunk_numba(
     step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
     opts: dict[str, Any], tables: ChunkTables | None = None,
 ) -> None:
-    """Advance ``len(times)`` steps in place with the fused kernel (same contract as the numpy chunk).
+    """Advance ``len(times)`` steps in place with the lane kernel (same contract as the numpy chunk).
 
     Args:
         state: ``(N, 12)`` plant states, updated in place.
