@@ -461,22 +461,24 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         last = post[-1] if post else tp
         end = last.legs[-1].b_m if isinstance(last, TransitionPlan) else last.b_m
         t0 = times[-1]
-        at = t0
+        # Elapsed time within the window, summed from 0 (not t0 + ... - t0, which rounds: a lone
+        # transition's duration must be its window exactly, as the quintic-reproduction test requires).
+        elapsed = 0.0
         extra: list[UnresolvedConflict] = []
         pre_s = 0.0
         for stage in (*pre, tp, *post):
             legs, overlaps = (stage.legs, stage.overlaps_s) if isinstance(stage, TransitionPlan) else ((stage,), ())
-            fly(legs, overlaps, start_s=at)
+            fly(legs, overlaps, start_s=t0 + elapsed)
             if stage is not tp:
-                extra += [replace(u, time_s=at + u.time_s) for u in stage.unresolved]
+                extra += [replace(u, time_s=t0 + elapsed + u.time_s) for u in stage.unresolved]
             else:
-                pre_s = at - t0
-            at += stage.window_s
+                pre_s = elapsed
+            elapsed += stage.window_s
         info = dict(
             from_name=from_name,
             to_name=to_name,
             start_s=t0,
-            duration_s=at - t0,
+            duration_s=elapsed,
             min_duration_s=round_up(sync_min_duration(goals[goal_index] - start, lim)),
             assignment_cost_m2=assignment_cost(start, goals, goal_index),
             goal_index=goal_index,
