@@ -777,27 +777,27 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         land_index = tp_layers.goal_index if own is None else own
         waves_down = plan_waves(show.all_home_positions_m[land_index], layer_of[tp_layers.goal_index], lim,
                                 s.takeoff_altitude_m, gap, landing=True, count=count)
-    if waves_down is None:
-        tp = prepare(start_l, previous, "landing", homes_up, None, "landing", goal_index=own)
-        down = homes_up[tp.goal_index] - lift
-        tp, _ = fold_last(tp, down)
+    def approach(tp: TransitionPlan, goals: np.ndarray) -> np.ndarray:
+        """Fly the landing approach (after the mid-show landed drones' climb, if any); its end positions."""
         t_start = times[-1]
-        end, info = commit(tp, previous, "landing", homes_up, pre)
+        end, info = commit(tp, previous, "landing", goals, pre)
         if up_leg is not None:
             airborne_again(down_now, t_start + up_leg.window_s)
         seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
         transitions.append(TransitionInfo(segment=seg, **info))
+        return end
+
+    if waves_down is None:
+        tp = prepare(start_l, previous, "landing", homes_up, None, "landing", goal_index=own)
+        down = homes_up[tp.goal_index] - lift
+        tp, _ = fold_last(tp, down)
+        end = approach(tp, homes_up)
         add("landing", "landing", vertical(end, down), down, np.zeros_like(end))
     else:
         # Into the layers over the landing homes, then down in waves.
         assert tp_layers is not None
         tp = tp_layers
-        t_start = times[-1]
-        end, info = commit(tp, previous, "landing", layered_all, pre)
-        if up_leg is not None:
-            airborne_again(down_now, t_start + up_leg.window_s)
-        seg = add("transition", "landing", info["duration_s"], end, np.zeros_like(end))
-        transitions.append(TransitionInfo(segment=seg, **info))
+        end = approach(tp, layered_all)
         fly((waves_down.schedule,))
         add("landing", "landing", waves_down.window_s, waves_down.schedule.b_m, np.zeros_like(end))
     if progress:
