@@ -108,3 +108,29 @@ def test_engines_agree_across_each_drones_own_breaks(staggered_small):
         assert np.abs(out[0][1][:, :C_ROTOR] - out[1][1][:, :C_ROTOR]).max() < 1e-9
         np.testing.assert_allclose(out[0][1][:, C_ROTOR:], out[1][1][:, C_ROTOR:], rtol=1e-11)
         assert np.abs(out[0][2] - out[1][2]).max() < 1e-9
+
+
+def test_read_only_inputs_run_the_same_compiled_kernel():
+    """Arrays from Dask's pickle-5 buffers can arrive read-only; numba would compile a second
+    specialisation for them (possibly contracted differently), breaking local/Dask bit-identity.
+    The driver hands the kernel writable arrays, so read-only references give the same bits and
+    never add a read-only signature."""
+    from numba import types
+
+    from sim.flight.engines._numba import _kernel
+
+    rng = np.random.default_rng(11)
+    n = 20
+    centers = rng.uniform(-20.0, 20.0, (n, 3)) + [0.0, 0.0, 40.0]
+    kw = dict(duration_s=0.3, initial_state=hover_state(centers + [3.0, 0.0, 0.0]), disturbance="wind",
+              output_every=10, chunk_steps=100)
+    ref = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.7)
+    a = simulate(ref, engine="numba", **kw)
+    frozen = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.7)
+    for arr in (frozen.motion.breaks_s, frozen.motion.coeffs_m):
+        arr.flags.writeable = False
+    b = simulate(frozen, engine="numba", **kw)
+    assert np.array_equal(a.final_state, b.final_state)
+    assert np.array_equal(a.positions_m, b.positions_m)
+    # numba types a read-only array as Array(..., readonly=True), i.e. ``mutable`` False.
+    assert not any(isinstance(t, types.Array) and not t.mutable for sig in _kernel.signatures for t in sig)

@@ -802,15 +802,26 @@ def run_chunk_numba(
     motion = ref.motion
     # Each drone's piece at the chunk's first step (one search per chunk); the kernel
     # advances from there.
-    cursor0 = np.ascontiguousarray(motion.piece_index(chunk.times[:1])[0], dtype=np.int64)
+    cursor0 = _rw(motion.piece_index(chunk.times[:1])[0], np.int64)
     _kernel(
-        state, ctrl, stats, dstep, dreason, np.ascontiguousarray(motion.breaks_s, dtype=np.float64),
-        np.ascontiguousarray(motion.coeffs_m, dtype=np.float64), cursor0, chunk.times, chunk.offset,
-        chunk.yaw, dist, int(step0), int(every),
-        frames, tel_arr, use_tel, opts["params"].as_vector(), opts["plant"].as_vector(),
-        opts["gains"].as_vector(float(opts["dt_s"])), float(opts["disturbance"].drag_per_s), float(opts["dt_s"]),
-        float(opts["divergence_limit_m"]), np.ascontiguousarray(drone, dtype=np.float64),
-        np.ascontiguousarray(tables.gnss, dtype=np.float64), int(tables.gnss_every), int(tables.gnss_first),
-        np.ascontiguousarray(tables.wind, dtype=np.float64), int(tables.wind_k0), float(tables.wind_dt_s),
+        state, ctrl, stats, dstep, dreason, _rw(motion.breaks_s), _rw(motion.coeffs_m), cursor0,
+        _rw(chunk.times), _rw(chunk.offset), _rw(chunk.yaw), _rw(dist), int(step0), int(every),
+        frames, tel_arr, use_tel, _rw(opts["params"].as_vector()), _rw(opts["plant"].as_vector()),
+        _rw(opts["gains"].as_vector(float(opts["dt_s"]))), float(opts["disturbance"].drag_per_s),
+        float(opts["dt_s"]), float(opts["divergence_limit_m"]), _rw(drone),
+        _rw(tables.gnss), int(tables.gnss_every), int(tables.gnss_first),
+        _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
     )
+
+
+def _rw(a: Any, dtype: type = np.float64) -> np.ndarray:
+    """``a`` as a writable C-contiguous array of ``dtype`` (copied only when it is not one already).
+
+    Why writable: numba types a read-only array as a different type and compiles a second
+    specialisation of the kernel for it, whose machine code may contract or vectorise differently
+    (1e-13 m level differences). Arrays that arrive through Dask's pickle-5 buffers are sometimes
+    read-only, depending on how the message was framed, so a shard could run the other binary
+    than the local engine and break the bit-identical local/Dask guarantee.
+    """
+    return np.require(a, dtype=dtype, requirements=["C", "W"])
