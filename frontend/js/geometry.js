@@ -170,6 +170,19 @@ export function scaleAbout(points, indices, factor) {
 export function rotateInView(points, indices, degrees, view) {
   const [u, v] = VIEW_AXES[view];
   const c = centroid(points, indices);
+  turnInPlane(points, indices, u, v, degrees, c);
+}
+
+/**
+ * Turn points (in place) by `degrees` in the plane of coordinates u, v about `c`, from u toward v.
+ * @param {number[][]} points
+ * @param {number[]} indices
+ * @param {number} u
+ * @param {number} v
+ * @param {number} degrees
+ * @param {number[]} c
+ */
+function turnInPlane(points, indices, u, v, degrees, c) {
   const t = (degrees * Math.PI) / 180;
   const cos = Math.cos(t);
   const sin = Math.sin(t);
@@ -204,15 +217,7 @@ export function rotateAboutAxis(points, indices, axis, degrees, center) {
   // The plane turned: (y, z) about x, (z, x) about y, (x, y) about z, each in right-handed order.
   const u = (axis + 1) % 3;
   const v = (axis + 2) % 3;
-  const t = (degrees * Math.PI) / 180;
-  const cos = Math.cos(t);
-  const sin = Math.sin(t);
-  for (const i of indices) {
-    const du = points[i][u] - c[u];
-    const dv = points[i][v] - c[v];
-    points[i][u] = c[u] + du * cos - dv * sin;
-    points[i][v] = c[v] + du * sin + dv * cos;
-  }
+  turnInPlane(points, indices, u, v, degrees, c);
 }
 
 /**
