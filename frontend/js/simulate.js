@@ -3,41 +3,7 @@
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
 import * as api from "./api.js";
-
-function fmt(v, digits = 2, unit = "") {
-  return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
-}
-
-/**
- * A summary's heading (the ✓ or ✗ line) and its two-column table, as the flight and the
- * Monte-Carlo summaries show them.
- * @param {boolean} ok whether the heading reads as a pass
- * @param {string} text the heading
- * @param {string} label the table's accessible name
- * @param {Array<[string, string, boolean?] | null | false | undefined>} rows label, value and whether
- *   the value breaks a limit (drawn as bad); falsy rows are left out
- * @returns {[HTMLParagraphElement, HTMLTableElement]}
- */
-export function summaryTable(ok, text, label, rows) {
-  const head = document.createElement("p");
-  head.className = ok ? "report-ok" : "report-bad";
-  head.textContent = text;
-  const table = document.createElement("table");
-  table.setAttribute("aria-label", label);
-  for (const r of rows) {
-    if (!r) continue;
-    const [name, value, bad] = r;
-    const tr = document.createElement("tr");
-    const a = document.createElement("td");
-    a.textContent = name;
-    const b = document.createElement("td");
-    b.textContent = value;
-    if (bad) b.className = "bad-value";
-    tr.append(a, b);
-    table.append(tr);
-  }
-  return [head, table];
-}
+import { fmt, summaryTable } from "./summary.js";
 
 /** The simulation panel. */
 export class SimulatePanel {
