@@ -185,8 +185,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 # -- browser tests -------------------------------------------------------------------------------
 # Every browser test module starts its own Chromium (module scope: a crash stays in its module) and
-# defines its own `server` fixture (its data directory and viewer switch); `ui` is a fresh editor
-# page on that server. The imports are lazy so that collecting the fast suite never loads Playwright.
+# defines its own `server` fixture, mostly as `server = server_for("x-data", viewer=...)` from
+# tests/live_server.py (its own data directory and viewer switch); `ui` is a fresh editor page on
+# that server. The imports are lazy so that collecting the fast suite never loads Playwright.
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import httpx
 import numpy as np
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -19,10 +19,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 sf = pytest.importorskip("soundfile")
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("copy-music-data"), viewer=False) as base:
-        yield base
+server = server_for("copy-music-data", viewer=False)
 
 
 def test_save_as_copy_copies_the_music(ui: Page):
