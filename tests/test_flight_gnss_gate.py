@@ -215,3 +215,20 @@ def test_unstable_gains_run_away(engine):
                    output_every=100, divergence_limit_m=20.0, initial_state=start)
     assert [why for *_, why in res.diverged()] == ["runaway"] * 3
     assert set(res.diverged_reason.tolist()) == {DIVERGED_RUNAWAY}
+
+
+def test_reports_count_divergences_by_reason():
+    # Two drones in a steady 18 m/s wind (beyond their ~13.7 m/s): every run loses both as
+    # "overpowered"; the Monte-Carlo JSON counts them by reason and the safety report says why.
+    from app.exports import render_safety_report
+    from sim.flight import FlightOptions, monte_carlo
+
+    show = make_show([{"name": "pair", "hold_s": 8.0, "points": [[0.0, 0.0, 20.0], [6.0, 0.0, 20.0]],
+                       "color": "#ffffff"}], drones=2, rows=1, cols=2, spacing_m=6.0)
+    gale = ErrorModel(name="gale", wind_mean_mps=18.0, wind_ref_height_m=20.0, drag_coeff_kg_per_m=0.018)
+    j = monte_carlo(plan_show(show), FlightOptions(errors=gale), runs=2).to_json()
+    assert j["diverged_count"] == 4
+    assert j["diverged_by_reason"] == {"overpowered": 4}
+    assert {d["reason"] for d in j["diverged"]} == {"overpowered"}
+    page = render_safety_report(j, "html").decode()
+    assert "4 overpowered: held at its tilt/thrust limit" in page
