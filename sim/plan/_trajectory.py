@@ -31,9 +31,6 @@ from numpy.typing import ArrayLike
 #: Highest polynomial degree of a piece (the paper's quintic; jerk-limited profiles are cubic).
 DEGREE = 5
 
-# Evaluate at most this many (time, drone) pairs at once, to bound the gathered coefficients' memory.
-_EVAL_CHUNK = 1 << 20
-
 
 @njit(cache=True, nogil=True)
 def _search_pieces(breaks_s: np.ndarray, rows: np.ndarray, times_s: np.ndarray, out: np.ndarray) -> None:
@@ -124,6 +121,65 @@ def states_at(breaks_s: np.ndarray, coeffs_m: np.ndarray, times_s: np.ndarray, c
             for a in range(3):
                 pos_m[j, i, a] = position_at(coeffs_m, i, p, a, u)
                 vel_mps[j, i, a] = velocity_at(coeffs_m, i, p, a, u)
+
+
+@njit(cache=True, nogil=True)
+def _evaluate_pieces(
+    breaks_s: np.ndarray, coeffs_m: np.ndarray, rows: np.ndarray, times_s: np.ndarray, derivatives: int,
+    pos: np.ndarray, vel: np.ndarray, acc: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """What :meth:`Trajectories.evaluate` documents, into ``pos``, ``vel``, ``acc`` ``(T, n, 3)``.
+
+    The very operations of the numpy formulation it replaced, in the same order, so the
+    same bits: the time clamped to the show, the piece by :func:`_search_pieces`'s rule,
+    Horner's rule from the highest of the D+1 coefficients (the derivatives' coefficients
+    ``c[k+1]·(k+1)``, padded with zeros at the top, which Horner multiplies through), and
+    velocity and acceleration 0 outside the show. ``vel`` / ``acc`` are left as they are
+    when ``derivatives`` < 1 / < 2.
+    """
+    p = breaks_s.shape[1] - 1
+    nc = coeffs_m.shape[3]
+    start, end = breaks_s[0, 0], breaks_s[0, p]
+    d1 = np.empty(nc)
+    d2 = np.empty(nc)
+    for j in range(rows.shape[0]):
+        row = rows[j]
+        b = breaks_s[row]
+        for k in range(times_s.shape[0]):
+            t = times_s[k]
+            live = t >= start and t <= end
+            tc = start if t < start else (end if t > end else t)  # np.clip's rule (NaN stays NaN)
+            lo, hi = 1, p
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if b[mid] <= tc:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            piece = lo - 1
+            u = tc - b[piece]
+            for ax in range(3):
+                c = coeffs_m[row, piece, ax]
+                h = c[nc - 1]
+                for q in range(nc - 2, -1, -1):
+                    h = h * u + c[q]
+                pos[k, j, ax] = h
+                if derivatives >= 1:
+                    for q in range(nc - 1):
+                        d1[q] = c[q + 1] * float(q + 1)
+                    d1[nc - 1] = 0.0
+                    h = d1[nc - 1]
+                    for q in range(nc - 2, -1, -1):
+                        h = h * u + d1[q]
+                    vel[k, j, ax] = h if live else 0.0
+                if derivatives >= 2:
+                    for q in range(nc - 1):
+                        d2[q] = d1[q + 1] * float(q + 1)
+                    d2[nc - 1] = 0.0
+                    h = d2[nc - 1]
+                    for q in range(nc - 2, -1, -1):
+                        h = h * u + d2[q]
+                    acc[k, j, ax] = h if live else 0.0
 
 
 class TrajectorySample(NamedTuple):
@@ -220,24 +276,14 @@ class Trajectories:
         drones rest at their first / last position.
         """
         t = np.atleast_1d(np.asarray(times_s, dtype=np.float64))
-        rows = self._rows(drones)
+        rows = np.ascontiguousarray(self._rows(drones), dtype=np.int64)
         n_t, n = len(t), len(rows)
         pos = np.empty((n_t, n, 3))
         vel = np.zeros((n_t, n, 3))
         acc = np.zeros((n_t, n, 3))
-        inside = (t >= self.start_s) & (t <= self.end_s)
-        step = max(1, _EVAL_CHUNK // max(n, 1))
-        for a in range(0, n_t, step):
-            tc = np.clip(t[a:a + step], self.start_s, self.end_s)
-            idx = self.piece_index(tc, rows)  # (Tc, n)
-            c = self.coeffs_m[rows[None, :], idx]  # (Tc, n, 3, D+1)
-            u = (tc[:, None] - self.breaks_s[rows[None, :], idx])[..., None]  # (Tc, n, 1)
-            pos[a:a + step] = horner(c, u)
-            live = inside[a:a + step, None, None]
-            if derivatives >= 1:
-                vel[a:a + step] = np.where(live, horner(_derivative_coeffs(c, 1), u), 0.0)
-            if derivatives >= 2:
-                acc[a:a + step] = np.where(live, horner(_derivative_coeffs(c, 2), u), 0.0)
+        # One compiled pass per (time, drone): no gathered (T, n, 3, D+1) coefficient copies.
+        _evaluate_pieces(self.breaks_s, self.coeffs_m, rows, np.ascontiguousarray(t), int(derivatives),
+                         pos, vel, acc)
         return TrajectorySample(pos, vel, acc)
 
     def select(self, drones: slice | np.ndarray) -> Trajectories:

@@ -23,12 +23,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from sim.flight._disturbance import WindField
 from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import QuadrotorParams
-from sim.flight._random import STREAMS, hashed_normal
+from sim.flight._random import STREAMS, hashed_normal, uniform_pairs_grid
 from sim.flight.engines._state import (
     D_CLOCK,
     D_DRAG,
@@ -51,6 +52,9 @@ WIND_GRID_S = 0.1
 #: Relative parameter errors are clipped to this many σ (a normal has no bounds; a
 #: negative mass has no meaning).
 SPREAD_CLIP_SIGMA = 4.0
+#: Bytes of Box-Muller inputs drawn at once for the GNSS tables (epochs × drones × 3 axes × 2
+#: streams × 8 bytes, in each of two buffers): about an L2 cache.
+_GNSS_BLOCK_BYTES = 1 << 18
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,28 @@ class ChunkTables:
     wind: np.ndarray
     wind_k0: int
     wind_dt_s: float
+
+
+@numba.njit(cache=True, nogil=True)
+def _gnss_walk(
+    bias: np.ndarray, log_walk: np.ndarray, cos_walk: np.ndarray, log_white: np.ndarray, cos_white: np.ndarray,
+    walk_sigma: np.ndarray, white_sigma: np.ndarray, first_is_zero: bool, out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """The GNSS error ``out`` ``(E, N, 3)``: the bias walk ``bias`` ``(N, 3)`` (advanced in place) plus white noise.
+
+    ``log_*`` hold ln u1 and ``cos_*`` cos(2π u2) of the Box-Muller pairs ``(E, N, 3)``;
+    ``walk_sigma``, ``white_sigma`` ``(3,)`` the per-axis step and noise σ. One epoch after
+    the other (not a cumsum from the chunk's start): the same additions in the same order
+    whatever the chunking, so the same bits.
+    """
+    for r in range(out.shape[0]):
+        zero = first_is_zero and r == 0
+        for i in range(out.shape[1]):
+            for a in range(3):
+                step = 0.0 if zero else walk_sigma[a] * (math.sqrt(-2.0 * log_walk[r, i, a]) * cos_walk[r, i, a])
+                b = bias[i, a] + step
+                bias[i, a] = b
+                out[r, i, a] = b + white_sigma[a] * (math.sqrt(-2.0 * log_white[r, i, a]) * cos_white[r, i, a])
 
 
 def ideal_drone_constants(plant: QuadrotorParams, n: int) -> np.ndarray:
@@ -164,6 +190,7 @@ class ErrorTables:
                 self.seed, self.ids[:, None], STREAMS["gnss_bias"], np.arange(3)[None, :]
             )
         self._initial_bias = self._bias.copy()
+        self._scratch: tuple[np.ndarray, np.ndarray] | None = None
         self.wind_field = (
             WindField.dryden(
                 mean_mps=e.wind_mean_mps, direction_rad=e.wind_direction_rad, ref_height_m=e.wind_ref_height_m,
@@ -195,8 +222,15 @@ class ErrorTables:
             out[:, 0:2] += self.step_xy_m  # a step from t = 0 is part of the first fix
         return out
 
-    def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
-        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order)."""
+    def _gnss_scratch(self, epochs: int) -> tuple[np.ndarray, np.ndarray]:
+        """Two ``(2, epochs, N, 3)`` buffers, kept from chunk to chunk (fresh pages cost ~1 ms/MB here)."""
+        if self._scratch is None or self._scratch[0].shape[1] < epochs:
+            shape = (2, epochs, self.ids.size, 3)
+            self._scratch = (np.empty(shape), np.empty(shape))
+        return self._scratch[0][:, :epochs], self._scratch[1][:, :epochs]
+
+    def _gnss_chunk(self, step0: int, count: int) -> tuple[np.ndarray, int]:
+        """``(gnss (E, N, 3), step of gnss[0])`` for steps ``step0 .. step0 + count - 1`` (see :class:`ChunkTables`)."""
         n = self.ids.size
         gnss = np.zeros((0, n, 3))
         first = 0
@@ -210,30 +244,40 @@ class ErrorTables:
                 if epochs[0] != self._bias_epoch + 1:
                     raise ValueError("ErrorTables.chunk: chunks must be asked for in order")
                 e = self.errors
-                counter = epochs[:, None, None] * 3 + np.arange(3)[None, None, :]
-                drone = self.ids[None, :, None]
+                counter = epochs[:, None] * 3 + np.arange(3)[None, :]  # (E, 3): epoch × 3 + axis
+                # Box-Muller's uniforms of both streams, then numpy's log and cosine over both at
+                # once (numpy's own, as hashed_normal: the same bits), then one compiled pass for
+                # the rest: the same operations in the same order as
+                # ``walk·σ_a·z`` cumulated epoch by epoch plus ``noise·σ_a·z'``, without temporaries.
                 walk = e.gnss_bias_walk_m_per_sqrt_s * math.sqrt(ge * self.dt_s)
-                steps = walk * self._axis_sigma * hashed_normal(self.seed, drone, STREAMS["gnss_walk"], counter)
-                steps[epochs == 0] = 0.0  # the bias starts at its initial draw
-                # One epoch after the other (not a cumsum from the chunk's start): the same
-                # additions in the same order whatever the chunking, so the same bits.
-                bias = np.empty_like(steps)
-                current = self._bias
-                for e_row in range(epochs.size):
-                    current = current + steps[e_row]
-                    bias[e_row] = current
-                self._bias = current.copy()
+                walk_sigma, white_sigma = walk * self._axis_sigma, e.gnss_noise_m * self._axis_sigma
+                gnss = np.empty((epochs.size, n, 3))
+                # A few epochs at a time, through buffers that stay in the cache and are kept from
+                # chunk to chunk (a fresh megabyte costs ~1 ms of page faults on this machine).
+                block = max(1, _GNSS_BLOCK_BYTES // (48 * max(n, 1)))
+                for r0 in range(0, epochs.size, block):
+                    rows = slice(r0, min(r0 + block, epochs.size))
+                    log_u, cos_u = self._gnss_scratch(rows.stop - r0)  # (2, B, N, 3) each
+                    uniform_pairs_grid(self.seed, self.ids, STREAMS["gnss_walk"], counter[rows], log_u[0], cos_u[0])
+                    uniform_pairs_grid(self.seed, self.ids, STREAMS["gnss_white"], counter[rows], log_u[1], cos_u[1])
+                    np.log(log_u, out=log_u)
+                    np.multiply(2.0 * math.pi, cos_u, out=cos_u)
+                    np.cos(cos_u, out=cos_u)
+                    # The bias starts at its initial draw: epoch 0 adds a zero step.
+                    _gnss_walk(self._bias, log_u[0], cos_u[0], log_u[1], cos_u[1], walk_sigma, white_sigma,
+                               bool(epochs[r0] == 0), gnss[rows])
                 self._bias_epoch = int(epochs[-1])
-                white = e.gnss_noise_m * self._axis_sigma * hashed_normal(
-                    self.seed, drone, STREAMS["gnss_white"], counter
-                )
-                gnss = bias + white
                 if e.gnss_step_m > 0:  # the injected step, on the epochs inside its window
                     t_epoch = epochs * ge * self.dt_s
                     end = math.inf if e.gnss_step_duration_s is None else e.gnss_step_at_s + e.gnss_step_duration_s
                     on = (t_epoch >= e.gnss_step_at_s - 1e-9) & (t_epoch < end - 1e-9)
                     gnss[on, :, 0:2] += self.step_xy_m[None, :, :]
-                gnss = np.ascontiguousarray(gnss)
+        return gnss, first
+
+    def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
+        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order)."""
+        n = self.ids.size
+        gnss, first = self._gnss_chunk(step0, count)
         wind = np.zeros((0, n, 3))
         k0 = 0
         if self.use_drag:
