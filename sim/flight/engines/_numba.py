@@ -33,10 +33,11 @@ so the work is laid out for the vector units:
   helper, :func:`_ref_at`, at the true time (the flown error is measured against it)
   and at the drone's own clock (what the controller flies when a clock offset is on).
 
-The wind of the quadratic drag is interpolated from tables sampled at each drone's
-*planned* position (:mod:`sim.flight.engines._tables` explains why: centimetres of
-tracking error against a ~150 m correlation length); sampling at the flown position
-would need the turbulence modes' cosines per drone-step inside the kernel.
+The wind of the quadratic drag acts at each drone's *flown* position: it is interpolated
+from tables of the wind and its spatial Jacobian sampled at the *planned* position, plus
+the first-order term of the flown-minus-planned displacement, clamped
+(:mod:`sim.flight.engines._tables`); the exact field would need the turbulence modes'
+cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
 run on a machine pays the compile time (about a minute of CPU).
@@ -113,7 +114,8 @@ from sim.flight.engines._state import (
     RefChunk,
     TrackingReference,
 )
-from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
+from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
+from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables, ideal_drone_constants
 from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
@@ -138,7 +140,9 @@ F_REF = F_ALIVE + 3  # the piece at the true time
 F_REFC = F_REF + REF_SIZE  # the piece at the drone's own clock
 F_GNSS = F_REFC + REF_SIZE  # GNSS measurement error of the current epoch (m)
 F_WA, F_WB = F_GNSS + 3, F_GNSS + 6  # wind at the two grid times around t (m/s)
-F_TEL = F_GNSS + 9  # the TEL_SIZE telemetry values of the last step
+# Its derivatives at the earlier grid time and their change to the later one (1/s; _tables.ChunkTables.wind_grad).
+F_WJ, F_WJD = F_GNSS + 9, F_GNSS + 9 + WIND_GRAD_SIZE
+F_TEL = F_WJD + WIND_GRAD_SIZE  # the TEL_SIZE telemetry values of the last step
 F_TELOK = F_TEL + TEL_SIZE  # 1.0 when the last step computed them (the drone flew it)
 NF = F_TELOK + 1
 
@@ -230,6 +234,14 @@ def _ref_at(sc: np.ndarray, base: int, lane: int, t: float, tf: float, tl: float
 
 
 @nb.njit(inline="always", cache=True)
+def _grad_row(sc: np.ndarray, o: int, fw: float, dx: float, dy: float, dz: float) -> float:
+    """One row of the wind's Jacobian at the scratch index o, interpolated in time (fw), times (dx, dy, dz)."""
+    s = WIND_GRAD_SIZE * LANES  # from a field to its change over the grid interval
+    return ((sc[o] + fw * sc[o + s]) * dx + (sc[o + LANES] + fw * sc[o + LANES + s]) * dy
+            + (sc[o + 2 * LANES] + fw * sc[o + 2 * LANES + s]) * dz)
+
+
+@nb.njit(inline="always", cache=True)
 def _commit(sc: np.ndarray, field: int, lane: int, value: float, ok: bool) -> None:
     """Store ``value`` into the lane's field when ``ok`` (a select: the store itself is unconditional)."""
     idx = field * LANES + lane
@@ -277,7 +289,7 @@ def _seek(sc: np.ndarray, base: int, lane: int, cur: np.ndarray, nxt: np.ndarray
 def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
-    wind_dt, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv,
+    wind_dt, wgrad, wrad, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -381,6 +393,9 @@ def _kernel(
                         for a in range(3):
                             sc[(F_WA + a) * L + lane] = wtab[iw, i, a]
                             sc[(F_WB + a) * L + lane] = wtab[iw + 1, i, a]
+                        for a in range(WIND_GRAD_SIZE):
+                            sc[(F_WJ + a) * L + lane] = wgrad[iw, i, a]
+                            sc[(F_WJD + a) * L + lane] = wgrad[iw + 1, i, a] - wgrad[iw, i, a]
             off0, off1, off2 = offset[j, 0], offset[j, 1], offset[j, 2]
             off3, off4, off5 = offset[j, 3], offset[j, 4], offset[j, 5]
             off6, off7, off8 = offset[j, 6], offset[j, 7], offset[j, 8]
@@ -586,12 +601,22 @@ def _kernel(
                 ax = tpm * zbx + dx0 + drag * (dw0 - vx)
                 ay = tpm * zby + dx1 + drag * (dw1 - vy)
                 az = tpm * zbz + dx2 + drag * (dw2 - vz)
-                if use_drag:  # quadratic drag on the air-relative velocity (wind interpolated on its grid)
+                if use_drag:  # quadratic drag on the air-relative velocity
                     wa0, wa1, wa2 = sc[F_WA * L + lane], sc[(F_WA + 1) * L + lane], sc[(F_WA + 2) * L + lane]
                     wb0, wb1, wb2 = sc[F_WB * L + lane], sc[(F_WB + 1) * L + lane], sc[(F_WB + 2) * L + lane]
-                    rlx = vx - (wa0 + fw * (wb0 - wa0))
-                    rly = vy - (wa1 + fw * (wb1 - wa1))
-                    rlz = vz - (wa2 + fw * (wb2 - wa2))
+                    # The wind at the flown position: the table's (at the plan, linear on its grid) plus
+                    # the first-order terms of the displacement q, clamped (_tables.flown_wind).
+                    dqx, dqy, dqz = min(max(qx, -wrad), wrad), min(max(qy, -wrad), wrad), min(max(qz, -wrad), wrad)
+                    hz = SHEAR_LINEAR_RADIUS_FRACTION * (pz - qz)  # pz - qz: the planned height at t
+                    dsz = min(max(qz, -hz), hz)
+                    oj = F_WJ * L + lane
+                    so = (F_WJ + 9) * L + lane
+                    sj = WIND_GRAD_SIZE * L
+                    rlx = vx - ((wa0 + fw * (wb0 - wa0)) + (_grad_row(sc, oj, fw, dqx, dqy, dqz)
+                                                            + (sc[so] + fw * sc[so + sj]) * dsz))
+                    rly = vy - ((wa1 + fw * (wb1 - wa1)) + (_grad_row(sc, oj + 3 * L, fw, dqx, dqy, dqz)
+                                                            + (sc[so + L] + fw * sc[so + L + sj]) * dsz))
+                    rlz = vz - ((wa2 + fw * (wb2 - wa2)) + _grad_row(sc, oj + 6 * L, fw, dqx, dqy, dqz))
                     dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
                     ax -= dsp * rlx
                     ay -= dsp * rly
@@ -790,13 +815,14 @@ def run_chunk_numba(
     if drone is None:
         drone = ideal_drone_constants(opts["plant"], state.shape[0])
     if tables is None:
-        tables = ChunkTables(gnss=np.zeros((0, state.shape[0], 3)), gnss_every=1, gnss_first=0,
-                             wind=np.zeros((0, state.shape[0], 3)), wind_k0=0, wind_dt_s=1.0)
+        tables = ChunkTables.empty(state.shape[0])
     if (sw.gnss and tables.gnss.shape[0] == 0 and times.size
             and (step0 + times.size - 1) // tables.gnss_every >= -(-step0 // tables.gnss_every)):
         raise ValueError("the GNSS error model needs the chunk's GNSS table")
     if sw.drag and tables.wind.shape[0] < 2:
         raise ValueError("quadratic drag needs the chunk's wind table")
+    if sw.drag and tables.wind_grad.shape != (*tables.wind.shape[:2], WIND_GRAD_SIZE):
+        raise ValueError("the wind's derivative table must match its wind table")
     use_tel = tel is not None
     tel_arr = tel if use_tel else np.zeros((0, 0, TEL_SIZE))
     motion = ref.motion
@@ -810,7 +836,8 @@ def run_chunk_numba(
         _rw(opts["gains"].as_vector(float(opts["dt_s"]))), float(opts["disturbance"].drag_per_s),
         float(opts["dt_s"]), float(opts["divergence_limit_m"]), _rw(drone),
         _rw(tables.gnss), int(tables.gnss_every), int(tables.gnss_first),
-        _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s),
+        _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s), _rw(tables.wind_grad),
+        float(tables.wind_radius_m),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
     )
 
