@@ -273,7 +273,7 @@ class WindField:
         return out
 
     def mean_shear(self, heights_m: np.ndarray) -> np.ndarray:
-        """``(P, 2)`` the mean wind's ``∂U_x/∂z, ∂U_y/∂z`` (1/s) at heights ``(P,)``: ``a U(z) / z``, 0 below the floor."""
+        """``(P, 2)`` the mean wind's ``∂U_x/∂z, ∂U_y/∂z`` (1/s) at heights ``(P,)``: ``a U(z) / z``, 0 below 1 m."""
         z = np.asarray(heights_m, dtype=np.float64).reshape(-1)
         zc = np.maximum(z, WIND_MIN_HEIGHT_M)
         speed = self.mean_mps * (zc / self.ref_height_m) ** self.shear_exponent

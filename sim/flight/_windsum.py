@@ -1,9 +1,10 @@
 """The turbulence field's Fourier-mode sum, compiled and vectorised: the error models' wind at 1,000s of drones.
 
-The wind tables of :mod:`sim.flight.engines._tables` hold the wind at every drone's
-reference position on a 10 Hz grid, evaluated per run (the field is seeded per run): for a
-1,000-drone, 10-minute show that is 6e6 points times M = 128 modes, 7.7e8 cosines per run,
-11 % of a Monte-Carlo run with numpy (issue 20). Here the modes are summed in a loop over
+The wind tables of :mod:`sim.flight.engines._tables` hold the wind and its spatial Jacobian
+(:func:`turbulence_sum_and_jacobian`: a sine and nine multiply-adds more per mode, 2.7x the
+time of the wind alone) at every drone's planned position on a 10 Hz grid, evaluated per run
+(the field is seeded per run): for a 1,000-drone, 10-minute show that is 6e6 points times
+M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here the modes are summed in a loop over
 points that LLVM vectorises (a polynomial cosine instead of a libm call, which would keep the
 loop scalar), in blocks of points that stay in the L1 cache. One thread: on this 2-core
 machine, shared with the kernel's threads, a parallel region cost ~50 ms per call to start
@@ -11,7 +12,8 @@ machine, shared with the kernel's threads, a parallel region cost ~50 ms per cal
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
-differs from libm's by ~1e-14 absolute, far below anything the flight resolves. The order
+differs from libm's by ~1e-14 absolute, far below anything the flight resolves (the sine,
+for the Jacobian, likewise from the same reduced argument to ``r²⁵``). The order
 of the additions per point is fixed (mode by mode), so a point's value does not depend on
 the other points, or the block it falls in.
 """
@@ -117,7 +119,10 @@ def turbulence_sum_and_jacobian(
         o0 = out[p0:p1, 0].copy()
         o1 = out[p0:p1, 1].copy()
         o2 = out[p0:p1, 2].copy()
-        jb = np.ascontiguousarray(jac[p0:p1].T)  # (9, B): each entry contiguous over the block's points
+        # One contiguous array per entry: the vectoriser needs to see that the nine do not alias.
+        j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
+        j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
+        j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
         for m in range(k.shape[0]):
             kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
             a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
@@ -128,16 +133,17 @@ def turbulence_sum_and_jacobian(
                 o1[q] += a1 * c
                 o2[q] += a2 * c
                 s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
-                jb[0, q] += s0 * kx
-                jb[1, q] += s0 * ky
-                jb[2, q] += s0 * kz
-                jb[3, q] += s1 * kx
-                jb[4, q] += s1 * ky
-                jb[5, q] += s1 * kz
-                jb[6, q] += s2 * kx
-                jb[7, q] += s2 * ky
-                jb[8, q] += s2 * kz
+                j0[q] += s0 * kx
+                j1[q] += s0 * ky
+                j2[q] += s0 * kz
+                j3[q] += s1 * kx
+                j4[q] += s1 * ky
+                j5[q] += s1 * kz
+                j6[q] += s2 * kx
+                j7[q] += s2 * ky
+                j8[q] += s2 * kz
         out[p0:p1, 0] = o0
         out[p0:p1, 1] = o1
         out[p0:p1, 2] = o2
-        jac[p0:p1] = jb.T
+        for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
+            jac[p0:p1, e] = col

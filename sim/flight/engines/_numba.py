@@ -74,6 +74,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
@@ -114,7 +115,6 @@ from sim.flight.engines._state import (
     RefChunk,
     TrackingReference,
 )
-from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
 from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables, ideal_drone_constants
 from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
 
@@ -237,8 +237,9 @@ def _ref_at(sc: np.ndarray, base: int, lane: int, t: float, tf: float, tl: float
 def _grad_row(sc: np.ndarray, o: int, fw: float, dx: float, dy: float, dz: float) -> float:
     """One row of the wind's Jacobian at the scratch index o, interpolated in time (fw), times (dx, dy, dz)."""
     s = WIND_GRAD_SIZE * LANES  # from a field to its change over the grid interval
-    return ((sc[o] + fw * sc[o + s]) * dx + (sc[o + LANES] + fw * sc[o + LANES + s]) * dy
-            + (sc[o + 2 * LANES] + fw * sc[o + 2 * LANES + s]) * dz)
+    out: float = ((sc[o] + fw * sc[o + s]) * dx + (sc[o + LANES] + fw * sc[o + LANES + s]) * dy
+                  + (sc[o + 2 * LANES] + fw * sc[o + 2 * LANES + s]) * dz)
+    return out
 
 
 @nb.njit(inline="always", cache=True)
