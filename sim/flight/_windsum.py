@@ -1,14 +1,15 @@
 """The turbulence field's Fourier-mode sum, compiled and vectorised: the error models' wind at 1,000s of drones.
 
 The wind tables of :mod:`sim.flight.engines._tables` hold the wind and its spatial Jacobian
-(:func:`turbulence_sum_and_jacobian`: a sine and nine multiply-adds more per mode, 2.7x the
+(:func:`turbulence_sum_and_jacobian`: a sine and nine multiply-adds more per mode, 2-2.7x the
 time of the wind alone) at every drone's planned position on a 10 Hz grid, evaluated per run
 (the field is seeded per run): for a 1,000-drone, 10-minute show that is 6e6 points times
-M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here the modes are summed in a loop over
-points that LLVM vectorises (a polynomial cosine instead of a libm call, which would keep the
-loop scalar), in blocks of points that stay in the L1 cache. One thread: on this 2-core
-machine, shared with the kernel's threads, a parallel region cost ~50 ms per call to start
-(55 ms for 1,050 points against 1.2 ms in one thread, measured at a load of 16).
+M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here
+the modes are summed in a loop over points that LLVM vectorises (a polynomial cosine instead
+of a libm call, which would keep the loop scalar), in blocks of points that stay in the L1
+cache. One thread: on this 2-core machine, shared with the kernel's threads, a parallel
+region cost ~50 ms per call to start (55 ms for 1,050 points against 1.2 ms in one thread,
+measured at a load of 16).
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result

@@ -140,9 +140,9 @@ F_REF = F_ALIVE + 3  # the piece at the true time
 F_REFC = F_REF + REF_SIZE  # the piece at the drone's own clock
 F_GNSS = F_REFC + REF_SIZE  # GNSS measurement error of the current epoch (m)
 F_WA, F_WB = F_GNSS + 3, F_GNSS + 6  # wind at the two grid times around t (m/s)
-# Its derivatives at the earlier grid time and their change to the later one (1/s; _tables.ChunkTables.wind_grad).
-F_WJ, F_WJD = F_GNSS + 9, F_GNSS + 9 + WIND_GRAD_SIZE
-F_TEL = F_WJD + WIND_GRAD_SIZE  # the TEL_SIZE telemetry values of the last step
+# Its derivatives over the grid interval: the mean of the two grid times' (1/s; _tables.ChunkTables.wind_grad).
+F_WJ = F_GNSS + 9
+F_TEL = F_WJ + WIND_GRAD_SIZE  # the TEL_SIZE telemetry values of the last step
 F_TELOK = F_TEL + TEL_SIZE  # 1.0 when the last step computed them (the drone flew it)
 NF = F_TELOK + 1
 
@@ -231,15 +231,6 @@ def _ref_at(sc: np.ndarray, base: int, lane: int, t: float, tf: float, tl: float
     py, vy, ay = _axis_at(sc, (base + 14) * LANES + lane, u, inside)
     pz, vz, az = _axis_at(sc, (base + 27) * LANES + lane, u, inside)
     return px, py, pz, vx, vy, vz, ax, ay, az
-
-
-@nb.njit(inline="always", cache=True)
-def _grad_row(sc: np.ndarray, o: int, fw: float, dx: float, dy: float, dz: float) -> float:
-    """One row of the wind's Jacobian at the scratch index o, interpolated in time (fw), times (dx, dy, dz)."""
-    s = WIND_GRAD_SIZE * LANES  # from a field to its change over the grid interval
-    out: float = ((sc[o] + fw * sc[o + s]) * dx + (sc[o + LANES] + fw * sc[o + LANES + s]) * dy
-                  + (sc[o + 2 * LANES] + fw * sc[o + 2 * LANES + s]) * dz)
-    return out
 
 
 @nb.njit(inline="always", cache=True)
@@ -395,8 +386,7 @@ def _kernel(
                             sc[(F_WA + a) * L + lane] = wtab[iw, i, a]
                             sc[(F_WB + a) * L + lane] = wtab[iw + 1, i, a]
                         for a in range(WIND_GRAD_SIZE):
-                            sc[(F_WJ + a) * L + lane] = wgrad[iw, i, a]
-                            sc[(F_WJD + a) * L + lane] = wgrad[iw + 1, i, a] - wgrad[iw, i, a]
+                            sc[(F_WJ + a) * L + lane] = 0.5 * (wgrad[iw, i, a] + wgrad[iw + 1, i, a])
             off0, off1, off2 = offset[j, 0], offset[j, 1], offset[j, 2]
             off3, off4, off5 = offset[j, 3], offset[j, 4], offset[j, 5]
             off6, off7, off8 = offset[j, 6], offset[j, 7], offset[j, 8]
@@ -611,13 +601,12 @@ def _kernel(
                     hz = SHEAR_LINEAR_RADIUS_FRACTION * (pz - qz)  # pz - qz: the planned height at t
                     dsz = min(max(qz, -hz), hz)
                     oj = F_WJ * L + lane
-                    so = (F_WJ + 9) * L + lane
-                    sj = WIND_GRAD_SIZE * L
-                    rlx = vx - ((wa0 + fw * (wb0 - wa0)) + (_grad_row(sc, oj, fw, dqx, dqy, dqz)
-                                                            + (sc[so] + fw * sc[so + sj]) * dsz))
-                    rly = vy - ((wa1 + fw * (wb1 - wa1)) + (_grad_row(sc, oj + 3 * L, fw, dqx, dqy, dqz)
-                                                            + (sc[so + L] + fw * sc[so + L + sj]) * dsz))
-                    rlz = vz - ((wa2 + fw * (wb2 - wa2)) + _grad_row(sc, oj + 6 * L, fw, dqx, dqy, dqz))
+                    jx = (sc[oj] * dqx + sc[oj + L] * dqy + sc[oj + 2 * L] * dqz) + sc[oj + 9 * L] * dsz
+                    jy = (sc[oj + 3 * L] * dqx + sc[oj + 4 * L] * dqy + sc[oj + 5 * L] * dqz) + sc[oj + 10 * L] * dsz
+                    jz = sc[oj + 6 * L] * dqx + sc[oj + 7 * L] * dqy + sc[oj + 8 * L] * dqz
+                    rlx = vx - ((wa0 + fw * (wb0 - wa0)) + jx)
+                    rly = vy - ((wa1 + fw * (wb1 - wa1)) + jy)
+                    rlz = vz - ((wa2 + fw * (wb2 - wa2)) + jz)
                     dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
                     ax -= dsp * rlx
                     ay -= dsp * rly
