@@ -53,8 +53,12 @@ def test_jacobian_matches_central_differences_of_the_exact_field():
     assert scale > 0.1  # the gradients are not trivially zero
     np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-6)
     # The value computed with it is the value of velocity(), bit for bit.
-    vel, _, _ = f.velocity_and_gradients(pts, t)
+    vel, jac_t, shear = f.velocity_and_gradients(pts, t)
     np.testing.assert_array_equal(vel, f.velocity(pts, t))
+    # A point's values do not depend on the points evaluated with it (a shard's tables equal the fleet's).
+    one = f.velocity_and_gradients(pts[17:18], t[17:18])
+    for a, b in zip(one, (vel[17:18], jac_t[17:18], shear[17:18]), strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_mean_shear_is_the_derivative_of_the_power_law():
