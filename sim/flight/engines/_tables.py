@@ -10,7 +10,8 @@
   each GNSS epoch of the chunk (the bias walk carried across chunks; its increments
   and the white noise are keyed by the epoch's global index, so chunking does not
   change them), and the wind *and its spatial derivatives* at each drone's planned
-  position on a global 10 Hz grid, which the engines interpolate linearly in time.
+  position on a global 10 Hz grid (the engines interpolate the wind linearly in time and
+  hold the derivatives over each grid interval, below).
 
 The wind acts at the *flown* position ``p``: the engines expand the field to first order
 about the planned position ``p_r`` (:func:`flown_wind`),
@@ -24,10 +25,11 @@ tracking errors of normal flight (the error falls with the square of the displac
 for a drone blown far off the clamps stop the extrapolation, and the sheared mean wind of
 where it actually is (10 m lower: the lower wind) keeps acting up to half its height. The
 exact field at the flown position would need the M = 128 modes' cosines per drone-step
-inside the kernel (~100x the kernel's arithmetic). The expansion costs 11 multiply-adds and
+inside the kernel (~3,000 flops, about 7x the kernel's whole step). The expansion costs 11 multiply-adds and
 8 min/max per drone-step: the wind is linear in time on its grid, but its 11 derivatives are
-held over each 0.1 s interval at the mean of its two ends. Interpolating them too cost twice
-as much in the kernel (measured: 0.82-0.87 against 0.93 of the plan-position kernel's speed) for
+held over each 0.1 s interval at the mean of its two ends. Interpolating them too cost more
+in the kernel (speed against the plan-position kernel, four alternating runs on the shared
+2-core machine: 0.82-0.99 interpolated, 0.93-1.05 held, i.e. within the ±5 % noise) for
 little: a drone 1 m off (the clamp) and 8 m/s through a 7.7 m/s field, the held derivatives'
 error is 12.6 % RMS of the first-order term (2.5 % interpolated), while the wind's own linear
 interpolation in time errs by 4.6 % of that term whatever the displacement; the held error
