@@ -1,17 +1,20 @@
 """The turbulence field's Fourier-mode sum, compiled and vectorised: the error models' wind at 1,000s of drones.
 
-The wind tables of :mod:`sim.flight.engines._tables` hold the wind at every drone's
-reference position on a 10 Hz grid, evaluated per run (the field is seeded per run): for a
-1,000-drone, 10-minute show that is 6e6 points times M = 128 modes, 7.7e8 cosines per run,
-11 % of a Monte-Carlo run with numpy (issue 20). Here the modes are summed in a loop over
-points that LLVM vectorises (a polynomial cosine instead of a libm call, which would keep the
-loop scalar), in blocks of points that stay in the L1 cache. One thread: on this 2-core
-machine, shared with the kernel's threads, a parallel region cost ~50 ms per call to start
-(55 ms for 1,050 points against 1.2 ms in one thread, measured at a load of 16).
+The wind tables of :mod:`sim.flight.engines._tables` hold the wind and its spatial Jacobian
+(:func:`turbulence_sum_and_jacobian`: a sine and nine multiply-adds more per mode, 2-2.7x the
+time of the wind alone) at every drone's planned position on a 10 Hz grid, evaluated per run
+(the field is seeded per run): for a 1,000-drone, 10-minute show that is 6e6 points times
+M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here
+the modes are summed in a loop over points that LLVM vectorises (a polynomial cosine instead
+of a libm call, which would keep the loop scalar), in blocks of points that stay in the L1
+cache. One thread: on this 2-core machine, shared with the kernel's threads, a parallel
+region cost ~50 ms per call to start (55 ms for 1,050 points against 1.2 ms in one thread,
+measured at a load of 16).
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
-differs from libm's by ~1e-14 absolute, far below anything the flight resolves. The order
+differs from libm's by ~1e-14 absolute, far below anything the flight resolves (the sine,
+for the Jacobian, likewise from the same reduced argument to ``r²⁵``). The order
 of the additions per point is fixed (mode by mode), so a point's value does not depend on
 the other points, or the block it falls in.
 """
@@ -23,12 +26,14 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["turbulence_sum"]
+__all__ = ["turbulence_sum", "turbulence_sum_and_jacobian"]
 
 _TWO_PI = 2.0 * math.pi
 _INV_TWO_PI = 1.0 / _TWO_PI
 # Taylor coefficients of cos in r²: (-1)^k / (2k)!, k = 12 .. 0 (Horner order).
 _COS_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(12, -1, -1))
+# and of sin r / r in r²: (-1)^k / (2k+1)!, k = 12 .. 0 (truncation π²⁷/27! = 3e-15).
+_SIN_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(12, -1, -1))
 _BLOCK = 1024
 
 
@@ -39,6 +44,20 @@ def _cos(a: float) -> float:  # pragma: no cover - compiled
     c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12 = _COS_COEFFS
     return ((((((((((((c0 * r2 + c1) * r2 + c2) * r2 + c3) * r2 + c4) * r2 + c5) * r2 + c6) * r2 + c7) * r2
                    + c8) * r2 + c9) * r2 + c10) * r2 + c11) * r2 + c12)
+
+
+@numba.njit(inline="always", cache=True)
+def _cos_sin(a: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """``(cos a, sin a)`` from one argument reduction (the cosine's bits are those of ``_cos``)."""
+    r = a - _TWO_PI * float(np.floor(a * _INV_TWO_PI + 0.5))
+    r2 = r * r
+    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12 = _COS_COEFFS
+    c = ((((((((((((c0 * r2 + c1) * r2 + c2) * r2 + c3) * r2 + c4) * r2 + c5) * r2 + c6) * r2 + c7) * r2
+                + c8) * r2 + c9) * r2 + c10) * r2 + c11) * r2 + c12)
+    s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11, s12 = _SIN_COEFFS
+    s = r * ((((((((((((s0 * r2 + s1) * r2 + s2) * r2 + s3) * r2 + s4) * r2 + s5) * r2 + s6) * r2 + s7) * r2
+                     + s8) * r2 + s9) * r2 + s10) * r2 + s11) * r2 + s12)
+    return c, s
 
 
 @numba.njit(cache=True, nogil=True)
@@ -76,3 +95,56 @@ def turbulence_sum(
         out[p0:p1, 0] = o0
         out[p0:p1, 1] = o1
         out[p0:p1, 2] = o2
+
+
+@numba.njit(cache=True, nogil=True)
+def turbulence_sum_and_jacobian(
+    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
+    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
+
+    The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
+    so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
+    from the same argument as the value (one reduction for both).
+
+    Args:
+        out: ``(P, 3)`` wind (m/s), added to.
+        jac: ``(P, 9)`` Jacobian (1/s), added to.
+        x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
+    """
+    n = x.shape[0]
+    for b in range((n + _BLOCK - 1) // _BLOCK):
+        p0 = b * _BLOCK
+        p1 = min(p0 + _BLOCK, n)
+        o0 = out[p0:p1, 0].copy()
+        o1 = out[p0:p1, 1].copy()
+        o2 = out[p0:p1, 2].copy()
+        # One contiguous array per entry: the vectoriser needs to see that the nine do not alias.
+        j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
+        j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
+        j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
+        for m in range(k.shape[0]):
+            kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
+            a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
+            for q in range(p1 - p0):
+                p = p0 + q
+                c, s = _cos_sin(kx * x[p] + ky * y[p] + kz * z[p] + w * t[p] + ph)
+                o0[q] += a0 * c
+                o1[q] += a1 * c
+                o2[q] += a2 * c
+                s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                j0[q] += s0 * kx
+                j1[q] += s0 * ky
+                j2[q] += s0 * kz
+                j3[q] += s1 * kx
+                j4[q] += s1 * ky
+                j5[q] += s1 * kz
+                j6[q] += s2 * kx
+                j7[q] += s2 * ky
+                j8[q] += s2 * kz
+        out[p0:p1, 0] = o0
+        out[p0:p1, 1] = o1
+        out[p0:p1, 2] = o2
+        for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
+            jac[p0:p1, e] = col

@@ -33,10 +33,11 @@ so the work is laid out for the vector units:
   helper, :func:`_ref_at`, at the true time (the flown error is measured against it)
   and at the drone's own clock (what the controller flies when a clock offset is on).
 
-The wind of the quadratic drag is interpolated from tables sampled at each drone's
-*planned* position (:mod:`sim.flight.engines._tables` explains why: centimetres of
-tracking error against a ~150 m correlation length); sampling at the flown position
-would need the turbulence modes' cosines per drone-step inside the kernel.
+The wind of the quadratic drag acts at each drone's *flown* position: it is interpolated
+from tables of the wind and its spatial Jacobian sampled at the *planned* position, plus
+the first-order term of the flown-minus-planned displacement, clamped
+(:mod:`sim.flight.engines._tables`); the exact field would need the turbulence modes'
+cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
 run on a machine pays the compile time (about a minute of CPU).
@@ -73,6 +74,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
@@ -120,7 +122,7 @@ from sim.flight.engines._state import (
     RefChunk,
     TrackingReference,
 )
-from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
+from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables, ideal_drone_constants
 from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
@@ -145,7 +147,9 @@ F_REF = F_ALIVE + 3  # the piece at the true time
 F_REFC = F_REF + REF_SIZE  # the piece at the drone's own clock
 F_GNSS = F_REFC + REF_SIZE  # GNSS measurement error of the current epoch (m)
 F_WA, F_WB = F_GNSS + 3, F_GNSS + 6  # wind at the two grid times around t (m/s)
-F_TEL = F_GNSS + 9  # the TEL_SIZE telemetry values of the last step
+# Its derivatives over the grid interval: the mean of the two grid times' (1/s; _tables.ChunkTables.wind_grad).
+F_WJ = F_GNSS + 9
+F_TEL = F_WJ + WIND_GRAD_SIZE  # the TEL_SIZE telemetry values of the last step
 F_TELOK = F_TEL + TEL_SIZE  # 1.0 when the last step computed them (the drone flew it)
 NF = F_TELOK + 1
 
@@ -284,7 +288,7 @@ def _seek(sc: np.ndarray, base: int, lane: int, cur: np.ndarray, nxt: np.ndarray
 def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
-    wind_dt, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
+    wind_dt, wgrad, wrad, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -388,6 +392,8 @@ def _kernel(
                         for a in range(3):
                             sc[(F_WA + a) * L + lane] = wtab[iw, i, a]
                             sc[(F_WB + a) * L + lane] = wtab[iw + 1, i, a]
+                        for a in range(WIND_GRAD_SIZE):
+                            sc[(F_WJ + a) * L + lane] = 0.5 * (wgrad[iw, i, a] + wgrad[iw + 1, i, a])
             off0, off1, off2 = offset[j, 0], offset[j, 1], offset[j, 2]
             off3, off4, off5 = offset[j, 3], offset[j, 4], offset[j, 5]
             off6, off7, off8 = offset[j, 6], offset[j, 7], offset[j, 8]
@@ -622,12 +628,21 @@ def _kernel(
                 ax = tpm * zbx + dx0 + drag * (dw0 - vx)
                 ay = tpm * zby + dx1 + drag * (dw1 - vy)
                 az = tpm * zbz + dx2 + drag * (dw2 - vz)
-                if use_drag:  # quadratic drag on the air-relative velocity (wind interpolated on its grid)
+                if use_drag:  # quadratic drag on the air-relative velocity
                     wa0, wa1, wa2 = sc[F_WA * L + lane], sc[(F_WA + 1) * L + lane], sc[(F_WA + 2) * L + lane]
                     wb0, wb1, wb2 = sc[F_WB * L + lane], sc[(F_WB + 1) * L + lane], sc[(F_WB + 2) * L + lane]
-                    rlx = vx - (wa0 + fw * (wb0 - wa0))
-                    rly = vy - (wa1 + fw * (wb1 - wa1))
-                    rlz = vz - (wa2 + fw * (wb2 - wa2))
+                    # The wind at the flown position: the table's (at the plan, linear on its grid) plus
+                    # the first-order terms of the displacement q, clamped (_tables.flown_wind).
+                    dqx, dqy, dqz = min(max(qx, -wrad), wrad), min(max(qy, -wrad), wrad), min(max(qz, -wrad), wrad)
+                    hz = SHEAR_LINEAR_RADIUS_FRACTION * (pz - qz)  # pz - qz: the planned height at t
+                    dsz = min(max(qz, -hz), hz)
+                    oj = F_WJ * L + lane
+                    jx = (sc[oj] * dqx + sc[oj + L] * dqy + sc[oj + 2 * L] * dqz) + sc[oj + 9 * L] * dsz
+                    jy = (sc[oj + 3 * L] * dqx + sc[oj + 4 * L] * dqy + sc[oj + 5 * L] * dqz) + sc[oj + 10 * L] * dsz
+                    jz = sc[oj + 6 * L] * dqx + sc[oj + 7 * L] * dqy + sc[oj + 8 * L] * dqz
+                    rlx = vx - ((wa0 + fw * (wb0 - wa0)) + jx)
+                    rly = vy - ((wa1 + fw * (wb1 - wa1)) + jy)
+                    rlz = vz - ((wa2 + fw * (wb2 - wa2)) + jz)
                     dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
                     ax -= dsp * rlx
                     ay -= dsp * rly
@@ -832,13 +847,14 @@ def run_chunk_numba(
     if drone is None:
         drone = ideal_drone_constants(opts["plant"], state.shape[0])
     if tables is None:
-        tables = ChunkTables(gnss=np.zeros((0, state.shape[0], 3)), gnss_every=1, gnss_first=0,
-                             wind=np.zeros((0, state.shape[0], 3)), wind_k0=0, wind_dt_s=1.0)
+        tables = ChunkTables.empty(state.shape[0])
     if (sw.gnss and tables.gnss.shape[0] == 0 and times.size
             and (step0 + times.size - 1) // tables.gnss_every >= -(-step0 // tables.gnss_every)):
         raise ValueError("the GNSS error model needs the chunk's GNSS table")
     if sw.drag and tables.wind.shape[0] < 2:
         raise ValueError("quadratic drag needs the chunk's wind table")
+    if sw.drag and tables.wind_grad.shape != (*tables.wind.shape[:2], WIND_GRAD_SIZE):
+        raise ValueError("the wind's derivative table must match its wind table")
     use_tel = tel is not None
     tel_arr = tel if use_tel else np.zeros((0, 0, TEL_SIZE))
     motion = ref.motion
@@ -852,7 +868,8 @@ def run_chunk_numba(
         _rw(opts["gains"].as_vector(float(opts["dt_s"]))), float(opts["disturbance"].drag_per_s),
         float(opts["dt_s"]), float(opts["divergence_limit_m"]), _rw(drone),
         _rw(tables.gnss), int(tables.gnss_every), int(tables.gnss_first),
-        _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s),
+        _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s), _rw(tables.wind_grad),
+        float(tables.wind_radius_m),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
     )

@@ -98,7 +98,7 @@ from sim.flight.engines._state import STATS_SIZE as STATS_SIZE
 from sim.flight.engines._state import TELEMETRY_FIELDS as TELEMETRY_FIELDS
 from sim.flight.engines._state import SimResult as SimResult
 from sim.flight.engines._state import hover_state as hover_state
-from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
+from sim.flight.engines._tables import ChunkTables, flown_wind, ideal_drone_constants
 
 __all__ = ["init_controller", "numpy_step", "run_chunk_numpy"]
 
@@ -161,7 +161,7 @@ def numpy_step(
         integrator: ``"euler"`` (semi-implicit, the engines' default) or ``"rk4"``.
         drone: ``(N, D_SIZE)`` per-drone constants of the error models (default: ideal ``plant``).
         gnss: ``(N, 3)`` GNSS measurement error (m) when this step is a GNSS epoch, else None.
-        wind: ``(N, 3)`` wind at the drones (m/s) for the quadratic drag, or None.
+        wind: ``(N, 3)`` wind at the drones' flown positions (m/s) for the quadratic drag, or None.
         errors: Which error-model parts are on (default: none).
 
     Returns:
@@ -360,11 +360,10 @@ def run_chunk_numpy(
         if sw.gnss and tables is not None and k % tables.gnss_every == 0:
             gnss = tables.gnss[(k - tables.gnss_first) // tables.gnss_every]
         wind = None
-        if sw.drag and tables is not None:
-            x = times[j] / tables.wind_dt_s
-            i0 = min(max(int(np.floor(x)) - tables.wind_k0, 0), tables.wind.shape[0] - 2)
-            fr = x - (tables.wind_k0 + i0)
-            wind = tables.wind[i0] + fr * (tables.wind[i0 + 1] - tables.wind[i0])
+        if sw.drag and tables is not None:  # the wind at the flown position, to first order about the plan's
+            w_plan, w_grad = tables.wind_at(float(times[j]))
+            with np.errstate(all="ignore"):
+                wind = flown_wind(w_plan, w_grad, state[:, 0:3] - pr, pr[:, 2], tables.wind_radius_m)
         with np.errstate(all="ignore"):
             err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
         runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
