@@ -114,7 +114,7 @@ from sim.flight.engines._state import (
     TrackingReference,
 )
 from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
-from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
+from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vrsqrt, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
 
@@ -144,44 +144,53 @@ NF = F_TELOK + 1
 
 
 @nb.njit(inline="always", cache=True)
-def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
-    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (``sim.flight.control._ismc.sig``), as selects."""
-    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    pos = n > 0.0
-    nn = n if pos else 1.0
-    gen = vpow(nn, r - 1.0)
-    out = 1.0 / math.sqrt(nn) if r == 0.5 else gen
-    out = 1.0 if r == 1.0 else out
+def _sig_scale(x0: float, x1: float, x2: float, h: float) -> float:
+    """Factor ``||x||^(r-1)`` of ``sig(x, r)`` as ``(x·x)^h``, ``h = (r-1)/2``; 0 at x = 0, as selects.
+
+    One ``exp(h log(x·x))`` serves every exponent: no square root for the norm and no
+    separate ``1/sqrt`` path for r = 1/2 (the numpy reference's special cases agree to a
+    few ulp; r = 1 gives h = 0 and exactly 1). The divider unit, shared by every division
+    and square root, is what the lane loop waits on most, so this saves two square roots and
+    a division per call (``sim.flight.control._ismc.sig``).
+    """
+    q = x0 * x0 + x1 * x1 + x2 * x2
+    pos = q > 0.0
+    out = vexp(h * vlog(q if pos else 1.0))
     return out if pos else 0.0
 
 
 @nb.njit(inline="always", cache=True)
 def _unit_scale(x0: float, x1: float, x2: float, eps: float) -> float:
-    """Factor ``1/max(||x||, eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``), as a select."""
-    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    inv = 1.0 / max(n, eps)
-    return inv if n > 0.0 else 0.0
+    """Factor ``1/max(||x||, eps)`` = ``min(rsqrt(x·x), 1/eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``).
+
+    ``vrsqrt`` instead of a square root and a division (the divider is the lane loop's
+    bottleneck; ``1/eps`` is loop-invariant and hoisted; eps = 0 gives inf, the pure direction).
+    """
+    q = x0 * x0 + x1 * x1 + x2 * x2
+    pos = q > 0.0
+    inv = min(vrsqrt(q if pos else 1.0), 1.0 / eps)
+    return inv if pos else 0.0
 
 
 @nb.njit(inline="always", cache=True)
 def _ismc_law(
     ex: float, ey: float, ez: float, edx: float, edy: float, edz: float, fx: float, fy: float, fz: float,
-    ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
+    ka: float, kb: float, ha: float, hb: float, e0x: float, e0y: float, e0z: float,
     ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float, eps: float,
     eps_q: float,
 ) -> tuple[float, ...]:
     """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim.flight.control._ismc``.
 
-    Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
-    r_a, r_b of the nominal law, ė at the start, the integral of the nominal closed loop, the
-    previous step's sliding variable, the switching gain and the switching law's boundary layers
-    (on s and on s - s_prev).
+    Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b of the
+    nominal law and its powers as h = (r - 1)/2 (see ``_sig_scale``), ė at the start, the
+    integral of the nominal closed loop, the previous step's sliding variable, the switching
+    gain and the switching law's boundary layers (on s and on s - s_prev).
 
     Returns:
         (u_n x, y, z: nominal control; s x, y, z: sliding variable; w x, y, z: rate of u_d).
     """
-    sa = _sig_scale(ex, ey, ez, ra)
-    sb = _sig_scale(edx, edy, edz, rb)
+    sa = _sig_scale(ex, ey, ez, ha)
+    sb = _sig_scale(edx, edy, edz, hb)
     unx = -ka * (ex * sa) - kb * (edx * sb) - fx
     uny = -ka * (ey * sa) - kb * (edy * sb) - fy
     unz = -ka * (ez * sa) - kb * (edz * sb) - fz
@@ -290,11 +299,14 @@ def _kernel(
     arm, kf, km, pg, wmax2 = plt[4], plt[5], plt[6], plt[7], plt[8]
     k1, k2, r1, r2, alpha = gn[0], gn[1], gn[2], gn[3], gn[4]
     k3, k4, r3, r4, beta_g = gn[5], gn[6], gn[7], gn[8], gn[9]
+    # The laws' powers as the exponents of x·x (``_sig_scale``).
+    h1, h2, h3, h4 = 0.5 * (r1 - 1.0), 0.5 * (r2 - 1.0), 0.5 * (r3 - 1.0), 0.5 * (r4 - 1.0)
     wn, zeta = gn[10], gn[11]
     eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17], gn[18]
     uz_min, tan_tilt = gn[19], gn[20]
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
+    inv_2akf, inv_4km = 1.0 / (2.0 * arm * kf), 1.0 / (4.0 * km)
     n_wind = wtab.shape[0]
     blocks = (n + LANES - 1) // LANES
     L = LANES
@@ -445,7 +457,7 @@ def _kernel(
                 e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
                 fx, fy, fz = -arx, -ary, -arz - g
                 unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
-                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, r1, r2,
+                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, h1, h2,
                     sc[(F_CTRL + C_E2_0) * L + lane], sc[(F_CTRL + C_E2_0 + 1) * L + lane],
                     sc[(F_CTRL + C_E2_0 + 2) * L + lane],
                     sc[(F_CTRL + C_IPOS) * L + lane], sc[(F_CTRL + C_IPOS + 1) * L + lane],
@@ -463,9 +475,13 @@ def _kernel(
                 wux, wuy, wuz = ux, uy, uz
                 floor_hit = uz < uz_min
                 uz = uz_min if floor_hit else uz
-                hxy = math.sqrt(ux * ux + uy * uy)
-                tilt_hit = hxy > uz * tan_tilt
-                tsc = uz * tan_tilt / hxy
+                # ||u_xy|| > u_z tan(tilt) compared squared where the bound is >= 0 (the paper's
+                # gains have no floor: a negative bound is always hit, as in the reference), and
+                # the scale by rsqrt: no square root or division (the divider is the bottleneck).
+                hxy2 = ux * ux + uy * uy
+                lim_xy = uz * tan_tilt
+                tilt_hit = (lim_xy < 0.0) | (hxy2 > lim_xy * lim_xy)
+                tsc = lim_xy * vrsqrt(hxy2 if tilt_hit else 1.0)
                 ux = ux * tsc if tilt_hit else ux
                 uy = uy * tsc if tilt_hit else uy
                 limited = floor_hit | tilt_hit
@@ -483,8 +499,8 @@ def _kernel(
                 thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
 
                 # ---- attitude resolution (spec 5) and command filter
-                un = math.sqrt(ux * ux + uy * uy + uz * uz)
-                ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
+                un2 = ux * ux + uy * uy + uz * uz
+                ratio = (ux * ysin - uy * ycos) * vrsqrt(un2 if un2 > 0.0 else 1.0) if un2 > 0.0 else 0.0
                 ratio = min(max(ratio, -1.0), 1.0)
                 rph = vasin(ratio)
                 rth = vatan2(ux * ycos + uy * ysin, uz)
@@ -524,7 +540,7 @@ def _kernel(
                 fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
                 faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
                 unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
-                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, r3, r4,
+                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, h3, h4,
                     sc[(F_CTRL + C_E4_0) * L + lane], sc[(F_CTRL + C_E4_0 + 1) * L + lane],
                     sc[(F_CTRL + C_E4_0 + 2) * L + lane],
                     sc[(F_CTRL + C_IATT) * L + lane], sc[(F_CTRL + C_IATT + 1) * L + lane],
@@ -544,12 +560,13 @@ def _kernel(
                 tcz = iz * (-sph * uay + cph * cth * uaz)
 
                 # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
-                # Divisions kept here: the same rounding as the reference mixer is what makes the
-                # hover thrust come back as exactly m·g (hover is held bit-exactly).
+                # The thrust share is divided, as in the reference mixer: that rounding is what
+                # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
+                # The torque shares (0 in hover) multiply by hoisted reciprocals.
                 base = thrust_cmd / (4.0 * kf)
-                roll = tcx / (2.0 * arm * kf)
-                pitch = tcy / (2.0 * arm * kf)
-                yw = tcz / (4.0 * km)
+                roll = tcx * inv_2akf
+                pitch = tcy * inv_2akf
+                yw = tcz * inv_4km
                 o1 = base - pitch + yw
                 o2 = base + roll - yw
                 o3 = base + pitch + yw
