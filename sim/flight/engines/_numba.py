@@ -166,10 +166,9 @@ def _unit_scale(x0: float, x1: float, x2: float, eps: float) -> float:
     ``vrsqrt`` instead of a square root and a division (the divider is the lane loop's
     bottleneck; ``1/eps`` is loop-invariant and hoisted; eps = 0 gives inf, the pure direction).
     """
-    q = x0 * x0 + x1 * x1 + x2 * x2
-    pos = q > 0.0
-    inv = min(vrsqrt(q if pos else 1.0), 1.0 / eps)
-    return inv if pos else 0.0
+    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    inv = 1.0 / max(n, eps)
+    return inv if n > 0.0 else 0.0
 
 
 @nb.njit(inline="always", cache=True)
@@ -480,8 +479,9 @@ def _kernel(
                 # the scale by rsqrt: no square root or division (the divider is the bottleneck).
                 hxy2 = ux * ux + uy * uy
                 lim_xy = uz * tan_tilt
-                tilt_hit = (lim_xy < 0.0) | (hxy2 > lim_xy * lim_xy)
-                tsc = lim_xy * vrsqrt(hxy2 if tilt_hit else 1.0)
+                hxy = math.sqrt(hxy2)
+                tilt_hit = hxy > lim_xy
+                tsc = lim_xy / hxy
                 ux = ux * tsc if tilt_hit else ux
                 uy = uy * tsc if tilt_hit else uy
                 limited = floor_hit | tilt_hit
@@ -500,7 +500,8 @@ def _kernel(
 
                 # ---- attitude resolution (spec 5) and command filter
                 un2 = ux * ux + uy * uy + uz * uz
-                ratio = (ux * ysin - uy * ycos) * vrsqrt(un2 if un2 > 0.0 else 1.0) if un2 > 0.0 else 0.0
+                un = math.sqrt(un2)
+                ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
                 ratio = min(max(ratio, -1.0), 1.0)
                 rph = vasin(ratio)
                 rth = vatan2(ux * ycos + uy * ysin, uz)

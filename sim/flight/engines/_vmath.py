@@ -202,9 +202,7 @@ def vasin(x: float) -> float:
 
     The square root as ``w · rsqrt(w)`` (no divider; 0 at |x| = 1).
     """
-    w = (1.0 - x) * (1.0 + x)
-    root = w * vrsqrt(w) if w > 0.0 else 0.0
-    return vatan2(x, root)
+    return vatan2(x, math.sqrt((1.0 - x) * (1.0 + x)))
 
 
 # ---- exp / log / pow -------------------------------------------------------------------
