@@ -114,7 +114,7 @@ from sim.flight.engines._state import (
     TrackingReference,
 )
 from sim.flight.engines._tables import ChunkTables, ideal_drone_constants
-from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vrsqrt, vsincos
+from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
 
@@ -161,11 +161,7 @@ def _sig_scale(x0: float, x1: float, x2: float, h: float) -> float:
 
 @nb.njit(inline="always", cache=True)
 def _unit_scale(x0: float, x1: float, x2: float, eps: float) -> float:
-    """Factor ``1/max(||x||, eps)`` = ``min(rsqrt(x·x), 1/eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``).
-
-    ``vrsqrt`` instead of a square root and a division (the divider is the lane loop's
-    bottleneck; ``1/eps`` is loop-invariant and hoisted; eps = 0 gives inf, the pure direction).
-    """
+    """Factor ``1/max(||x||, eps)``, 0 at x = 0 (``sim.flight.control._ismc.unit``), as a select."""
     n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
     inv = 1.0 / max(n, eps)
     return inv if n > 0.0 else 0.0

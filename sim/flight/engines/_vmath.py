@@ -1,4 +1,4 @@
-"""Vectorisable elementary functions for the lane kernel: sin/cos, atan2, asin, exp, log, pow, 1/sqrt.
+"""Vectorisable elementary functions for the lane kernel: sin/cos, atan2, asin, exp, log, pow.
 
 Why: the pip llvmlite has no SVML, so a ``math.sin`` (a libm call) inside a loop stops
 LLVM from vectorising that loop. These functions are plain arithmetic (no calls, no
@@ -21,24 +21,17 @@ range.
   two parts. ``asin(x) = atan2(x, sqrt((1-x)(1+x)))``.
 * ``exp``: ``x = n ln 2 + r`` (fdlibm's ``ln2_hi/lo``), ``|r| <= ln2/2``, Taylor to r^13,
   scaled by 2^n built from its bits (as two factors, for n = 1024). Results below 2^-1022 flush to 0.
-* ``rsqrt`` (``1/sqrt x``) without the divider: the classical bit-level first guess
-  (exponent halved by an integer subtraction from a magic constant; Lomont, *Fast inverse
-  square root*, 2003, constant for doubles 0x5FE6EB50C7B537A9, relative error < 3.5e-2)
-  and four Newton steps ``y ← y + y(1/2 - (x/2) y²)`` (quadratic: 3.5e-2, 1.8e-3, 4.8e-6,
-  3.5e-11, then rounding). Why: the square root and the division share one unpipelined
-  divider unit, which the kernel's norms kept busy; a Newton step is four FMA-unit
-  operations. Inputs below 2^-1000 or above 2^1000 are scaled by an even power of two first.
 * ``log``: ``x = 2^e m``, ``m`` in [√½, √2) from the bits; ``log m = f - s(f - R(s²))``
   with ``f = m - 1``, ``s = f/(2 + f)`` (fdlibm's form), R the atanh series to s^20.
 
-Accuracy (``tests/test_flight_vmath.py`` checks it against numpy over dense samples of
-each input range): sin, cos, atan2, asin, exp, log within 4 ulp of numpy's result
-(measured: at most 3 ulp), rsqrt within 4 ulp of ``1/np.sqrt`` (measured: 2), pow
-``x^a = exp(a log x)`` within ``4 + 3|a log x|`` ulp (exp carries the rounding of
-``y = a log x`` as a relative error ~|y| 2^-52; the kernel's norms^(-2/7) have |y| of a few
-units). Special values: NaN in, NaN out (the kernel's divergence check depends on it); ``log(0) = -inf``, ``log(x<0)`` NaN, ``log(inf) = inf``, ``exp`` overflows
-to inf and underflows to 0; ``atan2`` is for finite inputs (``atan2(0, 0) = 0``; the sign
-of a zero ``x`` is ignored).
+Accuracy (``tests/test_flight_vmath.py`` checks it against numpy over dense samples of each
+input range): sin, cos, atan2, asin, exp, log within 4 ulp of numpy's result (measured: at
+most 3 ulp), pow ``x^a = exp(a log x)`` within ``4 + 3|a log x|`` ulp (exp carries the
+rounding of ``y = a log x`` as a relative error ~|y| 2^-52; the kernel's norms^(-2/7) have
+|y| of a few units). Special values: NaN in, NaN out (the kernel's divergence check depends
+on it); ``log(0) = -inf``, ``log(x<0)`` NaN, ``log(inf) = inf``, ``exp`` overflows to inf
+and underflows to 0; ``atan2`` is for finite inputs (``atan2(0, 0) = 0``; the sign of a zero
+``x`` is ignored).
 
 Floating point: these functions are compiled with FMA contraction only. They must not
 be compiled with ``reassoc`` (it would fold the split constants back together) and are
@@ -61,7 +54,7 @@ from llvmlite import ir  # type: ignore[import-untyped]
 from numba.core import types
 from numba.extending import intrinsic
 
-__all__ = ["vasin", "vatan2", "vexp", "vlog", "vpow", "vrsqrt", "vsincos"]
+__all__ = ["vasin", "vatan2", "vexp", "vlog", "vpow", "vsincos"]
 
 _FLAGS = {"contract"}
 
@@ -165,35 +158,6 @@ def vatan2(y: float, x: float) -> float:
     r = -r if y < 0.0 else r
     bad = (x != x) | (y != y)
     return x + y if bad else r
-
-
-_RSQRT_MAGIC = 0x5FE6EB50C7B537A9
-_BIG, _SMALL = 2.0 ** 1000, 2.0 ** -1000
-
-
-@nb.njit(cache=True, fastmath=_FLAGS, error_model="numpy")
-def vrsqrt(x: float) -> float:
-    """``1/sqrt(x)`` for ``x >= 0`` within 4 ulp, with no division or square root (see the module notes).
-
-    ``vrsqrt(0) = inf``, ``vrsqrt(inf) = 0``, NaN (or x < 0) gives NaN.
-    """
-    small = x < _SMALL
-    big = x > _BIG
-    xs = x * _BIG if small else x
-    xs = xs * _SMALL if big else xs
-    bits: int = _f2i(xs)  # type: ignore[call-arg]
-    y: float = _i2f(np.int64(_RSQRT_MAGIC) - (bits >> 1))  # type: ignore[call-arg]
-    hx = 0.5 * xs
-    y = y + y * (0.5 - hx * (y * y))
-    y = y + y * (0.5 - hx * (y * y))
-    y = y + y * (0.5 - hx * (y * y))
-    y = y + y * (0.5 - hx * (y * y))
-    y = y * 2.0 ** 500 if small else y
-    y = y * 2.0 ** -500 if big else y
-    y = math.inf if x == 0.0 else y
-    y = 0.0 if x == math.inf else y
-    y = math.nan if x < 0.0 else y
-    return x if x != x else y
 
 
 @nb.njit(cache=True, inline="always")
