@@ -276,6 +276,33 @@ def _seek(sc: np.ndarray, base: int, lane: int, cur: np.ndarray, nxt: np.ndarray
         _load_piece(sc, base, lane, coeffs, breaks, i, c)
 
 
+@nb.njit(inline="always", cache=True)
+def _block_window(sc: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxtc: np.ndarray, prvc: np.ndarray,
+                  use_clock: bool) -> tuple[float, float]:
+    """A window ``[lo, hi)`` of times t in which no lane's cursor (true time or own clock) has to move.
+
+    A lane keeps its piece while ``prv <= clamp(t, t_first, t_last) < nxt``; that holds when
+    ``prv <= t < nxt`` (the clamp's bounds are the first and last breaks, which never cut a
+    piece short, unless the first piece has zero length: then there is no window), and for the drone's own clock when ``prv - δ <= t < nxt - δ``. The clock's
+    bounds are moved inward by a relative 1e-12 so that rounding of ``t + δ`` can only make the
+    window smaller: inside it the per-lane test would find nothing to do, so skipping it leaves
+    every result bit-identical.
+    """
+    lo, hi = -math.inf, math.inf
+    for lane in range(LANES):
+        tf = sc[F_TF * LANES + lane]
+        if not (tf < nxt[lane] and tf < nxtc[lane]):  # a zero-length first piece: no window
+            return math.inf, -math.inf
+        lo = max(lo, prv[lane])
+        hi = min(hi, nxt[lane])
+        if use_clock:
+            d = sc[(F_DRONE + D_CLOCK) * LANES + lane]
+            a, b = prvc[lane] - d, nxtc[lane] - d
+            lo = max(lo, a + 1e-12 * (abs(a) + 1.0))
+            hi = min(hi, b - 1e-12 * (abs(b) + 1.0))
+    return lo, hi
+
+
 @nb.njit(parallel=True, cache=True, error_model="numpy",
          fastmath={"nsz", "afn", "contract", "reassoc"})
 def _kernel(
@@ -344,6 +371,7 @@ def _kernel(
             nxtc[lane], prvc[lane] = nxt[lane], prv[lane]
             _load_piece(sc, F_REF, lane, coeffs, breaks, i, c0)
             _load_piece(sc, F_REFC, lane, coeffs, breaks, i, c0)
+        win_lo, win_hi = math.inf, -math.inf  # empty: the first step searches
         # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
         next_rec = ((step0 + every - 1) // every) * every
         next_gnss = gnss_first
@@ -361,13 +389,18 @@ def _kernel(
                     frames[fr, i0 + lane, 1] = sc[(F_STATE + 1) * L + lane]
                     frames[fr, i0 + lane, 2] = sc[(F_STATE + 2) * L + lane]
             # ---- the scalar part: pieces, GNSS and wind table rows (uniform or rare)
-            for lane in range(L):
-                i = min(i0 + lane, n - 1)
-                tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
-                _seek(sc, F_REF, lane, cur, nxt, prv, coeffs, breaks, i, min(max(t, tf), tl), last_piece)
-                if use_clock:
-                    tcc = min(max(t + sc[(F_DRONE + D_CLOCK) * L + lane], tf), tl)
-                    _seek(sc, F_REFC, lane, curc, nxtc, prvc, coeffs, breaks, i, tcc, last_piece)
+            # The piece cursors: while t stays inside the block's common window no lane can
+            # leave its piece (see ``_block_window``), which is most steps: two comparisons
+            # instead of a pass over the lanes.
+            if not (win_lo <= t < win_hi):
+                for lane in range(L):
+                    i = min(i0 + lane, n - 1)
+                    tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
+                    _seek(sc, F_REF, lane, cur, nxt, prv, coeffs, breaks, i, min(max(t, tf), tl), last_piece)
+                    if use_clock:
+                        tcc = min(max(t + sc[(F_DRONE + D_CLOCK) * L + lane], tf), tl)
+                        _seek(sc, F_REFC, lane, curc, nxtc, prvc, coeffs, breaks, i, tcc, last_piece)
+                win_lo, win_hi = _block_window(sc, nxt, prv, nxtc, prvc, use_clock)
             epoch = use_gnss and k == next_gnss
             if epoch:  # a GNSS epoch: the lanes take a new innovation z - p̂, held until the next
                 for lane in range(L):
