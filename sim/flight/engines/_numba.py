@@ -283,10 +283,11 @@ def _block_window(sc: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxtc: np.nda
 
     A lane keeps its piece while ``prv <= clamp(t, t_first, t_last) < nxt``; that holds when
     ``prv <= t < nxt`` (the clamp's bounds are the first and last breaks, which never cut a
-    piece short, unless the first piece has zero length: then there is no window), and for the drone's own clock when ``prv - δ <= t < nxt - δ``. The clock's
-    bounds are moved inward by a relative 1e-12 so that rounding of ``t + δ`` can only make the
-    window smaller: inside it the per-lane test would find nothing to do, so skipping it leaves
-    every result bit-identical.
+    piece short, unless the first piece has zero length: then there is no window), and for
+    the drone's own clock when ``prv - δ <= t < nxt - δ``. The clock's bounds are moved
+    inward by a relative 1e-12 so that rounding of ``t + δ`` can only make the window
+    smaller: inside it the per-lane test would find nothing to do, so skipping it leaves every
+    result bit-identical.
     """
     lo, hi = -math.inf, math.inf
     for lane in range(LANES):
