@@ -43,16 +43,45 @@ def make_show(formations: list[dict], *, drones: int, rows: int, cols: int, spac
     )
 
 
+def ring_to_sphere(drones: int, ring_m: float, sphere_m: float, sphere_hold_s: float, **settings) -> ShowFile:
+    """``drones`` (a multiple of 4) on a vertical ring (held 2 s), then on a sphere, from a home grid
+    4 wide spaced for CAPT's guarantee (4.5 m >= 3·√2 m); ``settings`` as the show file's."""
+    return make_show(
+        [
+            {"name": "ring", "hold_s": 2.0, "points": ring(drones, ring_m), "color": "#ff0000"},
+            {"name": "sphere", "hold_s": sphere_hold_s, "points": fibonacci_sphere(drones, sphere_m),
+             "color": "#00ff00"},
+        ],
+        drones=drones, rows=drones // 4, cols=4, spacing_m=4.5, **settings,
+    )
+
+
+def small_show_file(**settings) -> ShowFile:
+    """The small show: 16 drones, a 12 m ring then a 9 m sphere held 3 s."""
+    return ring_to_sphere(16, 12.0, 9.0, 3.0, **settings)
+
+
 @pytest.fixture
 def small_show() -> ShowFile:
     """16 drones: ring then sphere, spaced for CAPT's guarantee (>= 3·√2 m)."""
-    return make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
-        ],
-        drones=16, rows=4, cols=4, spacing_m=4.5,
-    )
+    return small_show_file()
+
+
+@pytest.fixture(scope="module")
+def small_plan():
+    """The small show (:func:`small_show_file`), planned."""
+    from sim import plan_show
+
+    return plan_show(small_show_file())
+
+
+@pytest.fixture(scope="module")
+def plan12():
+    """12 drones, a 10 m ring then an 8 m sphere held 2 s, planned (the flight robustness and
+    Monte-Carlo tests fly it)."""
+    from sim import plan_show
+
+    return plan_show(ring_to_sphere(12, 10.0, 8.0, 2.0))
 
 
 class StaggeredLegs:
@@ -140,16 +169,9 @@ def staggered_small():
     departures, early arrivals) within the limits the controller tracks; minimum-time
     windows are too tight to be squeezed further.
     """
-    show = make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
-        ],
-        drones=16, rows=4, cols=4, spacing_m=4.5, time_law="quintic",
-    )
     from sim import plan_show
 
-    return staggered_plan(plan_show(show), seed=1)
+    return staggered_plan(plan_show(small_show_file(time_law="quintic")), seed=1)
 
 
 # ``make test-fast`` leaves out the ``integration`` tests: those that start a server, a worker
@@ -185,8 +207,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 # -- browser tests -------------------------------------------------------------------------------
 # Every browser test module starts its own Chromium (module scope: a crash stays in its module) and
-# defines its own `server` fixture (its data directory and viewer switch); `ui` is a fresh editor
-# page on that server. The imports are lazy so that collecting the fast suite never loads Playwright.
+# defines its own `server` fixture, mostly as `server = server_for("x-data", viewer=...)` from
+# tests/live_server.py (its own data directory and viewer switch); `ui` is a fresh editor page on
+# that server. The imports are lazy so that collecting the fast suite never loads Playwright.
 
 
 @pytest.fixture(scope="module")

@@ -118,6 +118,19 @@ def running_server(data_dir: Path, **kwargs: Any) -> Iterator[str]:
         srv.stop()
 
 
+def server_for(name: str, **kwargs: Any) -> Any:
+    """A module-scoped ``server`` fixture for a browser test module: :func:`running_server` (keyword
+    arguments as :class:`ServerProcess`'s) on a fresh data directory of its own, named after ``name``;
+    its value is the base URL. Use it at module level as ``server = server_for("x-data", viewer=True)``."""
+
+    @pytest.fixture(scope="module", name="server")
+    def _server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+        with running_server(tmp_path_factory.mktemp(name), **kwargs) as base:
+            yield base
+
+    return _server
+
+
 @contextlib.contextmanager
 def chromium_browser(*args: str) -> Iterator[object]:
     """Debian's chromium under Playwright, headless, with extra command-line ``args``."""

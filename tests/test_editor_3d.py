@@ -11,7 +11,7 @@ import math
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show, _type_points
 
 pytestmark = BROWSER_MARKS
@@ -23,10 +23,7 @@ expect = sync_api.expect
 GRID = [(x, 0.0, z) for z in (35.0, 40.0, 45.0) for x in (-5.0, 0.0, 5.0)]
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("edit3d-data")) as base:
-        yield base
+server = server_for("edit3d-data")
 
 
 def _saved_points(ui: Page) -> list[list[float]]:

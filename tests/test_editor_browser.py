@@ -10,24 +10,14 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, SHOTS, server_for
 
 pytestmark = BROWSER_MARKS
 
 sync_api = pytest.importorskip("playwright.sync_api")
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """`swarmshow serve` (viewer on, for the 3D preview) on a free loopback port with an empty store."""
-    with running_server(tmp_path_factory.mktemp("editor-data"), viewer=True) as base:
-        yield base
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium_browser() as b:
-        yield b
+server = server_for("editor-data", viewer=True)  # viewer on, for the 3D preview
 
 
 class Page:
@@ -69,13 +59,6 @@ class Page:
         self.ctx.close()
         assert not self.foreign, f"requests left loopback: {self.foreign}"
         assert not self.errors, f"uncaught errors in the page: {self.errors}"
-
-
-@pytest.fixture
-def ui(browser, server, tmp_path):
-    p = Page(browser, server, tmp_path)
-    yield p
-    p.close()
 
 
 def _create_show(ui: Page, name: str, drones: int) -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -15,10 +15,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("effects-data"), viewer=True) as base:
-        yield base
+server = server_for("effects-data", viewer=True)
 
 
 def _preview_colors(ui: Page) -> list[str]:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 from tests.test_media_audio import click_track
 
@@ -23,10 +23,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("fx-live-data"), viewer=True) as base:
-        yield base
+server = server_for("fx-live-data", viewer=True)
 
 
 def _viewer(page) -> dict | None:

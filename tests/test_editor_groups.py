@@ -8,7 +8,7 @@ import httpx
 import pytest
 
 from formations import parse_show
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _check, _type_points
 
 pytestmark = BROWSER_MARKS
@@ -17,10 +17,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("groups-data"), viewer=False) as base:
-        yield base
+server = server_for("groups-data", viewer=False)
 
 
 def test_subset_formation_made_in_the_editor_checks_safe(ui: Page) -> None:

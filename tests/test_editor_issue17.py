@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -14,11 +14,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """`swarmshow serve` (viewer on) on a free loopback port with an empty store."""
-    with running_server(tmp_path_factory.mktemp("issue17-data"), viewer=True) as base:
-        yield base
+server = server_for("issue17-data", viewer=True)
 
 
 def _two_formations(ui: Page, name: str, drones: int = 9) -> None:

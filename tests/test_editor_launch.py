@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _check, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -14,10 +14,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("launch-data"), viewer=False) as base:
-        yield base
+server = server_for("launch-data", viewer=False)
 
 
 def test_launch_boxes_preview_waves_and_the_check_plans_them(ui: Page):

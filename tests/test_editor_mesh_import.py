@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -19,10 +19,7 @@ pytestmark = BROWSER_MARKS
 sync_api = pytest.importorskip("playwright.sync_api")
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("mesh-data"), viewer=False) as base:
-        yield base
+server = server_for("mesh-data", viewer=False)
 
 
 def test_import_glb_surface_with_vertex_colours(ui: Page):

@@ -8,15 +8,17 @@ from __future__ import annotations
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS
-from tests.test_editor_browser import _create_show, _draw_stroke, browser, server, ui  # noqa: F401 (fixtures)
+from tests.live_server import BROWSER_MARKS, server_for
+from tests.test_editor_browser import _create_show, _draw_stroke
 
 pytestmark = BROWSER_MARKS
 
 sync_api = pytest.importorskip("playwright.sync_api")
 
+server = server_for("montecarlo-data", viewer=True)  # viewer on: the worst run plays in 3D
 
-def test_monte_carlo_from_the_editor_links_the_safety_report(ui):  # noqa: F811
+
+def test_monte_carlo_from_the_editor_links_the_safety_report(ui):
     page = ui.page
     _create_show(ui, "MC editor", 8)
     _draw_stroke(ui)

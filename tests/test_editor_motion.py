@@ -10,7 +10,7 @@ import math
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _check, _create_show, _type_points
 
 pytestmark = BROWSER_MARKS
@@ -22,10 +22,7 @@ expect = sync_api.expect
 GRID = [(x, 0.0, z) for z in (35.0, 40.0, 45.0) for x in (-5.0, 0.0, 5.0)]
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("motion-data")) as base:
-        yield base
+server = server_for("motion-data")
 
 
 def test_add_a_rotation_edit_its_keys_play_it_and_check_safe(ui: Page):

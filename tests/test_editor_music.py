@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, running_server
+from tests.live_server import BROWSER_MARKS, chromium_browser, server_for
 from tests.test_editor_browser import Page, _create_show
 from tests.test_media_audio import click_track
 
@@ -23,10 +23,7 @@ expect = sync_api.expect
 BPM, OFFSET_S = 120.0, 0.5
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("music-data"), viewer=True) as base:
-        yield base
+server = server_for("music-data", viewer=True)
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """Small editor behaviours, driven with Playwright against a live server on loopback: "save as a
 copy" keeps the show's music (the copy's stored track is the same file, and the music lane shows
-it); the simulation panel's summary table (heading, rows, limits marked)."""
+it); the summary tables of the check and the simulation panels (heading, rows, limits marked)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import httpx
 import numpy as np
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -19,10 +19,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 sf = pytest.importorskip("soundfile")
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("copy-music-data"), viewer=False) as base:
-        yield base
+server = server_for("copy-music-data", viewer=False)
 
 
 def test_save_as_copy_copies_the_music(ui: Page):
@@ -51,12 +48,12 @@ def test_save_as_copy_copies_the_music(ui: Page):
 
 
 def test_summary_table_builds_the_heading_and_rows(ui: Page):
-    """simulate.js's one helper for the flight and Monte-Carlo summaries: the heading's class and
+    """summary.js's one helper for the check report and the flight and Monte-Carlo summaries: the heading's class and
     text, one row per truthy entry (falsy ones left out), breaking values marked bad."""
     page = ui.page
     page.goto(ui.base + "/")
     got = page.evaluate("""async () => {
-        const { summaryTable } = await import('/js/simulate.js');
+        const { summaryTable } = await import('/js/summary.js');
         const out = {};
         for (const ok of [true, false]) {
           const [head, table] = summaryTable(ok, ok ? 'fine' : 'broken', 'Some summary',
@@ -106,3 +103,47 @@ def test_flight_and_monte_carlo_summaries_render_through_the_helper(ui: Page):
         ["P(closer than 3.0 m)", "0.0 % (0.0–14.0 %)", ""], ["P(collision, < 0.5 m)", "0.0 % (0.0–14.0 %)", ""],
         ["Extra spacing at 95 %", "0.25 m", ""], ["Largest deviation", "0.300 m", ""],
         ["Preset", "calm-rtk, pid, seeds 1–20", ""]]
+
+
+def test_check_summary_renders_through_the_helper(ui: Page):
+    """report.js's check summary with a fixed report (no check needed): the heading, the stale note
+    between it and the table, the rows with their limits (≥ for the minimum, ≤ for the maxima), the
+    ones breaking a limit marked bad, "—" for a missing figure, and the closest pair only when there is one."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { ReportPanel } = await import('/js/report.js');
+        const render = (report, version) => {
+          const body = document.createElement('div');
+          const self = { body, result: { report, plan: { segments: [] } }, checkedVersion: 1,
+            state: { version, show: { formations: [] } },
+            parts: { timeline: { setCheck() {}, render() {} } }, _p: ReportPanel.prototype._p };
+          ReportPanel.prototype.render.call(self);
+          const table = body.querySelector('table');
+          return { paras: [...body.querySelectorAll(':scope > p')].map((p) => [p.className, p.textContent, p.hidden]),
+            label: table.getAttribute('aria-label'), order: [...body.children].map((e) => e.tagName),
+            rows: [...table.rows].map((r) => [r.cells[0].textContent, r.cells[1].textContent, r.cells[1].className]) };
+        };
+        const limits = { min_distance_m: 3, max_speed_xy_mps: 5, max_accel_mps2: 4, max_altitude_m: 100 };
+        return {
+          bad: render({ ok: false, violations_total: 2, duration_s: 12.54, limits, min_distance_m: 2.4,
+            max_speed_xy_mps: 4, max_speed_z_mps: 1.5, max_accel_mps2: null, max_altitude_m: 100.5,
+            min_distance_pair: [3, 7], min_distance_time_s: 8.21 }, 1),
+          ok: render({ ok: true, violations_total: 0, duration_s: 3, min_distance_m: 3.5, max_speed_xy_mps: 2,
+            max_speed_z_mps: 1, max_accel_mps2: 2, max_altitude_m: 20, min_distance_pair: [] }, 2),
+        }; }""")
+    bad, ok = got["bad"], got["ok"]
+    assert bad["paras"] == [["report-bad", "✗ 2 violations", False],
+                            ["muted stale", "The show changed since this check.", True]]
+    assert bad["order"] == ["P", "P", "TABLE"] and bad["label"] == "Check summary"
+    assert bad["rows"] == [
+        ["Duration", "12.5 s", ""], ["Minimum distance", "2.40 m (≥ 3.0)", "bad-value"],
+        ["Peak horizontal speed", "4.00 m/s (≤ 5.0)", ""], ["Peak vertical speed", "1.50 m/s", ""],
+        ["Peak acceleration", "— m/s² (≤ 4.0)", ""], ["Highest altitude", "100.50 m (≤ 100.0)", "bad-value"],
+        ["Closest pair", "drones 3 & 7 at 8.2 s", ""]]
+    assert ok["paras"] == [["report-ok", "✓ Safe: every limit holds", False],
+                           ["muted stale", "The show changed since this check.", False]]
+    assert ok["rows"] == [
+        ["Duration", "3.0 s", ""], ["Minimum distance", "3.50 m", ""], ["Peak horizontal speed", "2.00 m/s", ""],
+        ["Peak vertical speed", "1.00 m/s", ""], ["Peak acceleration", "2.00 m/s²", ""],
+        ["Highest altitude", "20.00 m", ""]]

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, SHOTS, running_server
+from tests.live_server import BROWSER_MARKS, SHOTS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -22,13 +22,9 @@ expect = sync_api.expect
 DRONES = 300
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    # The 3D preview flies the 300-drone show inside its request: on a loaded 2-core machine that can
-    # take longer than the default 60 s interactive budget.
-    with running_server(tmp_path_factory.mktemp("session-data"), viewer=True, workers=2,
-                        env={"SWARMSHOW_TASK_TIMEOUT_S": "900"}) as base:
-        yield base
+# The 3D preview flies the 300-drone show inside its request: on a loaded 2-core machine that can
+# take longer than the default 60 s interactive budget.
+server = server_for("session-data", viewer=True, workers=2, env={"SWARMSHOW_TASK_TIMEOUT_S": "900"})
 
 
 def _open(ui: Page, summary: str) -> None:

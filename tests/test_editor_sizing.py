@@ -9,7 +9,7 @@ import math
 import httpx
 import pytest
 
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -19,10 +19,7 @@ expect = sync_api.expect
 DRONES = 80
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("sizing-data")) as base:
-        yield base
+server = server_for("sizing-data")
 
 
 def _min_distance(points: list[list[float]]) -> float:

@@ -45,18 +45,6 @@ def _warm() -> None:
     warm_up()
 
 
-@pytest.fixture(scope="module")
-def small_plan():
-    show = make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
-        ],
-        drones=16, rows=4, cols=4, spacing_m=4.5,
-    )
-    return plan_show(show)
-
-
 def _assert_same(local: FlightResult, dask: FlightResult) -> None:
     for name in ARRAYS:
         a, b = getattr(local, name), getattr(dask, name)

@@ -29,19 +29,7 @@ from sim.flight import (
     options_for_preset,
 )
 from sim.flight._montecarlo import frame_min_distances, reduce_flight, time_bin_starts
-from tests.conftest import fibonacci_sphere, make_show, ring
-
-
-@pytest.fixture(scope="module")
-def plan():
-    show = make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(12, 10.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 2.0, "points": fibonacci_sphere(12, 8.0), "color": "#00ff00"},
-        ],
-        drones=12, rows=3, cols=4, spacing_m=4.5,
-    )
-    return plan_show(show)
+from tests.conftest import make_show
 
 
 @given(n=st.integers(1, 400), data=st.data(), conf=st.sampled_from([0.8, 0.9, 0.95, 0.99, 0.999]))
@@ -106,9 +94,9 @@ def test_time_bins_cover_every_frame() -> None:
         assert s[0] == 0 and np.all(np.diff(s) > 0) and s[-1] < n and s.size == min(n, b)
 
 
-def test_reduce_flight_matches_brute_force(plan) -> None:
-    flight = fly_show(plan, FlightOptions(disturbance="wind", mismatch=0.05, seed=4))
-    stats = reduce_flight(plan, flight, run=2, seed=4, max_bins=17)
+def test_reduce_flight_matches_brute_force(plan12) -> None:
+    flight = fly_show(plan12, FlightOptions(disturbance="wind", mismatch=0.05, seed=4))
+    stats = reduce_flight(plan12, flight, run=2, seed=4, max_bins=17)
     pos = flight.positions_m.astype(np.float64)
     t = flight.times_s
     brute = np.array([pdist(p).min() for p in pos])
@@ -117,8 +105,8 @@ def test_reduce_flight_matches_brute_force(plan) -> None:
     assert stats.min_distance_m == pytest.approx(brute.min(), rel=1e-12)
     assert stats.pair == flight.flown_min_distance_pair
     # Per segment, frames assigned by the plan's segment start and end times.
-    for p, seg in enumerate(plan.segments):
-        last = p == len(plan.segments) - 1
+    for p, seg in enumerate(plan12.segments):
+        last = p == len(plan12.segments) - 1
         inside = (t >= seg.start_s) & ((t < seg.end_s) | last)
         if not inside.any():
             assert math.isinf(stats.segment_min_m[p])
@@ -142,11 +130,11 @@ def test_reduce_flight_matches_brute_force(plan) -> None:
     np.testing.assert_array_equal(stats.deviation_max_m, flight.tracking_max_m)
 
 
-def test_monte_carlo_runs_equal_single_flights(plan) -> None:
+def test_monte_carlo_runs_equal_single_flights(plan12) -> None:
     base = options_for_preset("gusty-rtk", FlightOptions())
     runs, seed0 = 4, 10
-    mc = monte_carlo(plan, base, runs=runs, seed0=seed0, confidence=0.9, collision_distance_m=2.5, max_bins=50)
-    singles = [fly_show(plan, base.with_(seed=seed0 + k)) for k in range(runs)]
+    mc = monte_carlo(plan12, base, runs=runs, seed0=seed0, confidence=0.9, collision_distance_m=2.5, max_bins=50)
+    singles = [fly_show(plan12, base.with_(seed=seed0 + k)) for k in range(runs)]
     flown = np.array([s.flown_min_distance_m for s in singles])
     got = np.array([r["min_distance_m"] for r in mc.runs])
     np.testing.assert_allclose(got, flown, rtol=1e-12)
@@ -154,10 +142,10 @@ def test_monte_carlo_runs_equal_single_flights(plan) -> None:
     assert [tuple(r["pair"]) for r in mc.runs] == [s.flown_min_distance_pair for s in singles]
     # Per-drone largest deviation: the maximum over the runs of each flight's tracking maximum.
     np.testing.assert_array_equal(mc.deviation_max_m, np.max([s.tracking_max_m for s in singles], axis=0))
-    assert mc.deviation_counts.sum() == runs * plan.drone_count
+    assert mc.deviation_counts.sum() == runs * plan12.drone_count
 
     j = mc.to_json()
-    limit = plan.settings.min_distance_m
+    limit = plan12.settings.min_distance_m
     below = int(np.count_nonzero(flown < limit - FLOWN_DISTANCE_TOLERANCE_M))
     pb = j["show_min"]["p_below_min_distance"]
     assert (pb["runs_below"], pb["runs"]) == (below, runs)
@@ -186,16 +174,16 @@ def test_monte_carlo_runs_equal_single_flights(plan) -> None:
     # Bounded memory: nothing in the result is a per-frame, per-drone array.
     for name, value in vars(mc).items():
         if isinstance(value, np.ndarray):
-            assert value.size <= runs * max(len(plan.segments), 50) * 2 + plan.drone_count + 100, name
+            assert value.size <= runs * max(len(plan12.segments), 50) * 2 + plan12.drone_count + 100, name
 
 
-def test_monte_carlo_rejects_bad_arguments(plan) -> None:
+def test_monte_carlo_rejects_bad_arguments(plan12) -> None:
     with pytest.raises(ValueError, match="runs"):
-        monte_carlo(plan, runs=0)
+        monte_carlo(plan12, runs=0)
     with pytest.raises(ValueError, match="confidence"):
-        monte_carlo(plan, runs=1, confidence=1.0)
+        monte_carlo(plan12, runs=1, confidence=1.0)
     with pytest.raises(ValueError, match="collision_distance_m"):
-        monte_carlo(plan, runs=1, collision_distance_m=0.0)
+        monte_carlo(plan12, runs=1, collision_distance_m=0.0)
     with pytest.raises(ValueError, match="unknown preset 'windy'"):
         options_for_preset("windy")
 
@@ -212,21 +200,21 @@ def test_a_lone_drone_gives_json_without_infinities() -> None:
     assert all(r["min_distance_m"] is None for r in j["run_list"]) and j["worst_pairs"] == []
 
 
-def test_progress_rises_to_one(plan) -> None:
+def test_progress_rises_to_one(plan12) -> None:
     seen: list[float] = []
-    monte_carlo(plan, FlightOptions(), runs=2, progress=seen.append)
+    monte_carlo(plan12, FlightOptions(), runs=2, progress=seen.append)
     assert seen == sorted(seen) and seen[-1] == 1.0 and len(seen) > 3
 
 
-def test_dask_gives_identical_numbers(plan) -> None:
+def test_dask_gives_identical_numbers(plan12) -> None:
     distributed = pytest.importorskip("distributed")
     base = options_for_preset("gusty-rtk")
-    local = monte_carlo(plan, base, runs=3, seed0=7, max_bins=40).to_json()
+    local = monte_carlo(plan12, base, runs=3, seed0=7, max_bins=40).to_json()
     with distributed.LocalCluster(
         n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None,
     ) as cluster, distributed.Client(cluster, set_as_default=False) as client:
         seen: list[float] = []
-        remote = monte_carlo(plan, base.with_(engine="dask", scheduler=client), runs=3, seed0=7, max_bins=40,
+        remote = monte_carlo(plan12, base.with_(engine="dask", scheduler=client), runs=3, seed0=7, max_bins=40,
                              progress=seen.append).to_json()
     for j in (local, remote):
         j.pop("wall_time_s")

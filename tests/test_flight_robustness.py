@@ -13,28 +13,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim import plan_show
 from sim.flight import FlightOptions, error_preset, fly_show
-from tests.conftest import fibonacci_sphere, make_show, ring
-
-
-@pytest.fixture(scope="module")
-def plan():
-    show = make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(12, 10.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 2.0, "points": fibonacci_sphere(12, 8.0), "color": "#00ff00"},
-        ],
-        drones=12, rows=3, cols=4, spacing_m=4.5,
-    )
-    return plan_show(show)
 
 
 @pytest.mark.parametrize("seeds", [range(0, 10), range(10, 20)])
-def test_gusty_rtk_flies_every_seed(plan, seeds) -> None:
+def test_gusty_rtk_flies_every_seed(plan12, seeds) -> None:
     worst = []
     for seed in seeds:
-        flight = fly_show(plan, FlightOptions(errors=error_preset("gusty-rtk"), seed=seed, flown_distance=False))
+        flight = fly_show(plan12, FlightOptions(errors=error_preset("gusty-rtk"), seed=seed, flown_distance=False))
         assert flight.diverged == [], f"seed {seed}: {flight.diverged}"
         worst.append(float(np.max(flight.tracking_max_m)))
     # Gusts of up to ~15 m/s at 45-70 m need more than the 34° tilt limit (drag 7.7 m/s² at

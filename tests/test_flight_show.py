@@ -13,20 +13,6 @@ from sim import plan_show
 from sim.flight import FlightResult, fly_show
 
 
-@pytest.fixture(scope="module")
-def small_plan():
-    from tests.conftest import fibonacci_sphere, make_show, ring
-
-    show = make_show(
-        [
-            {"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
-            {"name": "sphere", "hold_s": 3.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"},
-        ],
-        drones=16, rows=4, cols=4, spacing_m=4.5,
-    )
-    return plan_show(show)
-
-
 def test_small_show_flies_with_flown_min_distance(small_plan):
     calls = []
     res = fly_show(small_plan, progress=calls.append)

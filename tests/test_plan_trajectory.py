@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import polynomial as P
 
-from sim.plan import Trajectories, TrajectoryBuilder
+from sim.plan import Trajectories, TrajectoryBuilder, states_at
 from sim.plan._trajectory import rest_to_rest_quintic_coeffs
 
 
@@ -51,6 +51,34 @@ def test_evaluate_matches_per_drone_scan(seed: int, n: int, pieces: int) -> None
             np.testing.assert_allclose(got.positions_m[k, i], _brute(traj, t, i, 0), rtol=1e-9, atol=1e-6)
             np.testing.assert_allclose(got.velocities_mps[k, i], _brute(traj, t, i, 1), rtol=1e-9, atol=1e-6)
             np.testing.assert_allclose(got.accelerations_mps2[k, i], _brute(traj, t, i, 2), rtol=1e-9, atol=1e-6)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 5), pieces=st.integers(1, 6),
+       degree=st.sampled_from([5, 1, 3, 7]))
+def test_cursor_kernel_matches_per_drone_scan(seed: int, n: int, pieces: int, degree: int) -> None:
+    """states_at (playback's compiled evaluator: piece cursors walked from the last call, Horner) against
+    the scan, for the planner's quintic tables and for other degrees; the cursors land on piece_index's
+    pieces, whether time runs forwards or jumps either way."""
+    rng = np.random.default_rng(seed)
+    traj = _random_builder(rng, n, pieces).build()
+    if degree != 5:  # the same breaks, random pieces of another degree (evaluation needs no continuity)
+        traj = Trajectories(traj.breaks_s, rng.normal(0, 2, traj.coeffs_m.shape[:3] + (degree + 1,)))
+    inside = rng.uniform(traj.start_s, traj.end_s, 20)
+    times = np.concatenate([np.sort(inside), traj.breaks_s.ravel(), inside])  # play, every break, scrub
+    cursor = np.zeros(n, dtype=np.int64)
+    pos, vel = np.empty((1, n, 3)), np.empty((1, n, 3))
+    for t in times:
+        states_at(traj.breaks_s, traj.coeffs_m, np.array([t]), cursor, pos, vel)
+        np.testing.assert_array_equal(cursor, traj.piece_index(t)[0])
+        for i in range(n):
+            np.testing.assert_allclose(pos[0, i], _brute(traj, t, i, 0), rtol=1e-9, atol=1e-6)
+            np.testing.assert_allclose(vel[0, i], _brute(traj, t, i, 1), rtol=1e-9, atol=1e-6)
+    # All times in one call: the same numbers as one at a time.
+    many_pos, many_vel = np.empty((len(times), n, 3)), np.empty((len(times), n, 3))
+    states_at(traj.breaks_s, traj.coeffs_m, times, np.zeros(n, dtype=np.int64), many_pos, many_vel)
+    np.testing.assert_allclose(many_pos, traj.evaluate(times).positions_m, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(many_vel, traj.evaluate(times).velocities_mps, rtol=1e-12, atol=1e-9)
 
 
 def test_motion_is_continuous_across_every_break() -> None:

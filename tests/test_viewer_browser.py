@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sim import plan_show
-from tests.live_server import BROWSER_MARKS, CHROMIUM, SHOTS, free_port
+from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, free_port
 
 pytestmark = BROWSER_MARKS
 sync_api = pytest.importorskip("playwright.sync_api")
@@ -46,12 +46,8 @@ def live_app(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--enable-unsafe-swiftshader"])
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium_browser("--enable-unsafe-swiftshader") as b:
+        yield b
 
 
 def _guarded_page(browser, foreign: list[str]):

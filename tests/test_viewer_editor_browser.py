@@ -11,7 +11,7 @@ import httpx
 import pytest
 
 from tests.conftest import make_show, ring
-from tests.live_server import BROWSER_MARKS, running_server
+from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_editor_browser import Page
 
 pytestmark = BROWSER_MARKS
@@ -19,10 +19,7 @@ sync_api = pytest.importorskip("playwright.sync_api")
 expect = sync_api.expect
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("viewer-editor-data"), viewer=True) as base:
-        yield base
+server = server_for("viewer-editor-data", viewer=True)
 
 
 def _wait_until(what: str, fn, timeout_s: float = 60.0):

@@ -224,7 +224,8 @@ def format_montecarlo(r: dict) -> str:
         lines.append(f"  pair {p['drones'][0]} & {p['drones'][1]}: {p['distance_m']:.3f} m at t = "
                      f"{p['time_s']:.2f} s ({p['label']}, run {p['run']}, seed {p['seed']})")
     if r["diverged_count"]:
-        lines.append(f"  DIVERGED: {r['diverged_count']} drone-runs")
+        why = ", ".join(f"{n} {k}" for k, n in sorted((r.get("diverged_by_reason") or {}).items()))
+        lines.append(f"  DIVERGED: {r['diverged_count']} drone-runs" + (f" ({why})" if why else ""))
     if r.get("report"):
         lines.append(f"  report written to {r['report']}")
     unsafe = s["p_below_min_distance"]["runs_below"] > 0 or r["diverged_count"] > 0

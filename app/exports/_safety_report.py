@@ -174,8 +174,22 @@ def _summary_rows(r: dict[str, Any]) -> list[tuple[str, str]]:
                       f"{' & '.join(map(str, worst.get('pair') or []))} at {_fmt(worst.get('time_s'), 2, ' s')}"
          if worst else "—"),
         ("Largest deviation from the plan", _fmt(r["deviation"]["max_m"])),
-        ("Diverged drones", str(r["diverged_count"])),
+        ("Diverged drones", str(r["diverged_count"]) + _reasons(r.get("diverged_by_reason") or {})),
     ]
+
+
+#: What each divergence reason means physically (sim.flight.engines._state).
+REASON_TEXT = {
+    "overpowered": "overpowered: held at its tilt/thrust limit, blown off (wind beyond its authority)",
+    "runaway": "runaway: unstable control or a tumble",
+    "non-finite": "non-finite: the state broke down",
+}
+
+
+def _reasons(by_reason: dict[str, int]) -> str:
+    """`` (2 overpowered: ..., 1 runaway: ...)`` or empty."""
+    parts = [f"{n} {REASON_TEXT.get(why, why)}" for why, n in sorted(by_reason.items()) if n]
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def _segment_rows(r: dict[str, Any]) -> list[list[str]]:

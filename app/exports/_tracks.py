@@ -8,8 +8,6 @@ cache (each drone's current piece), never state that changes an answer.
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
@@ -58,41 +56,6 @@ class Track(Protocol):
         ...
 
 
-def _states_at_py(breaks, coeffs, times, cursor, pos, vel):  # pragma: no cover - compiled
-    """Every drone's position and velocity at times (T,), each on its own piece: (T, N, 3) into pos, vel.
-
-    ``cursor`` (N,) holds each drone's piece from the previous call and is moved
-    (forwards while playing, either way when scrubbing) to the last piece starting at
-    or before t, as :meth:`Trajectories.piece_index` chooses it; times must lie in the show.
-    Serial on purpose: 16,000 drones take ~0.2 ms, less than waking a thread pool
-    (which costs milliseconds on a busy machine).
-    """
-    last = breaks.shape[1] - 2
-    for j in range(times.shape[0]):
-        t = times[j]
-        for i in range(breaks.shape[0]):
-            p = cursor[i]
-            while p < last and breaks[i, p + 1] <= t:
-                p += 1
-            while p > 0 and breaks[i, p] > t:
-                p -= 1
-            cursor[i] = p
-            u = t - breaks[i, p]
-            for a in range(3):
-                c = coeffs[i, p, a]
-                pos[j, i, a] = ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
-                vel[j, i, a] = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1]
-
-
-@functools.cache
-def _states_at() -> Callable[..., None]:
-    """:func:`_states_at_py` compiled on first use (numba is imported here, not with the module)."""
-    import numba as nb
-
-    compiled: Callable[..., None] = nb.njit(cache=True)(_states_at_py)
-    return compiled
-
-
 class PlanTrack:
     """The exact plan (every drone's own polynomial pieces, ``plan.motion``), evaluated on demand."""
 
@@ -114,8 +77,9 @@ class PlanTrack:
         n = self.drone_count
         pos, vel = np.empty((len(t), n, 3)), np.empty((len(t), n, 3))
         if n:
-            _states_at()(self._breaks, self._coeffs, np.clip(t, self._breaks[0, 0], self._breaks[0, -1]),
-                       cursor, pos, vel)
+            from sim.plan import states_at  # numba: loaded on the first frame, not with app.exports
+
+            states_at(self._breaks, self._coeffs, np.clip(t, self._breaks[0, 0], self._breaks[0, -1]), cursor, pos, vel)
         # Colours fade linearly over each show-wide window, as ShowPlan.evaluate fades them.
         k = self.plan.segment_index(t)
         t0, t1 = self.plan.knot_times_s[k], self.plan.knot_times_s[k + 1]

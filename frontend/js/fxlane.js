@@ -3,6 +3,7 @@
 // music lane's time axis. Drag a bar's end to move its start or end (snapping to the beats or onsets
 // the music lane snaps to; Shift: freely); click a bar to edit its effect.
 
+import { fitCanvas } from "./hidpi.js";
 import { snapTime } from "./musicmath.js";
 
 /** Grab distance of a bar's end, CSS pixels. */
@@ -132,17 +133,9 @@ export class EffectLane {
   /** Redraw the bars and the playhead. */
   draw() {
     const c = this.canvas;
-    const w = c.clientWidth;
-    const h = c.clientHeight;
-    if (!w || !h) return;
-    const dpr = window.devicePixelRatio || 1;
-    if (c.width !== Math.round(w * dpr) || c.height !== Math.round(h * dpr)) {
-      c.width = Math.round(w * dpr);
-      c.height = Math.round(h * dpr);
-    }
-    const g = /** @type {CanvasRenderingContext2D} */ (c.getContext("2d"));
-    g.setTransform(dpr, 0, 0, dpr, 0, 0);
-    g.clearRect(0, 0, w, h);
+    const fit = fitCanvas(c);
+    if (!fit) return;
+    const { g, w, h } = fit;
     const list = this.effects.effects;
     g.font = "10px sans-serif";
     list.forEach((fx, k) => {

@@ -6,6 +6,7 @@
 
 import * as api from "./api.js";
 import { setError } from "./errors.js";
+import { fitCanvas } from "./hidpi.js";
 import { columnPeaks, snapTime } from "./musicmath.js";
 
 /** Snap distance to a beat, CSS pixels. */
@@ -409,18 +410,9 @@ export class MusicLane {
 
   /** Redraw the lane: waveform, beats, markers, playhead. */
   draw() {
-    const c = this.canvas;
-    const w = c.clientWidth;
-    const h = c.clientHeight;
-    if (!w || !h) return;
-    const dpr = window.devicePixelRatio || 1;
-    if (c.width !== Math.round(w * dpr) || c.height !== Math.round(h * dpr)) {
-      c.width = Math.round(w * dpr);
-      c.height = Math.round(h * dpr);
-    }
-    const g = c.getContext("2d");
-    g.setTransform(dpr, 0, 0, dpr, 0, 0);
-    g.clearRect(0, 0, w, h);
+    const fit = fitCanvas(this.canvas);
+    if (!fit) return;
+    const { g, w, h } = fit;
     const span = this.span();
     const mid = h / 2 + 6;
     const amp = h / 2 - 10;

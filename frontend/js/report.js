@@ -4,6 +4,7 @@
 
 import * as api from "./api.js";
 import { clearShowErrors, showShowErrors } from "./errors.js";
+import { fmt, summaryTable } from "./summary.js";
 
 const LIMIT_ROWS = [
   ["Minimum distance", "min_distance_m", "min_distance_m", "m", "min"],
@@ -38,10 +39,6 @@ export function formationOfSegment(segments, segment, count) {
   if (seg.kind === "landing") return count - 1;
   const holdsBefore = segments.filter((s) => s.kind === "hold" && s.index < segment).length;
   return Math.min(count - 1, seg.kind === "hold" ? holdsBefore : holdsBefore);
-}
-
-function fmt(v, digits = 2) {
-  return v == null || !Number.isFinite(v) ? "—" : Number(v).toFixed(digits);
 }
 
 /**
@@ -147,34 +144,22 @@ export class ReportPanel {
     const segments = (res.plan && res.plan.segments) || [];
     const count = this.state.show.formations.length;
     this.body.replaceChildren();
-    this.body.append(this._p(r.ok ? "report-ok" : "report-bad", r.ok ? "✓ Safe: every limit holds" : `✗ ${r.violations_total} violation${r.violations_total === 1 ? "" : "s"}`));
+    const [head, table] = summaryTable(r.ok, r.ok ? "✓ Safe: every limit holds" : `✗ ${r.violations_total} violation${r.violations_total === 1 ? "" : "s"}`,
+      "Check summary", [
+        ["Duration", `${fmt(r.duration_s, 1)} s`],
+        ...LIMIT_ROWS.map(([label, key, limitKey, unit, sense]) => {
+          const v = r[key];
+          const lim = r.limits ? r.limits[limitKey] : undefined;
+          const bad = lim != null && v != null && (sense === "min" ? v < lim - 1e-9 : v > lim + 1e-9);
+          return /** @type {[string, string, boolean]} */ (
+            [label, `${fmt(v)} ${unit}${lim != null ? ` (${sense === "min" ? "≥" : "≤"} ${fmt(lim, 1)})` : ""}`, bad]);
+        }),
+        r.min_distance_pair && r.min_distance_pair.length === 2
+          && ["Closest pair", `drones ${r.min_distance_pair[0]} & ${r.min_distance_pair[1]} at ${fmt(r.min_distance_time_s, 1)} s`],
+      ]);
     const stale = this._p("muted stale", "The show changed since this check.");
     stale.hidden = this.checkedVersion === this.state.version;
-    this.body.append(stale);
-
-    const table = document.createElement("table");
-    table.setAttribute("aria-label", "Check summary");
-    const row = (label, value, bad) => {
-      const tr = document.createElement("tr");
-      const a = document.createElement("td");
-      a.textContent = label;
-      const b = document.createElement("td");
-      b.textContent = value;
-      if (bad) b.className = "bad-value";
-      tr.append(a, b);
-      table.append(tr);
-    };
-    row("Duration", `${fmt(r.duration_s, 1)} s`);
-    for (const [label, key, limitKey, unit, sense] of LIMIT_ROWS) {
-      const v = r[key];
-      const lim = r.limits ? r.limits[limitKey] : undefined;
-      const bad = lim != null && v != null && (sense === "min" ? v < lim - 1e-9 : v > lim + 1e-9);
-      row(label, `${fmt(v)} ${unit}${lim != null ? ` (${sense === "min" ? "≥" : "≤"} ${fmt(lim, 1)})` : ""}`, bad);
-    }
-    if (r.min_distance_pair && r.min_distance_pair.length === 2) {
-      row("Closest pair", `drones ${r.min_distance_pair[0]} & ${r.min_distance_pair[1]} at ${fmt(r.min_distance_time_s, 1)} s`);
-    }
-    this.body.append(table);
+    this.body.append(head, stale, table);
 
     // Per-transition timing (length, stagger, whether it is safe) on the timeline.
     const groups = Array.isArray(r.by_transition) ? r.by_transition : [];

@@ -3,43 +3,21 @@
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
 import * as api from "./api.js";
-
-function fmt(v, digits = 2, unit = "") {
-  return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
-}
-
-/**
- * A summary's heading (the ✓ or ✗ line) and its two-column table, as the flight and the
- * Monte-Carlo summaries show them.
- * @param {boolean} ok whether the heading reads as a pass
- * @param {string} text the heading
- * @param {string} label the table's accessible name
- * @param {Array<[string, string, boolean?] | null | false | undefined>} rows label, value and whether
- *   the value breaks a limit (drawn as bad); falsy rows are left out
- * @returns {[HTMLParagraphElement, HTMLTableElement]}
- */
-export function summaryTable(ok, text, label, rows) {
-  const head = document.createElement("p");
-  head.className = ok ? "report-ok" : "report-bad";
-  head.textContent = text;
-  const table = document.createElement("table");
-  table.setAttribute("aria-label", label);
-  for (const r of rows) {
-    if (!r) continue;
-    const [name, value, bad] = r;
-    const tr = document.createElement("tr");
-    const a = document.createElement("td");
-    a.textContent = name;
-    const b = document.createElement("td");
-    b.textContent = value;
-    if (bad) b.className = "bad-value";
-    tr.append(a, b);
-    table.append(tr);
-  }
-  return [head, table];
-}
+import { fmt, summaryTable } from "./summary.js";
 
 /** The simulation panel. */
+/** What each divergence reason means physically (sim.flight.engines._state). */
+const REASONS = {
+  overpowered: "overpowered: held at its tilt/thrust limit and blown off (wind beyond its authority)",
+  runaway: "runaway: unstable control or a tumble",
+  "non-finite": "non-finite: the state broke down",
+};
+
+/** "2 overpowered, 1 runaway" from a `{reason: count}` map. @param {Record<string, number>|undefined} byReason */
+function reasonList(byReason) {
+  return Object.entries(byReason || {}).map(([k, n]) => `${n} ${k}`).join(", ") || "—";
+}
+
 export class SimulatePanel {
   /**
    * @param {import("./state.js").EditorState} state
@@ -237,6 +215,7 @@ export class SimulatePanel {
       [`P(collision, < ${fmt(mc.collision_distance_m, 1, " m")})`, pct(coll), coll.runs_below > 0],
       [`Extra spacing at ${Math.round(1000 * (mc.confidence || 0)) / 10} %`, fmt((s.extra_spacing || {}).extra_m, 2, " m")],
       ["Largest deviation", fmt((mc.deviation || {}).max_m, 3, " m")],
+      mc.diverged_count > 0 && ["Diverged", `${mc.diverged_count} drone-runs (${reasonList(mc.diverged_by_reason)})`, true],
       ["Preset", `${mc.preset || "—"}, ${mc.controller || ""}, seeds ${mc.seed0}–${mc.seed0 + mc.runs - 1}`],
       mc.wall_time_s != null && ["Computed in", `${fmt(mc.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
     ]));
@@ -292,6 +271,7 @@ export class SimulatePanel {
       const p = document.createElement("p");
       p.className = "report-bad";
       p.textContent = `Diverged: ${f.diverged.slice(0, 10).map((d) => `drone ${d.drone} at ${fmt(d.time_s, 1)} s (${d.reason})`).join("; ")}`;
+      p.title = Object.values(REASONS).join("\n");
       this.body.append(p);
     }
   }

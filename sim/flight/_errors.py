@@ -21,6 +21,17 @@ How each effect enters the model (docs/method.md §8):
   intensity ``gnss_bias_walk_m_per_sqrt_s``. A complementary filter (crossover
   ``estimator_bandwidth_rad_s``) fuses it with the accelerometer; the controller sees
   its estimate ``(p̂, v̂)``, not the true state.
+* **GNSS innovation gate** (as PX4 EKF2 gates GNSS position fusion): an epoch whose
+  innovation ``z - p̂`` exceeds ``gnss_gate_sigma`` σ on any axis (σ: the fix's white
+  noise and one epoch of bias walk, floored at 1 cm) is rejected and the estimate
+  coasts on the accelerometer; after ``gnss_gate_reset_s`` of consecutive rejections
+  the fixes are taken again (a real, persistent offset is accepted) and the estimate
+  slews to them at no more than ``gnss_reset_speed_mps`` per axis (the role of PX4's
+  position-controller reset handling: the tracking error never steps).
+* **GNSS step** (a test event: a multipath step, an RTK fix lost and re-acquired):
+  ``gnss_step_m`` added to every fix from ``gnss_step_at_s`` for
+  ``gnss_step_duration_s`` (None: for good), horizontally toward
+  ``gnss_step_direction_rad`` (None: a seeded random direction per drone).
 * **Clock**: drone i runs the show clock ``t + δ_i``, δ_i ~ N(0, ``clock_offset_s``²).
 * **Wind**: mean wind ``wind_mean_mps`` toward ``wind_direction_rad`` at
   ``wind_ref_height_m`` with a power-law height profile (exponent
@@ -61,6 +72,16 @@ class ErrorModel:
         gnss_bias_walk_m_per_sqrt_s: Bias random-walk intensity (m/√s): σ of the drift after t is this·√t.
         gnss_rate_hz: GNSS solution rate (Hz).
         estimator_bandwidth_rad_s: Crossover ω_c of the GNSS/accelerometer complementary filter (rad/s).
+        gnss_gate_sigma: Innovation gate in σ of the expected innovation (PX4 EKF2's
+            ``EKF2_GPS_P_GATE``, default 5); 0 = no gate (every fix is fused).
+        gnss_gate_reset_s: Consecutive rejection time after which the fixes are taken again (s)
+            (EKF2's ``reset_timeout_max``, 7 s).
+        gnss_reset_speed_mps: Largest speed of the estimate's correction per axis while the gate
+            rejects or resets (m/s).
+        gnss_step_m: Size of an injected horizontal GNSS step (m); 0 = none.
+        gnss_step_at_s: Time the step starts (s).
+        gnss_step_duration_s: How long it lasts (s); None = for the rest of the flight.
+        gnss_step_direction_rad: Its direction from +x toward +y (rad); None = seeded per drone.
         clock_offset_s: σ of each drone's constant show-clock offset (s).
         wind_mean_mps: Mean wind speed at ``wind_ref_height_m`` (m/s).
         wind_direction_rad: Direction the mean wind blows toward, from +x toward +y (rad).
@@ -87,6 +108,14 @@ class ErrorModel:
     gnss_bias_walk_m_per_sqrt_s: float = 0.0
     gnss_rate_hz: float = 10.0
     estimator_bandwidth_rad_s: float = 2.0
+    # The gate is on by default (a flight stack's estimator has one); it only acts with GNSS on.
+    gnss_gate_sigma: float = 5.0
+    gnss_gate_reset_s: float = 7.0
+    gnss_reset_speed_mps: float = 0.5
+    gnss_step_m: float = 0.0
+    gnss_step_at_s: float = 0.0
+    gnss_step_duration_s: float | None = None
+    gnss_step_direction_rad: float | None = None
     clock_offset_s: float = 0.0
     wind_mean_mps: float = 0.0
     wind_direction_rad: float = 0.0
@@ -108,15 +137,19 @@ class ErrorModel:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name in ("name", "wind_direction_rad") or value is None:
+            if f.name in ("name", "wind_direction_rad", "gnss_step_direction_rad") or value is None:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"errors.{f.name} must be a finite number, got {value!r}")
             if value < 0:
                 raise ValueError(f"errors.{f.name} must be >= 0, got {value}")
-        if not math.isfinite(self.wind_direction_rad):
-            raise ValueError(f"errors.wind_direction_rad must be finite, got {self.wind_direction_rad}")
-        for name in ("gnss_rate_hz", "estimator_bandwidth_rad_s", "wind_ref_height_m", "turbulence_length_m"):
+        for name in ("wind_direction_rad", "gnss_step_direction_rad"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not math.isfinite(value)):
+                raise ValueError(f"errors.{name} must be a finite number, got {value!r}")
+        for name in ("gnss_rate_hz", "estimator_bandwidth_rad_s", "wind_ref_height_m", "turbulence_length_m",
+                     "gnss_gate_reset_s", "gnss_reset_speed_mps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"errors.{name} must be > 0, got {getattr(self, name)}")
         if self.gnss_rate_hz > 1000.0:
@@ -134,7 +167,8 @@ class ErrorModel:
     @property
     def has_gnss(self) -> bool:
         """True when the controller sees an estimate instead of the true position."""
-        return self.gnss_noise_m > 0 or self.gnss_bias_m > 0 or self.gnss_bias_walk_m_per_sqrt_s > 0
+        return (self.gnss_noise_m > 0 or self.gnss_bias_m > 0 or self.gnss_bias_walk_m_per_sqrt_s > 0
+                or self.gnss_step_m > 0)
 
     @property
     def has_wind(self) -> bool:

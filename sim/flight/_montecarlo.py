@@ -515,6 +515,11 @@ class MonteCarloResult:
             "diverged": [{"run": k, "seed": self.seed0 + k, "drone": d, "time_s": t, "reason": r}
                          for k, d, t, r in self.diverged[:200]],
             "diverged_count": len(self.diverged),
+            # By physical reason (engines._state): "overpowered" = blown off, lacking the authority
+            # (wind beyond the drone's limits); "runaway" = unstable control or a tumble;
+            # "non-finite" = the numbers broke down.
+            "diverged_by_reason": {r: sum(1 for *_, why in self.diverged if why == r)
+                                   for r in sorted({why for *_, why in self.diverged})},
             "run_list": self.runs,
             "wall_time_s": self.wall_time_s,
         }

@@ -60,7 +60,7 @@ class FlightOptions:
         params: vehicle parameters (default: the paper's quadrotor).
         gains: explicit controller gains; overrides ``controller``.
         mismatch: plant mass and inertia off by this fraction (dimensionless).
-        divergence_limit_m: tracking error beyond which a drone is stopped as a runaway (m).
+        divergence_limit_m: tracking error beyond which a drone is stopped ("runaway" or "overpowered") (m).
         chunk_s: simulated time per engine call (s); bounds the working memory.
         scheduler: with ``engine="dask"``: ``"tcp://HOST:PORT"``, ``"local"`` (an
             in-process ``LocalCluster``) or a ``distributed.Client``.

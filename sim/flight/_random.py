@@ -22,7 +22,7 @@ __all__ = ["STREAMS", "hashed_normal", "hashed_uniform"]
 #: Stream numbers, one per random quantity (never reuse one for another quantity).
 STREAMS = {
     "mass": 1, "inertia": 2, "thrust": 3, "sag": 4, "clock": 5,
-    "gnss_bias": 6, "gnss_walk": 7, "gnss_white": 8,
+    "gnss_bias": 6, "gnss_walk": 7, "gnss_white": 8, "gnss_step": 9,
 }
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from sim.plan import position_at, step_piece
+
 # Kind codes of the per-drone part of an effect (per-frame-only kinds are folded into the
 # frame colour and the frame opacity before the kernel runs).
 K_FLAT = 0  # colour and opacity per frame only: solid, ramp, strobe
@@ -185,26 +187,18 @@ def positions_at(breaks: np.ndarray, coeffs: np.ndarray, rows: np.ndarray, t_s: 
     as time advances, as the viewer's playback kernel does; times outside a drone's pieces clamp
     to its first / last piece ends.
     """
-    last = breaks.shape[1] - 2
-    deg = coeffs.shape[3] - 1
+    end = breaks.shape[1] - 1
     cursor = np.zeros(rows.shape[0], dtype=np.int64)
     for a in range(frames.shape[0]):
         f = frames[a]
         for j in range(rows.shape[0]):
             d = rows[j]
-            t = min(max(t_s[f], breaks[d, 0]), breaks[d, last + 1])
-            p = cursor[j]
-            while p < last and breaks[d, p + 1] <= t:
-                p += 1
-            while p > 0 and breaks[d, p] > t:
-                p -= 1
+            t = min(max(t_s[f], breaks[d, 0]), breaks[d, end])
+            p = step_piece(breaks, d, cursor[j], t)
             cursor[j] = p
             u = t - breaks[d, p]
             for ax in range(3):
-                acc = coeffs[d, p, ax, deg]
-                for k in range(deg - 1, -1, -1):
-                    acc = acc * u + coeffs[d, p, ax, k]
-                out[f, j, ax] = acc
+                out[f, j, ax] = position_at(coeffs, d, p, ax, u)
 
 
 @nb.njit(cache=True, nogil=True)

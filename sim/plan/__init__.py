@@ -29,3 +29,7 @@ from sim.plan._trajectory import Trajectories as Trajectories
 from sim.plan._trajectory import TrajectoryBuilder as TrajectoryBuilder
 from sim.plan._trajectory import TrajectorySample as TrajectorySample
 from sim.plan._trajectory import horner as horner
+from sim.plan._trajectory import position_at as position_at
+from sim.plan._trajectory import states_at as states_at
+from sim.plan._trajectory import step_piece as step_piece
+from sim.plan._trajectory import velocity_at as velocity_at

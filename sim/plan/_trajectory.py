@@ -15,7 +15,9 @@ Drones do not share piece boundaries: each has its own departure time and time l
 (the planner staggers drones to keep them apart), so everything that consumes
 motion (verification, flight references, playback, exports) reads this table, never
 a shared time law. Pieces are looked up by a compiled binary search per drone, so evaluation stays
-vectorised over drones.
+vectorised over drones; compiled frame loops (playback, the light effects) instead walk a piece
+cursor per drone from frame to frame and evaluate by Horner's rule with the inlined helpers here
+(:func:`step_piece`, :func:`position_at`, :func:`velocity_at`, :func:`states_at`).
 """
 
 from __future__ import annotations
@@ -49,6 +51,79 @@ def _search_pieces(breaks_s: np.ndarray, rows: np.ndarray, times_s: np.ndarray, 
                 else:
                     hi = mid
             out[k, j] = lo - 1
+
+
+@njit(inline="always", cache=True)
+def step_piece(breaks_s: np.ndarray, i: int, p: int, t: float) -> int:
+    """Drone i's piece at time ``t`` (the last starting at or before t), walked from its piece ``p``.
+
+    The cursor search of playback and frame loops: between frames a drone moves a piece or two,
+    so walking from the last one beats a binary search (forwards while playing, either way when
+    scrubbing). ``t`` must lie in the show; it picks the piece :meth:`Trajectories.piece_index` picks.
+    """
+    last = breaks_s.shape[1] - 2
+    while p < last and breaks_s[i, p + 1] <= t:
+        p += 1
+    while p > 0 and breaks_s[i, p] > t:
+        p -= 1
+    return p
+
+
+@njit(inline="always", cache=True)
+def _horner_at(coeffs_m: np.ndarray, i: int, p: int, a: int, u: float, deg: int) -> float:
+    """Σ_{k<=deg} coeffs_m[i, p, a, k]·u^k by Horner's rule, highest power first."""
+    acc: float = coeffs_m[i, p, a, deg]
+    for k in range(deg - 1, -1, -1):
+        acc = acc * u + coeffs_m[i, p, a, k]
+    return acc
+
+
+@njit(inline="always", cache=True)
+def _horner_slope_at(coeffs_m: np.ndarray, i: int, p: int, a: int, u: float, deg: int) -> float:
+    """Σ_{1<=k<=deg} k·coeffs_m[i, p, a, k]·u^(k-1) by Horner's rule, highest power first."""
+    acc: float = deg * coeffs_m[i, p, a, deg]
+    for k in range(deg - 1, 0, -1):
+        acc = acc * u + k * coeffs_m[i, p, a, k]
+    return acc
+
+
+@njit(inline="always", cache=True)
+def position_at(coeffs_m: np.ndarray, i: int, p: int, a: int, u: float) -> float:
+    """Drone i's coordinate ``a`` (m) on piece p, ``u`` s into it: Σ_k coeffs_m[i, p, a, k]·u^k."""
+    # The planner's tables have degree DEGREE: a loop of constant length, which the compiler unrolls
+    # (about 1.7 times faster than a loop over the array's last axis).
+    if coeffs_m.shape[3] == DEGREE + 1:
+        return _horner_at(coeffs_m, i, p, a, u, DEGREE)
+    return _horner_at(coeffs_m, i, p, a, u, coeffs_m.shape[3] - 1)
+
+
+@njit(inline="always", cache=True)
+def velocity_at(coeffs_m: np.ndarray, i: int, p: int, a: int, u: float) -> float:
+    """The derivative (m/s) of :func:`position_at`: Σ_k k·coeffs_m[i, p, a, k]·u^(k-1)."""
+    if coeffs_m.shape[3] == DEGREE + 1:
+        return _horner_slope_at(coeffs_m, i, p, a, u, DEGREE)
+    return _horner_slope_at(coeffs_m, i, p, a, u, coeffs_m.shape[3] - 1)
+
+
+@njit(cache=True)
+def states_at(breaks_s: np.ndarray, coeffs_m: np.ndarray, times_s: np.ndarray, cursor: np.ndarray,
+              pos_m: np.ndarray, vel_mps: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Every drone's position and velocity at ``times_s`` (T,), each on its own piece: (T, N, 3) into
+    ``pos_m``, ``vel_mps``.
+
+    ``cursor`` (N,) holds each drone's piece from the previous call and is moved by
+    :func:`step_piece`; times must lie in the show. Serial on purpose: 16,000 drones take
+    ~0.2 ms, less than waking a thread pool (which costs milliseconds on a busy machine).
+    """
+    for j in range(times_s.shape[0]):
+        t = times_s[j]
+        for i in range(breaks_s.shape[0]):
+            p = step_piece(breaks_s, i, cursor[i], t)
+            cursor[i] = p
+            u = t - breaks_s[i, p]
+            for a in range(3):
+                pos_m[j, i, a] = position_at(coeffs_m, i, p, a, u)
+                vel_mps[j, i, a] = velocity_at(coeffs_m, i, p, a, u)
 
 
 class TrajectorySample(NamedTuple):

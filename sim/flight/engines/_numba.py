@@ -76,12 +76,15 @@ import numpy as np
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
+    C_GATE,
     C_IATT,
     C_IERR,
     C_INNOV,
     C_IPOS,
     C_LAST_THRUST,
+    C_LIMITED,
     C_PHAT,
+    C_RESET,
     C_ROTOR,
     C_SAPREV,
     C_SPREV,
@@ -102,7 +105,11 @@ from sim.flight.engines._state import (
     D_SIZE,
     D_THRUST,
     DIVERGED_NONFINITE,
+    DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
+    LIMITED_ALIGN_COS,
+    LIMITED_FRACTION,
+    LIMITED_TAU_S,
     STAT_COUNT,
     STAT_DTHRUST,
     STAT_MAX,
@@ -309,7 +316,7 @@ def _block_window(sc: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxtc: np.nda
 def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
-    wind_dt, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv,
+    wind_dt, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -463,12 +470,35 @@ def _kernel(
                 in0 = sc[(F_CTRL + C_INNOV) * L + lane]
                 in1 = sc[(F_CTRL + C_INNOV + 1) * L + lane]
                 in2 = sc[(F_CTRL + C_INNOV + 2) * L + lane]
+                gcount = sc[(F_CTRL + C_GATE) * L + lane]
+                rs0 = sc[(F_CTRL + C_RESET) * L + lane]
+                rs1 = sc[(F_CTRL + C_RESET + 1) * L + lane]
+                rs2 = sc[(F_CTRL + C_RESET + 2) * L + lane]
                 if epoch:
                     in0 = (px + sc[(F_GNSS + 0) * L + lane]) - ph0
                     in1 = (py + sc[(F_GNSS + 1) * L + lane]) - ph1
                     in2 = (pz + sc[(F_GNSS + 2) * L + lane]) - ph2
+                    # Innovation gate (as the numpy step): reject beyond k σ and count; after
+                    # gate_n consecutive rejections reset p̂ to the fix, the jump to C_RESET.
+                    inside = (abs(in0) <= gate_h) & (abs(in1) <= gate_h) & (abs(in2) <= gate_v)
+                    gcount = 0.0 if inside else gcount + 1.0
+                    reset = gcount >= gate_n
+                    gcount = 0.0 if reset else gcount
+                    ph0 = ph0 + in0 if reset else ph0
+                    ph1 = ph1 + in1 if reset else ph1
+                    ph2 = ph2 + in2 if reset else ph2
+                    rs0 = rs0 + in0 if reset else rs0
+                    rs1 = rs1 + in1 if reset else rs1
+                    rs2 = rs2 + in2 if reset else rs2
+                    in0 = in0 if inside else 0.0
+                    in1 = in1 if inside else 0.0
+                    in2 = in2 if inside else 0.0
                 if use_gnss:
-                    cpx, cpy, cpz = ph0, ph1, ph2
+                    # The controller sees p̂ less the part of a reset not yet shed (0 without one).
+                    cpx, cpy, cpz = ph0 - rs0, ph1 - rs1, ph2 - rs2
+                    rs0 = rs0 - min(max(rs0, -reset_v * dt), reset_v * dt)
+                    rs1 = rs1 - min(max(rs1, -reset_v * dt), reset_v * dt)
+                    rs2 = rs2 - min(max(rs2, -reset_v * dt), reset_v * dt)
                     cvx = sc[(F_CTRL + C_VHAT) * L + lane]
                     cvy = sc[(F_CTRL + C_VHAT + 1) * L + lane]
                     cvz = sc[(F_CTRL + C_VHAT + 2) * L + lane]
@@ -605,6 +635,12 @@ def _kernel(
                 clipped = (((o1 < 0.0) | (o1 > wmax2)) | ((o2 < 0.0) | (o2 > wmax2))) | (
                     ((o3 < 0.0) | (o3 > wmax2)) | ((o4 < 0.0) | (o4 > wmax2)))
                 sat = limited | clipped
+                # At the authority limit and pushing back (as the numpy step): "overpowered" vs "runaway".
+                lf_old = sc[(F_CTRL + C_LIMITED) * L + lane]
+                push = (ux * e1x + uy * e1y + uz * e1z) - g * e1z < 0.0
+                follows = ux * zbx + uy * zby + uz * zbz > LIMITED_ALIGN_COS * un
+                held = 1.0 if sat & push & follows else 0.0
+                lf_new = lf_old + (dt / LIMITED_TAU_S) * (held - lf_old)
                 o1 = min(max(o1, 0.0), wmax2)
                 o2 = min(max(o2, 0.0), wmax2)
                 o3 = min(max(o3, 0.0), wmax2)
@@ -660,9 +696,9 @@ def _kernel(
                     nvh0 = cvx + dt * (ax + est_kv * in0)
                     nvh1 = cvy + dt * (ay + est_kv * in1)
                     nvh2 = cvz + dt * (az + est_kv * in2)
-                    nph0 = cpx + dt * (nvh0 + est_kp * in0)
-                    nph1 = cpy + dt * (nvh1 + est_kp * in1)
-                    nph2 = cpz + dt * (nvh2 + est_kp * in2)
+                    nph0 = ph0 + dt * (nvh0 + est_kp * in0)
+                    nph1 = ph1 + dt * (nvh1 + est_kp * in1)
+                    nph2 = ph2 + dt * (nvh2 + est_kp * in2)
                 else:
                     nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
 
@@ -720,7 +756,8 @@ def _kernel(
                 died = alive and not ok
                 sc[F_ALIVE * L + lane] = 1.0 if ok else 0.0
                 sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
-                why = DIVERGED_RUNAWAY if (not err_ok) and err > limit else DIVERGED_NONFINITE
+                far = DIVERGED_OVERPOWERED if lf_old > LIMITED_FRACTION else DIVERGED_RUNAWAY
+                why = far if (not err_ok) and err > limit else DIVERGED_NONFINITE
                 sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
 
                 # Statistics and the commit, for the drones that flew this step.
@@ -786,6 +823,11 @@ def _kernel(
                 _commit(sc, F_CTRL + C_ROTOR + 1, lane, o2, ok)
                 _commit(sc, F_CTRL + C_ROTOR + 2, lane, o3, ok)
                 _commit(sc, F_CTRL + C_ROTOR + 3, lane, o4, ok)
+                _commit(sc, F_CTRL + C_GATE, lane, gcount, ok)
+                _commit(sc, F_CTRL + C_RESET, lane, rs0, ok)
+                _commit(sc, F_CTRL + C_RESET + 1, lane, rs1, ok)
+                _commit(sc, F_CTRL + C_RESET + 2, lane, rs2, ok)
+                _commit(sc, F_CTRL + C_LIMITED, lane, lf_new, ok)
 
             if use_tel and rec:
                 fr = k // every
@@ -860,6 +902,7 @@ def run_chunk_numba(
         _rw(tables.gnss), int(tables.gnss_every), int(tables.gnss_first),
         _rw(tables.wind), int(tables.wind_k0), float(tables.wind_dt_s),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
+        float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
     )
 
 

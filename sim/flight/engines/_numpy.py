@@ -52,12 +52,15 @@ from sim.flight.control._ismc import IsmcGains, ismc_nominal, ismc_switching, li
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
+    C_GATE,
     C_IATT,
     C_IERR,
     C_INNOV,
     C_IPOS,
     C_LAST_THRUST,
+    C_LIMITED,
     C_PHAT,
+    C_RESET,
     C_ROTOR,
     C_SAPREV,
     C_SPREV,
@@ -76,7 +79,11 @@ from sim.flight.engines._state import (
     D_SAG_RATE,
     D_THRUST,
     DIVERGED_NONFINITE,
+    DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
+    LIMITED_ALIGN_COS,
+    LIMITED_FRACTION,
+    LIMITED_TAU_S,
     STAT_COUNT,
     STAT_DTHRUST,
     STAT_MAX,
@@ -176,8 +183,26 @@ def numpy_step(
     if sw.gnss:
         p_c, v_c = c[:, C_PHAT:C_PHAT + 3], c[:, C_VHAT:C_VHAT + 3]
         if gnss is not None:  # a GNSS epoch: new innovation z - p̂, held until the next
-            nc[:, C_INNOV:C_INNOV + 3] = (p + gnss) - p_c
+            y = (p + gnss) - p_c
+            # Innovation gate (PX4 EKF2's GNSS position gate; sim.flight._errors): an epoch beyond
+            # k σ on any axis is rejected (the estimate coasts on the accelerometer) and counted;
+            # after gate_epochs consecutive rejections p̂ is reset to the fix (EKF2 resets its
+            # position states to the measurement) and the jump goes into C_RESET, which the
+            # controller's view sheds at reset_mps (PX4's position controller shifts its
+            # setpoint by the EKF's reset delta, so the tracking error never steps).
+            inside = (np.abs(y[:, 0]) <= sw.gate_h_m) & (np.abs(y[:, 1]) <= sw.gate_h_m) & (
+                np.abs(y[:, 2]) <= sw.gate_v_m)
+            count = np.where(inside, 0.0, c[:, C_GATE] + 1.0)
+            reset = (count >= sw.gate_epochs)[:, None]
+            nc[:, C_GATE] = np.where(reset[:, 0], 0.0, count)
+            p_c = np.where(reset, p_c + y, p_c)
+            nc[:, C_RESET:C_RESET + 3] = np.where(reset, c[:, C_RESET:C_RESET + 3] + y, c[:, C_RESET:C_RESET + 3])
+            nc[:, C_INNOV:C_INNOV + 3] = np.where(inside[:, None], y, 0.0)
         innov = nc[:, C_INNOV:C_INNOV + 3]
+        p_hat = p_c
+        shed = nc[:, C_RESET:C_RESET + 3]
+        p_c = p_hat - shed
+        nc[:, C_RESET:C_RESET + 3] = shed - np.minimum(np.maximum(shed, -sw.reset_mps * dt_s), sw.reset_mps * dt_s)
     else:
         p_c, v_c = p, v
 
@@ -225,6 +250,15 @@ def numpy_step(
     # with it left the attitude loop unable to follow its reference for as long as a strong
     # wind held the tilt at the limit; its s wound up and it ran away after; issue 20.)
     saturated = rotor_clipped | limited
+    # "At its authority limit, pushing back": the command is limited (or a rotor clips), its
+    # part beyond hover points against the error the controller sees and the body's thrust
+    # axis follows it (a tumbling drone's command sits at the limit too). A decaying average of it
+    # tells a drone blown off by too much wind ("overpowered") from unstable control, whose
+    # command pushes along the error ("runaway"); see engines._state.
+    push_back = np.sum(u * e1, axis=1) - g * e1[:, 2] < 0.0
+    follows = np.sum(u * z_b, axis=1) > LIMITED_ALIGN_COS * np.sqrt(np.sum(u * u, axis=1))
+    held = (saturated & push_back & follows).astype(float)
+    nc[:, C_LIMITED] = c[:, C_LIMITED] + (dt_s / LIMITED_TAU_S) * (held - c[:, C_LIMITED])
     if sw.motor:
         rotor = c[:, C_ROTOR:C_ROTOR + 4]
         omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
@@ -269,7 +303,7 @@ def numpy_step(
         ns[:, 6:9] = euler + dt_s * np.einsum("nij,nj->ni", w_mat, ns[:, 9:12])
         if sw.gnss:  # the estimator: predict with the accelerometer, correct with the held innovation
             nc[:, C_VHAT:C_VHAT + 3] = v_c + dt_s * (acc + sw.est_kv * innov)
-            nc[:, C_PHAT:C_PHAT + 3] = p_c + dt_s * (nc[:, C_VHAT:C_VHAT + 3] + sw.est_kp * innov)
+            nc[:, C_PHAT:C_PHAT + 3] = p_hat + dt_s * (nc[:, C_VHAT:C_VHAT + 3] + sw.est_kp * innov)
         else:
             nc[:, C_PHAT:C_PHAT + 3] = ns[:, 0:3]
             nc[:, C_VHAT:C_VHAT + 3] = ns[:, 3:6]
@@ -335,7 +369,8 @@ def run_chunk_numpy(
             err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
         runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
         dstep[runaway] = k
-        dreason[runaway] = np.where(err[runaway] > limit, DIVERGED_RUNAWAY, DIVERGED_NONFINITE)
+        far = np.where(ctrl[runaway, C_LIMITED] > LIMITED_FRACTION, DIVERGED_OVERPOWERED, DIVERGED_RUNAWAY)
+        dreason[runaway] = np.where(err[runaway] > limit, far, DIVERGED_NONFINITE)
         alive &= ~runaway
         with np.errstate(all="ignore"):  # a diverging row may overflow; it is caught below
             ns, nc, trow = numpy_step(

@@ -8,6 +8,7 @@ neither imports the other (the driver, :mod:`sim.flight.engines._driver`, picks 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +22,7 @@ __all__ = [
     "CTRL_SIZE",
     "D_SIZE",
     "DIVERGED_NONFINITE",
+    "DIVERGED_OVERPOWERED",
     "DIVERGED_REASONS",
     "ErrorSwitches",
     "DIVERGED_RUNAWAY",
@@ -42,7 +44,24 @@ C_IERR = 31  # ∫e1 dt of the PID baseline (m·s)
 C_PHAT, C_VHAT = 34, 37  # estimator: p̂ (m), v̂ (m/s) (the true p, v when GNSS is off)
 C_INNOV = 40  # GNSS innovation z - p̂ held since the last epoch (m)
 C_ROTOR = 43  # squared rotor speeds acting (rad²/s²), the motor-lag state (4)
-CTRL_SIZE = 47
+# GNSS innovation gate: consecutive rejected epochs (0 while the fixes pass the gate).
+C_GATE = 47
+# Decaying average (time constant LIMITED_TAU_S) of "the command is at its authority limit,
+# points back toward the reference and the attitude follows it": near 1 when a drone is
+# blown off (it does all it can), not when it falls over or its control is unstable.
+C_LIMITED = 48
+# What the last estimator resets moved p̂ by, not yet passed on to the controller (m): it
+# sees p̂ - this, which returns to p̂ at <= reset_mps per axis (3).
+C_RESET = 49
+CTRL_SIZE = 52
+
+#: Time constant (s) of the C_LIMITED average: "most of the last second".
+LIMITED_TAU_S = 1.0
+#: C_LIMITED above this when the error passes the divergence limit: "overpowered".
+LIMITED_FRACTION = 0.5
+#: The body's thrust axis within acos(this) = 0.2 rad of the command u counts as "following":
+#: a drone that tumbles has its command at the limit too, but its attitude does not follow it.
+LIMITED_ALIGN_COS = math.cos(0.2)
 
 # Per-drone constants of the error models (rows of ``drone``, built by engines._tables).
 D_MASS, D_IX, D_IY, D_IZ = 0, 1, 2, 3  # the true plant's mass (kg) and inertia (kg·m²)
@@ -57,9 +76,20 @@ D_SIZE = 9
 STAT_SUMSQ, STAT_MAX, STAT_DTHRUST, STAT_COUNT = 0, 1, 2, 3
 STATS_SIZE = 4
 
+# Why a drone was stopped (issue 20):
+# * "runaway": its error passed the divergence limit while its control was not held at its
+#   authority limit pushing back (unstable control, a tumble);
+# * "overpowered": its error passed the limit while, for most of the last second
+#   (C_LIMITED > LIMITED_FRACTION), its command had sat at the tilt/thrust limit (or a rotor
+#   clipped) pointing back toward the reference with the attitude following it (thrust axis
+#   within 0.2 rad of the command): it lacked the authority, e.g. wind beyond its airspeed
+#   limit;
+# * "non-finite": a state or input became NaN or inf (or the reference did).
 DIVERGED_RUNAWAY = 1
 DIVERGED_NONFINITE = 2
-DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite"}
+DIVERGED_OVERPOWERED = 3
+DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite",
+                    DIVERGED_OVERPOWERED: "overpowered"}
 
 # Telemetry row recorded at output frames (when requested).
 TELEMETRY_FIELDS = (
@@ -83,6 +113,10 @@ class ErrorSwitches:
         clock: Per-drone clock offsets.
         est_kp: Estimator position gain on the held innovation (1/s).
         est_kv: Estimator velocity gain on the held innovation (1/s²).
+        gate_h_m: Innovation gate per horizontal axis (m): k σ; inf = no gate.
+        gate_v_m: Innovation gate vertically (m).
+        gate_epochs: Consecutive rejected epochs after which p̂ is reset to the fix.
+        reset_mps: Speed (m/s, per axis) at which a reset is passed on to what the controller sees.
     """
 
     gnss: bool = False
@@ -91,6 +125,10 @@ class ErrorSwitches:
     clock: bool = False
     est_kp: float = 0.0
     est_kv: float = 0.0
+    gate_h_m: float = math.inf
+    gate_v_m: float = math.inf
+    gate_epochs: float = 0.0
+    reset_mps: float = math.inf
 
     @property
     def ideal(self) -> bool:

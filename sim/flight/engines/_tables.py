@@ -137,6 +137,25 @@ class ErrorTables:
         # innovation y held between epochs: poles of s² + k_p s + k_v at ω_c, ζ = 1/√2.
         wc = e.estimator_bandwidth_rad_s
         self.est_kp, self.est_kv = math.sqrt(2.0) * wc, wc * wc
+        # Innovation gate (PX4 EKF2: EKF2_GPS_P_GATE = 5 σ, states reset to the measurement after
+        # reset_timeout_max = 7 s of rejections, src/modules/ekf2/EKF/common.h). σ of the innovation:
+        # the fix's white noise and one epoch of bias walk (the estimate has converged on the
+        # slowly varying bias; its prediction uses the exact accelerometer), floored at 1 cm as
+        # EKF2 floors the GNSS position noise (EKF2_GPS_P_NOISE >= 0.01 m).
+        epoch_s = self.gnss_every * dt_s
+        sigma = max(math.hypot(e.gnss_noise_m, e.gnss_bias_walk_m_per_sqrt_s * math.sqrt(epoch_s)), 0.01)
+        gate_on = e.gnss_gate_sigma > 0
+        self.gate_h_m = e.gnss_gate_sigma * sigma if gate_on else math.inf
+        self.gate_v_m = e.gnss_gate_sigma * sigma * e.gnss_vertical_factor if gate_on else math.inf
+        self.gate_epochs = float(max(math.ceil(e.gnss_gate_reset_s / epoch_s - 1e-9), 1))
+        self.step_xy_m = np.zeros((n, 2))
+        if e.gnss_step_m > 0:
+            if e.gnss_step_direction_rad is not None:
+                angle = np.full(n, float(e.gnss_step_direction_rad))
+            else:  # a seeded direction per drone (uniform: the angle of a 2-D standard normal)
+                z = hashed_normal(self.seed, self.ids[:, None], STREAMS["gnss_step"], np.arange(2)[None, :])
+                angle = np.arctan2(z[:, 1], z[:, 0])
+            self.step_xy_m = e.gnss_step_m * np.stack([np.cos(angle), np.sin(angle)], axis=1)
         self._axis_sigma = np.array([1.0, 1.0, e.gnss_vertical_factor])
         self._bias = np.zeros((n, 3))
         self._bias_epoch = -1  # epoch index the bias is at
@@ -157,7 +176,8 @@ class ErrorTables:
         self.dt_s = float(dt_s)
         self.switches = ErrorSwitches(
             gnss=self.use_gnss, motor=self.use_motor, drag=self.use_drag, clock=self.use_clock,
-            est_kp=self.est_kp, est_kv=self.est_kv,
+            est_kp=self.est_kp, est_kv=self.est_kv, gate_h_m=self.gate_h_m, gate_v_m=self.gate_v_m,
+            gate_epochs=self.gate_epochs, reset_mps=e.gnss_reset_speed_mps,
         )
 
     def initial_gnss_error(self) -> np.ndarray:
@@ -169,6 +189,10 @@ class ErrorTables:
             self.seed, drone, STREAMS["gnss_white"], np.arange(3)[None, :]
         )
         out: np.ndarray = self._initial_bias + white
+        e = self.errors
+        if e.gnss_step_m > 0 and e.gnss_step_at_s <= 1e-9 and (e.gnss_step_duration_s is None
+                                                                or e.gnss_step_duration_s > 1e-9):
+            out[:, 0:2] += self.step_xy_m  # a step from t = 0 is part of the first fix
         return out
 
     def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
@@ -203,7 +227,13 @@ class ErrorTables:
                 white = e.gnss_noise_m * self._axis_sigma * hashed_normal(
                     self.seed, drone, STREAMS["gnss_white"], counter
                 )
-                gnss = np.ascontiguousarray(bias + white)
+                gnss = bias + white
+                if e.gnss_step_m > 0:  # the injected step, on the epochs inside its window
+                    t_epoch = epochs * ge * self.dt_s
+                    end = math.inf if e.gnss_step_duration_s is None else e.gnss_step_at_s + e.gnss_step_duration_s
+                    on = (t_epoch >= e.gnss_step_at_s - 1e-9) & (t_epoch < end - 1e-9)
+                    gnss[on, :, 0:2] += self.step_xy_m[None, :, :]
+                gnss = np.ascontiguousarray(gnss)
         wind = np.zeros((0, n, 3))
         k0 = 0
         if self.use_drag:

@@ -1,0 +1,43 @@
+// @ts-check
+// A summary's pieces, shared by the check report and the flight and Monte-Carlo summaries: numbers
+// formatted for reading, and the ✓/✗ heading with its two-column table.
+
+/**
+ * A number for reading: fixed digits and a unit, or "—" when there is none (null, NaN, ±Infinity).
+ * @param {number|null|undefined} v @param {number} [digits] @param {string} [unit]
+ * @returns {string}
+ */
+export function fmt(v, digits = 2, unit = "") {
+  return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
+}
+
+/**
+ * A summary's heading (the ✓ or ✗ line) and its two-column table, as the check report and
+ * the flight and Monte-Carlo summaries show them.
+ * @param {boolean} ok whether the heading reads as a pass
+ * @param {string} text the heading
+ * @param {string} label the table's accessible name
+ * @param {Array<[string, string, boolean?] | null | false | undefined>} rows label, value and whether
+ *   the value breaks a limit (drawn as bad); falsy rows are left out
+ * @returns {[HTMLParagraphElement, HTMLTableElement]}
+ */
+export function summaryTable(ok, text, label, rows) {
+  const head = document.createElement("p");
+  head.className = ok ? "report-ok" : "report-bad";
+  head.textContent = text;
+  const table = document.createElement("table");
+  table.setAttribute("aria-label", label);
+  for (const r of rows) {
+    if (!r) continue;
+    const [name, value, bad] = r;
+    const tr = document.createElement("tr");
+    const a = document.createElement("td");
+    a.textContent = name;
+    const b = document.createElement("td");
+    b.textContent = value;
+    if (bad) b.className = "bad-value";
+    tr.append(a, b);
+    table.append(tr);
+  }
+  return [head, table];
+}
