@@ -123,7 +123,7 @@ from sim.flight.engines._state import (
     TrackingReference,
 )
 from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables, ideal_drone_constants
-from sim.flight.engines._vmath import vasin, vatan2, vpow, vsincos
+from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
 
@@ -155,14 +155,18 @@ NF = F_TELOK + 1
 
 
 @nb.njit(inline="always", cache=True)
-def _sig_scale(x0: float, x1: float, x2: float, r: float) -> float:
-    """Factor ``||x||^(r-1)`` of ``sig(x, r)``, 0 at x = 0 (``sim.flight.control._ismc.sig``), as selects."""
-    n = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    pos = n > 0.0
-    nn = n if pos else 1.0
-    gen = vpow(nn, r - 1.0)
-    out = 1.0 / math.sqrt(nn) if r == 0.5 else gen
-    out = 1.0 if r == 1.0 else out
+def _sig_scale(x0: float, x1: float, x2: float, h: float) -> float:
+    """Factor ``||x||^(r-1)`` of ``sig(x, r)`` as ``(x·x)^h``, ``h = (r-1)/2``; 0 at x = 0, as selects.
+
+    One ``exp(h log(x·x))`` serves every exponent: no square root for the norm and no
+    separate ``1/sqrt`` path for r = 1/2 (the numpy reference's special cases agree to a
+    few ulp; r = 1 gives h = 0 and exactly 1). The divider unit, shared by every division
+    and square root, is what the lane loop waits on most, so this saves two square roots and
+    a division per call (``sim.flight.control._ismc.sig``).
+    """
+    q = x0 * x0 + x1 * x1 + x2 * x2
+    pos = q > 0.0
+    out = vexp(h * vlog(q if pos else 1.0))
     return out if pos else 0.0
 
 
@@ -177,22 +181,22 @@ def _unit_scale(x0: float, x1: float, x2: float, eps: float) -> float:
 @nb.njit(inline="always", cache=True)
 def _ismc_law(
     ex: float, ey: float, ez: float, edx: float, edy: float, edz: float, fx: float, fy: float, fz: float,
-    ka: float, kb: float, ra: float, rb: float, e0x: float, e0y: float, e0z: float,
+    ka: float, kb: float, ha: float, hb: float, e0x: float, e0y: float, e0z: float,
     ix: float, iy: float, iz: float, spx: float, spy: float, spz: float, gain: float, eps: float,
     eps_q: float,
 ) -> tuple[float, ...]:
     """One ISMC law, shared by position (spec 4) and attitude (spec 6); scalar form of ``sim.flight.control._ismc``.
 
-    Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b and powers
-    r_a, r_b of the nominal law, ė at the start, the integral of the nominal closed loop, the
-    previous step's sliding variable, the switching gain and the switching law's boundary layers
-    (on s and on s - s_prev).
+    Args: error e and its rate ė (3 components each), the drift f, gains k_a, k_b of the
+    nominal law and its powers as h = (r - 1)/2 (see ``_sig_scale``), ė at the start, the
+    integral of the nominal closed loop, the previous step's sliding variable, the switching
+    gain and the switching law's boundary layers (on s and on s - s_prev).
 
     Returns:
         (u_n x, y, z: nominal control; s x, y, z: sliding variable; w x, y, z: rate of u_d).
     """
-    sa = _sig_scale(ex, ey, ez, ra)
-    sb = _sig_scale(edx, edy, edz, rb)
+    sa = _sig_scale(ex, ey, ez, ha)
+    sb = _sig_scale(edx, edy, edz, hb)
     unx = -ka * (ex * sa) - kb * (edx * sb) - fx
     uny = -ka * (ey * sa) - kb * (edy * sb) - fy
     unz = -ka * (ez * sa) - kb * (edz * sb) - fz
@@ -283,6 +287,34 @@ def _seek(sc: np.ndarray, base: int, lane: int, cur: np.ndarray, nxt: np.ndarray
         _load_piece(sc, base, lane, coeffs, breaks, i, c)
 
 
+@nb.njit(inline="always", cache=True)
+def _block_window(sc: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxtc: np.ndarray, prvc: np.ndarray,
+                  use_clock: bool) -> tuple[float, float]:
+    """A window ``[lo, hi)`` of times t in which no lane's cursor (true time or own clock) has to move.
+
+    A lane keeps its piece while ``prv <= clamp(t, t_first, t_last) < nxt``; that holds when
+    ``prv <= t < nxt`` (the clamp's bounds are the first and last breaks, which never cut a
+    piece short, unless the first piece has zero length: then there is no window), and for
+    the drone's own clock when ``prv - δ <= t < nxt - δ``. The clock's bounds are moved
+    inward by a relative 1e-12 so that rounding of ``t + δ`` can only make the window
+    smaller: inside it the per-lane test would find nothing to do, so skipping it leaves every
+    result bit-identical.
+    """
+    lo, hi = -math.inf, math.inf
+    for lane in range(LANES):
+        tf = sc[F_TF * LANES + lane]
+        if not (tf < nxt[lane] and tf < nxtc[lane]):  # a zero-length first piece: no window
+            return math.inf, -math.inf
+        lo = max(lo, prv[lane])
+        hi = min(hi, nxt[lane])
+        if use_clock:
+            d = sc[(F_DRONE + D_CLOCK) * LANES + lane]
+            a, b = prvc[lane] - d, nxtc[lane] - d
+            lo = max(lo, a + 1e-12 * (abs(a) + 1.0))
+            hi = min(hi, b - 1e-12 * (abs(b) + 1.0))
+    return lo, hi
+
+
 @nb.njit(parallel=True, cache=True, error_model="numpy",
          fastmath={"nsz", "afn", "contract", "reassoc"})
 def _kernel(
@@ -301,11 +333,14 @@ def _kernel(
     arm, kf, km, pg, wmax2 = plt[4], plt[5], plt[6], plt[7], plt[8]
     k1, k2, r1, r2, alpha = gn[0], gn[1], gn[2], gn[3], gn[4]
     k3, k4, r3, r4, beta_g = gn[5], gn[6], gn[7], gn[8], gn[9]
+    # The laws' powers as the exponents of x·x (``_sig_scale``).
+    h1, h2, h3, h4 = 0.5 * (r1 - 1.0), 0.5 * (r2 - 1.0), 0.5 * (r3 - 1.0), 0.5 * (r4 - 1.0)
     wn, zeta = gn[10], gn[11]
     eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17], gn[18]
     uz_min, tan_tilt = gn[19], gn[20]
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
+    inv_2akf, inv_4km = 1.0 / (2.0 * arm * kf), 1.0 / (4.0 * km)
     n_wind = wtab.shape[0]
     blocks = (n + LANES - 1) // LANES
     L = LANES
@@ -348,6 +383,7 @@ def _kernel(
             nxtc[lane], prvc[lane] = nxt[lane], prv[lane]
             _load_piece(sc, F_REF, lane, coeffs, breaks, i, c0)
             _load_piece(sc, F_REFC, lane, coeffs, breaks, i, c0)
+        win_lo, win_hi = math.inf, -math.inf  # empty: the first step searches
         # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
         next_rec = ((step0 + every - 1) // every) * every
         next_gnss = gnss_first
@@ -365,13 +401,18 @@ def _kernel(
                     frames[fr, i0 + lane, 1] = sc[(F_STATE + 1) * L + lane]
                     frames[fr, i0 + lane, 2] = sc[(F_STATE + 2) * L + lane]
             # ---- the scalar part: pieces, GNSS and wind table rows (uniform or rare)
-            for lane in range(L):
-                i = min(i0 + lane, n - 1)
-                tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
-                _seek(sc, F_REF, lane, cur, nxt, prv, coeffs, breaks, i, min(max(t, tf), tl), last_piece)
-                if use_clock:
-                    tcc = min(max(t + sc[(F_DRONE + D_CLOCK) * L + lane], tf), tl)
-                    _seek(sc, F_REFC, lane, curc, nxtc, prvc, coeffs, breaks, i, tcc, last_piece)
+            # The piece cursors: while t stays inside the block's common window no lane can
+            # leave its piece (see ``_block_window``), which is most steps: two comparisons
+            # instead of a pass over the lanes.
+            if not (win_lo <= t < win_hi):
+                for lane in range(L):
+                    i = min(i0 + lane, n - 1)
+                    tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
+                    _seek(sc, F_REF, lane, cur, nxt, prv, coeffs, breaks, i, min(max(t, tf), tl), last_piece)
+                    if use_clock:
+                        tcc = min(max(t + sc[(F_DRONE + D_CLOCK) * L + lane], tf), tl)
+                        _seek(sc, F_REFC, lane, curc, nxtc, prvc, coeffs, breaks, i, tcc, last_piece)
+                win_lo, win_hi = _block_window(sc, nxt, prv, nxtc, prvc, use_clock)
             epoch = use_gnss and k == next_gnss
             if epoch:  # a GNSS epoch: the lanes take a new innovation z - p̂, held until the next
                 for lane in range(L):
@@ -481,7 +522,7 @@ def _kernel(
                 e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
                 fx, fy, fz = -arx, -ary, -arz - g
                 unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
-                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, r1, r2,
+                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, h1, h2,
                     sc[(F_CTRL + C_E2_0) * L + lane], sc[(F_CTRL + C_E2_0 + 1) * L + lane],
                     sc[(F_CTRL + C_E2_0 + 2) * L + lane],
                     sc[(F_CTRL + C_IPOS) * L + lane], sc[(F_CTRL + C_IPOS + 1) * L + lane],
@@ -499,9 +540,14 @@ def _kernel(
                 wux, wuy, wuz = ux, uy, uz
                 floor_hit = uz < uz_min
                 uz = uz_min if floor_hit else uz
-                hxy = math.sqrt(ux * ux + uy * uy)
-                tilt_hit = hxy > uz * tan_tilt
-                tsc = uz * tan_tilt / hxy
+                # ||u_xy|| > u_z tan(tilt) compared squared where the bound is >= 0 (the paper's
+                # gains have no floor: a negative bound is always hit, as in the reference), and
+                # the scale by rsqrt: no square root or division (the divider is the bottleneck).
+                hxy2 = ux * ux + uy * uy
+                lim_xy = uz * tan_tilt
+                hxy = math.sqrt(hxy2)
+                tilt_hit = hxy > lim_xy
+                tsc = lim_xy / hxy
                 ux = ux * tsc if tilt_hit else ux
                 uy = uy * tsc if tilt_hit else uy
                 limited = floor_hit | tilt_hit
@@ -519,7 +565,8 @@ def _kernel(
                 thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
 
                 # ---- attitude resolution (spec 5) and command filter
-                un = math.sqrt(ux * ux + uy * uy + uz * uz)
+                un2 = ux * ux + uy * uy + uz * uz
+                un = math.sqrt(un2)
                 ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
                 ratio = min(max(ratio, -1.0), 1.0)
                 rph = vasin(ratio)
@@ -560,7 +607,7 @@ def _kernel(
                 fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
                 faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
                 unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
-                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, r3, r4,
+                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, h3, h4,
                     sc[(F_CTRL + C_E4_0) * L + lane], sc[(F_CTRL + C_E4_0 + 1) * L + lane],
                     sc[(F_CTRL + C_E4_0 + 2) * L + lane],
                     sc[(F_CTRL + C_IATT) * L + lane], sc[(F_CTRL + C_IATT + 1) * L + lane],
@@ -580,12 +627,13 @@ def _kernel(
                 tcz = iz * (-sph * uay + cph * cth * uaz)
 
                 # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
-                # Divisions kept here: the same rounding as the reference mixer is what makes the
-                # hover thrust come back as exactly m·g (hover is held bit-exactly).
+                # The thrust share is divided, as in the reference mixer: that rounding is what
+                # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
+                # The torque shares (0 in hover) multiply by hoisted reciprocals.
                 base = thrust_cmd / (4.0 * kf)
-                roll = tcx / (2.0 * arm * kf)
-                pitch = tcy / (2.0 * arm * kf)
-                yw = tcz / (4.0 * km)
+                roll = tcx * inv_2akf
+                pitch = tcy * inv_2akf
+                yw = tcz * inv_4km
                 o1 = base - pitch + yw
                 o2 = base + roll - yw
                 o3 = base + pitch + yw

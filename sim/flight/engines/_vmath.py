@@ -14,24 +14,24 @@ range.
   ``q·P`` exact for ``|q| < 2^20``), ``|d| <= π/4``; Taylor polynomials of sin (to d^17)
   and cos (to d^16), whose first omitted terms are below 2^-56 relative on that range;
   the quadrant ``q mod 4`` picks and signs them. Valid for ``|x| <= 1e5``.
-* ``atan2``: fold to ``z = min/max`` of ``|y|, |x|`` in [0, 1], pick the nearest of
-  ``c_k = tan(kπ/16)``, ``k = 0..4``, and take ``t = (n - c_k d)/(d + c_k n)`` (one
-  division; ``|t| <= tan(π/32)``), ``atan(t)`` by Taylor to t^17 (first omitted term
-  < 2^-57 relative); the angle ``mπ/16`` is added in two parts. ``asin(x) =
-  atan2(x, sqrt((1-x)(1+x)))``.
+* ``atan2``: fold to ``z = n/d = min/max`` of ``|y|, |x|`` in [0, 1], pick the nearest of
+  ``c_k = tan(kπ/16)``, ``k = 0..4`` (comparing ``n`` with ``tan((2k+1)π/32)·d``: no division),
+  and take ``t = (n - c_k d)/(d + c_k n)`` (one division; ``|t| <= tan(π/32)``), ``atan(t)``
+  by Taylor to t^17 (first omitted term < 2^-57 relative); the angle ``mπ/16`` is added in
+  two parts. ``asin(x) = atan2(x, sqrt((1-x)(1+x)))``.
 * ``exp``: ``x = n ln 2 + r`` (fdlibm's ``ln2_hi/lo``), ``|r| <= ln2/2``, Taylor to r^13,
   scaled by 2^n built from its bits (as two factors, for n = 1024). Results below 2^-1022 flush to 0.
 * ``log``: ``x = 2^e m``, ``m`` in [√½, √2) from the bits; ``log m = f - s(f - R(s²))``
   with ``f = m - 1``, ``s = f/(2 + f)`` (fdlibm's form), R the atanh series to s^20.
 
-Accuracy (``tests/test_flight_vmath.py`` checks it against numpy over dense samples of
-each input range): sin, cos, atan2, asin, exp, log within 4 ulp of numpy's result
-(measured: at most 3 ulp), pow ``x^a = exp(a log x)`` within ``4 + 3|a log x|`` ulp (exp
-carries the rounding of ``y = a log x`` as a relative error ~|y| 2^-52; the kernel's
-norms^(-2/7) have |y| of a few units). Special values: NaN in, NaN out (the kernel's divergence check
-depends on it); ``log(0) = -inf``, ``log(x<0)`` NaN, ``log(inf) = inf``, ``exp`` overflows
-to inf and underflows to 0; ``atan2`` is for finite inputs (``atan2(0, 0) = 0``; the sign
-of a zero ``x`` is ignored).
+Accuracy (``tests/test_flight_vmath.py`` checks it against numpy over dense samples of each
+input range): sin, cos, atan2, asin, exp, log within 4 ulp of numpy's result (measured: at
+most 3 ulp), pow ``x^a = exp(a log x)`` within ``4 + 3|a log x|`` ulp (exp carries the
+rounding of ``y = a log x`` as a relative error ~|y| 2^-52; the kernel's norms^(-2/7) have
+|y| of a few units). Special values: NaN in, NaN out (the kernel's divergence check depends
+on it); ``log(0) = -inf``, ``log(x<0)`` NaN, ``log(inf) = inf``, ``exp`` overflows to inf
+and underflows to 0; ``atan2`` is for finite inputs (``atan2(0, 0) = 0``; the sign of a zero
+``x`` is ignored).
 
 Floating point: these functions are compiled with FMA contraction only. They must not
 be compiled with ``reassoc`` (it would fold the split constants back together) and are
@@ -135,9 +135,10 @@ def vatan2(y: float, x: float) -> float:
     num = ax if swap else ay
     den = ay if swap else ax
     den = den if den > 0.0 else 1.0  # atan2(0, 0) = 0
-    z = num / den
-    k = ((1.0 if z > _T0 else 0.0) + (1.0 if z > _T1 else 0.0)) + (
-        (1.0 if z > _T2 else 0.0) + (1.0 if z > _T3 else 0.0))
+    # The sector from num/den > tan((2k+1)π/32) compared as num > tan(..)·den (den > 0):
+    # no division for it (the divider unit is the kernel's bottleneck).
+    k = ((1.0 if num > _T0 * den else 0.0) + (1.0 if num > _T1 * den else 0.0)) + (
+        (1.0 if num > _T2 * den else 0.0) + (1.0 if num > _T3 * den else 0.0))
     c = 0.0
     c = _C1 if k == 1.0 else c
     c = _C2 if k == 2.0 else c
@@ -161,7 +162,10 @@ def vatan2(y: float, x: float) -> float:
 
 @nb.njit(cache=True, inline="always")
 def vasin(x: float) -> float:
-    """``asin(x)`` for ``|x| <= 1`` within 4 ulp, as ``atan2(x, sqrt((1-x)(1+x)))``."""
+    """``asin(x)`` for ``|x| <= 1`` within 4 ulp, as ``atan2(x, sqrt((1-x)(1+x)))``.
+
+    The square root as ``w · rsqrt(w)`` (no divider; 0 at |x| = 1).
+    """
     return vatan2(x, math.sqrt((1.0 - x) * (1.0 + x)))
 
 
