@@ -28,7 +28,8 @@ so the work is laid out for the vector units:
 * What depends on a drone's data but not on its arithmetic stays scalar and outside
   the lane loop: finding each drone's polynomial piece (a cursor that only moves
   forward with time; the piece's coefficients are copied into the scratch when it
-  changes), the GNSS table rows at an epoch, the wind table rows when the 10 Hz wind
+  changes; most steps skip even the per-lane test, see :func:`_block_window`), the GNSS
+  table rows at an epoch, the wind table rows when the 10 Hz wind
   grid advances, the frames and telemetry rows. The reference is evaluated by one
   helper, :func:`_ref_at`, at the true time (the flown error is measured against it)
   and at the drone's own clock (what the controller flies when a clock offset is on).
@@ -41,6 +42,15 @@ cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
 run on a machine pays the compile time (about a minute of CPU).
+
+What bounds the lane loop (measured, issue 20): not its flops. Square roots and divisions
+share one divider unit that is not pipelined like the FMA units, so they were cut where an
+exact rewrite exists (``sig`` as ``exp(h log(x·x))``, atan2's sector by products, the
+mixer's torque shares by hoisted reciprocals: 23 divisions + 17 square roots per
+drone-step down to 17 + 9, ~1.1x). Tried and measured slower on this machine, so not
+kept: splitting the step into five stage loops over the lanes (loop fission: 0.7x, more
+scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
+32 lanes per block (0.75x) and LLVM's forced vector interleaving (0.8x, register spills).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
