@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -134,3 +138,26 @@ def test_read_only_inputs_run_the_same_compiled_kernel():
     assert np.array_equal(a.positions_m, b.positions_m)
     # numba types a read-only array as Array(..., readonly=True), i.e. ``mutable`` False.
     assert not any(isinstance(t, types.Array) and not t.mutable for sig in _kernel.signatures for t in sig)
+
+
+_FLY_AND_SAVE = """
+import sys, numpy as np
+from sim.flight import TrackingReference, simulate
+rng = np.random.default_rng(0)
+ref = TrackingReference.circle(rng.uniform(-20.0, 20.0, (24, 3)) + [0.0, 0.0, 30.0], radius_m=3.0, omega_rad_s=0.5)
+np.save(sys.argv[1], simulate(ref, duration_s=1.0, engine="numba").positions_m)
+"""
+
+
+def test_a_process_that_compiles_the_kernel_matches_one_that_loads_it(tmp_path):
+    # numba's in-process JIT and its cached object code of the parallel kernel differ in the
+    # last bit; a process that compiled the kernel used to disagree with every process that
+    # loaded it (a Dask worker, the next run). Both now run the cached code: a cold cache
+    # (this process compiles) and then a warm one (it loads) give the same bits.
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    outs = []
+    for run in ("cold", "warm"):
+        out = tmp_path / f"{run}.npy"
+        subprocess.run([sys.executable, "-c", _FLY_AND_SAVE, str(out)], env=env, check=True, timeout=1200)
+        outs.append(np.load(out))
+    assert np.array_equal(outs[0], outs[1])

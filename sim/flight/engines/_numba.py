@@ -79,6 +79,10 @@ not depend on the block or lane it runs in (lanes never mix).
 from __future__ import annotations
 
 import math
+import os
+import pickle
+import subprocess
+import sys
 from typing import Any
 
 import numba as nb
@@ -919,7 +923,7 @@ def run_chunk_numba(
     # Each drone's piece at the chunk's first step (one search per chunk); the kernel
     # advances from there.
     cursor0 = _rw(motion.piece_index(chunk.times[:1])[0], np.int64)
-    _kernel(
+    args = (
         state, ctrl, stats, dstep, dreason, _rw(motion.breaks_s), _rw(motion.coeffs_m), cursor0,
         _rw(chunk.times), _rw(chunk.offset), _rw(chunk.yaw), _rw(dist), int(step0), int(every),
         frames, tel_arr, use_tel, _rw(opts["params"].as_vector()), _rw(opts["plant"].as_vector()),
@@ -931,6 +935,8 @@ def run_chunk_numba(
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
     )
+    _cached_machine_code(_kernel, args)
+    _kernel(*args)
 
 
 def _rw(a: Any, dtype: type = np.float64) -> np.ndarray:
@@ -943,3 +949,35 @@ def _rw(a: Any, dtype: type = np.float64) -> np.ndarray:
     than the local engine and break the bit-identical local/Dask guarantee.
     """
     return np.require(a, dtype=dtype, requirements=["C", "W"])
+
+
+def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
+    """Make this process run ``dispatcher``'s machine code for ``args`` *as loaded from numba's disk cache*.
+
+    Why: for this parallel kernel numba's in-process JIT and the object code it writes to the
+    cache differ in the last bit of some results (measured: 2e-14 m after 2 s of flight, then
+    amplified by the finite-time laws' chatter), and once a process has JIT-compiled the
+    kernel, loading the cached code later does not help (its ``prange`` body keeps resolving
+    to the JIT-compiled one). A process that compiled the kernel would then disagree bit for
+    bit with every process that loaded it from the cache: a Dask worker, the next CLI run.
+    So on a cache miss the specialisation is compiled (and cached) by a child process, and this
+    process loads the cached code like every other. If the child cannot do it (cache not
+    writable, caching off) this process compiles as numba always does; only then can processes
+    differ, at that rounding level. Uses numba's dispatcher internals (``_cache``); if they
+    change, this falls back to numba's own behaviour.
+    """
+    try:
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        if sig in dispatcher.overloads:
+            return
+        if dispatcher._cache.load_overload(sig, dispatcher.targetctx) is None:
+            func = dispatcher.py_func
+            code = ("import pickle, sys, importlib; "
+                    f"f = getattr(importlib.import_module({func.__module__!r}), {func.__qualname__!r}); "
+                    "f.compile(pickle.loads(sys.stdin.buffer.read()))")
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+            subprocess.run([sys.executable, "-c", code], input=pickle.dumps(sig), env=env,
+                           capture_output=True, timeout=1800, check=False)
+    except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
+        return
+    dispatcher.compile(sig)  # from the cache when the child wrote it
