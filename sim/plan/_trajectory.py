@@ -32,6 +32,28 @@ from numpy.typing import ArrayLike
 DEGREE = 5
 
 
+@njit(inline="always", cache=True)
+def _piece_of(b: np.ndarray, p: int, t: float) -> int:
+    """Number of interior breaks ``b[1 .. p-1]`` at or before t (binary search, side="right"): t's piece."""
+    lo, hi = 1, p
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if b[mid] <= t:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo - 1
+
+
+@njit(inline="always", cache=True)
+def _horner(c: np.ndarray, n: int, u: float) -> float:
+    """``c[0] + c[1] u + ... + c[n-1] u^(n-1)`` by Horner's rule, highest coefficient first."""
+    h = c[n - 1]
+    for q in range(n - 2, -1, -1):
+        h = h * u + c[q]
+    return h
+
+
 @njit(cache=True, nogil=True)
 def _search_pieces(breaks_s: np.ndarray, rows: np.ndarray, times_s: np.ndarray, out: np.ndarray) -> None:
     """out[k, j] = number of interior breaks of drone rows[j] at or before times_s[k], at most P-1."""
@@ -39,15 +61,7 @@ def _search_pieces(breaks_s: np.ndarray, rows: np.ndarray, times_s: np.ndarray, 
     for j in range(rows.shape[0]):
         b = breaks_s[rows[j]]
         for k in range(times_s.shape[0]):
-            lo, hi = 1, p  # search breaks b[1 .. p-1] (side="right")
-            t = times_s[k]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if b[mid] <= t:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            out[k, j] = lo - 1
+            out[k, j] = _piece_of(b, p, times_s[k])
 
 
 @njit(inline="always", cache=True)
@@ -149,36 +163,22 @@ def _evaluate_pieces(
             t = times_s[k]
             live = t >= start and t <= end
             tc = start if t < start else (end if t > end else t)  # np.clip's rule (NaN stays NaN)
-            lo, hi = 1, p
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if b[mid] <= tc:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            piece = lo - 1
+            piece = _piece_of(b, p, tc)
             u = tc - b[piece]
             for ax in range(3):
                 c = coeffs_m[row, piece, ax]
-                h = c[nc - 1]
-                for q in range(nc - 2, -1, -1):
-                    h = h * u + c[q]
-                pos[k, j, ax] = h
+                pos[k, j, ax] = _horner(c, nc, u)
                 if derivatives >= 1:
                     for q in range(nc - 1):
                         d1[q] = c[q + 1] * float(q + 1)
                     d1[nc - 1] = 0.0
-                    h = d1[nc - 1]
-                    for q in range(nc - 2, -1, -1):
-                        h = h * u + d1[q]
+                    h = _horner(d1, nc, u)
                     vel[k, j, ax] = h if live else 0.0
                 if derivatives >= 2:
                     for q in range(nc - 1):
                         d2[q] = d1[q + 1] * float(q + 1)
                     d2[nc - 1] = 0.0
-                    h = d2[nc - 1]
-                    for q in range(nc - 2, -1, -1):
-                        h = h * u + d2[q]
+                    h = _horner(d2, nc, u)
                     acc[k, j, ax] = h if live else 0.0
 
 
