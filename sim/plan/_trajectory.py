@@ -48,7 +48,7 @@ def _piece_of(b: np.ndarray, p: int, t: float) -> int:
 @njit(inline="always", cache=True)
 def _horner(c: np.ndarray, n: int, u: float) -> float:
     """``c[0] + c[1] u + ... + c[n-1] u^(n-1)`` by Horner's rule, highest coefficient first."""
-    h = c[n - 1]
+    h: float = c[n - 1]
     for q in range(n - 2, -1, -1):
         h = h * u + c[q]
     return h
