@@ -309,3 +309,28 @@ def test_camera_mode_switch(viewer, plan):
     assert viewer.server.initial_camera.position[2] > 1.7
     with pytest.raises(ValueError):
         viewer.set_camera("sideways")
+
+
+def test_a_browser_joining_a_running_playback_plays_along(plan):
+    """The editor's music lane can start the show before its preview page has connected (CI failure of
+    test_editor_music: the sound played, the page's own playback sat paused at 0 s while the headless
+    default one ran on unseen). A browser that connects then joins the default playback: same show,
+    time, speed, and playing."""
+    v = Viewer(start_thread=False, per_client=True)
+    try:
+        v.load(plan, name="small")
+        main = v.playbacks[0]
+        main.set_speed(2.0)
+        main.seek(3.0)
+        main.play()
+        fake = SimpleNamespace(client_id=7, scene=v.server.scene, gui=v.server.gui, atomic=v.server.atomic,
+                               camera=SimpleNamespace(image_width=1200, position=(0, 0, 0), look_at=(0, 0, 0)))
+        v._on_connect(fake)
+        pb = v._clients[7]
+        assert (pb.current, pb.time_s, pb.speed, pb.playing) == ("small", 3.0, 2.0, True)
+        main.pause()
+        fake2 = SimpleNamespace(**{**vars(fake), "client_id": 8})
+        v._on_connect(fake2)
+        assert not v._clients[8].playing  # a paused default playback: the newcomer waits too
+    finally:
+        v.stop()

@@ -1088,7 +1088,7 @@ class Viewer:
         # viser calls this once the browser has reported its camera (a real browser does at once).
         with self._lock:
             if self.per_client:
-                # The browser's own playback starts where the default one is.
+                # The browser's own playback starts where the default one is, and plays if it plays.
                 pb = _Playback(self, scene=client.scene, gui=client.gui, client=client)
                 self._clients[client.client_id] = pb
                 # A small window (a phone, the editor's preview pane) starts with the panel minimised.
@@ -1100,6 +1100,10 @@ class Viewer:
                     pb._activate(main.current, main.source)
                     pb.seek(main.time_s)
                     pb.set_speed(main.speed)
+                    # Started before this page connected (the editor's music lane plays the show as the
+                    # preview opens): join it, or the sound runs with a paused picture.
+                    if main.playing:
+                        pb.play()
             if self._busy is not None:
                 self._notify(client, self._busy[0])
         self._refresh_show_options()
