@@ -50,7 +50,7 @@ mixer's torque shares by hoisted reciprocals: 23 divisions + 17 square roots per
 drone-step down to 17 + 9, ~1.1x). Tried and measured slower on this machine, so not
 kept: splitting the step into five stage loops over the lanes (loop fission: 0.7x, more
 scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
-32 lanes per block (0.75x) and LLVM's forced vector interleaving (0.8x, register spills).
+32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
@@ -141,8 +141,13 @@ from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vsincos
 
 __all__ = ["LANES", "run_chunk_numba"]
 
-#: Drones per block: the lane loop's trip count (2 AVX-512 or 4 AVX2 vectors of float64).
-LANES = 16
+#: Drones per block: the lane loop's trip count (one AVX-512 or two AVX2 vectors of float64). Eight,
+#: not sixteen: a block's scratch is ~205 fields x LANES x 8 bytes, 26 KB at sixteen lanes, which with
+#: the loop's stack spills overfills the 32 KB L1 data cache; at eight (13 KB) it fits. Measured in
+#: alternating single-thread A/B rounds (kernel CPU time, 4,000 drones, gusty-rtk): 1.08x the
+#: median of sixteen lanes (11 of 15 rounds faster, and a steadier rate), results bit-identical
+#: (lanes never mix).
+LANES = 8
 
 # ---- scratch layout: field f of lane l at sc[f * LANES + l] ------------------------------
 F_STATE = 0  # the 12 plant states (p, v, Θ, Ω)
