@@ -166,7 +166,8 @@ def test_new_user_designs_checks_simulates_and_exports(ui: Page):
     frame = page.frame_locator("#preview-frame")
     sync_api.expect(frame.locator("canvas").first).to_be_attached(timeout=30_000)
     assert page.eval_on_selector("#preview-frame", "el => el.src").endswith("/viser/")
-    page.wait_for_timeout(1500)
+    # The viewer page has its playback (its state element) before the screenshot.
+    page.wait_for_function("() => window.swarmshow.playhead.preview.viewerState() !== null", timeout=30_000)
     ui.shot("editor-preview")
     page.get_by_role("button", name="Close the 3D preview").click()
 

@@ -74,7 +74,7 @@ def test_add_sweep_and_sparkle_preview_save_and_play(ui: Page) -> None:
                       show_id)
     assert r == 200
     page.goto(ui.base + "/viser/")
-    page.wait_for_timeout(1500)
+    page.get_by_text("16 drones").first.wait_for(timeout=30_000)  # the show with its effects is on screen
 
     # Remove one: undoable.
     page.goto(ui.base + f"/?show={show_id}")

@@ -62,8 +62,13 @@ def test_add_a_rotation_edit_its_keys_play_it_and_check_safe(ui: Page):
     expect(table.locator("tbody")).to_have_count(2)
 
     # Playback draws the formation moved; at its end the points are the grid turned 90° about z.
-    page.get_by_role("button", name="Play the motion on the canvas").click()
+    play = page.get_by_role("button", name="Play the motion on the canvas")
+    play.click()
+    expect(play).to_have_text("■ Stop")
     expect(page.locator("#motion-info")).to_contain_text("t = 12.0 s of the hold", timeout=20_000)
+    # "12.0" shows from 11.95 s on; the playback has drawn its last frame (at the end) once its button says
+    # Play again.
+    expect(play).to_have_text("▶ Play")
     drawn = page.evaluate(
         "() => { const v = window.swarmshow.view; const f = window.swarmshow.state.formation;"
         " return v.moved ? v.moved(f).points : null; }"

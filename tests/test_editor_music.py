@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tests.live_server import BROWSER_MARKS, chromium_browser, server_for
+from tests.live_server import BROWSER_MARKS, chromium_browser, server_for, wait_until
 from tests.test_editor_browser import Page, _create_show
 from tests.test_media_audio import click_track
 
@@ -32,17 +32,14 @@ def browser():
         yield b
 
 
+def _read_clock(base: str, show_id: str) -> dict:
+    return httpx.get(f"{base}/api/viewer/clock", params={"show_id": show_id}, timeout=30).json()
+
+
 def _clock(base: str, show_id: str, ok, timeout_s: float = 30.0) -> dict:
     """The viewer's clock for the show once ``ok(clock)`` holds (polled)."""
-    import time
-
-    end = time.monotonic() + timeout_s
-    while True:
-        clock = httpx.get(f"{base}/api/viewer/clock", params={"show_id": show_id}, timeout=30).json()
-        if ok(clock) or time.monotonic() > end:
-            assert ok(clock), clock
-            return clock
-        time.sleep(0.25)
+    return wait_until("the viewer's clock", lambda: (c := _read_clock(base, show_id)) and ok(c) and c,
+                      timeout_s=timeout_s, interval_s=0.25)
 
 
 def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
@@ -110,9 +107,17 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     page.wait_for_function("() => { const a = document.getElementById('music-audio'); "
                            "return !a.paused && a.currentTime > 0.5 && a.readyState >= 2; }", timeout=20_000)
-    clock = _clock(ui.base, show_id, lambda c: c["playing"])
-    lane_t = page.evaluate("() => window.swarmshow.music.time_s")
-    assert abs(clock["time_s"] - lane_t) < 1.5
+    _clock(ui.base, show_id, lambda c: c["playing"])
+    # ... and the preview page's own playback with it, whenever the page connected (e71e2b1).
+    wait_until("the preview's viewer to play", lambda: (v := page.evaluate(
+        "() => window.swarmshow.playhead.preview.viewerState()")) and v["playing"])
+    # The lane's time just before and just after one reading of the viewer's clock: both run on, so the
+    # clock must lie between them (within the lane's tolerance), however long the round trips take.
+    lane = "() => window.swarmshow.music.time_s"
+    lane_before = page.evaluate(lane)
+    clock = _read_clock(ui.base, show_id)
+    lane_after = page.evaluate(lane)
+    assert clock["playing"] and lane_before - 1.5 < clock["time_s"] < lane_after + 1.5, (lane_before, clock, lane_after)
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     assert page.evaluate("() => document.getElementById('music-audio').paused")
     ui.shot("issue18-music-lane")
