@@ -51,6 +51,10 @@ export class MusicLane {
     this._poll = 0;
     this._followed = false;
     this._quietUntil = 0;
+    /** @type {any|null} what the viewer is still to be told (sent when the request in flight has been answered) */
+    this._pending = null;
+    /** Whether a transport request is in flight. */
+    this._sending = false;
 
     this.file.addEventListener("change", () => {
       const f = this.file.files && this.file.files[0];
@@ -232,20 +236,44 @@ export class MusicLane {
     if (!this.parts.previewOpen() || !this.state.meta) return;
     // Until the viewer has applied it, its clock still says the old state: do not follow that back.
     this._quietUntil = performance.now() + QUIET_MS;
-    api.request("POST", "/api/viewer/transport", { json: { show_id: this.state.meta.id, ...body } }).catch(() => {});
+    // One request at a time, in order: two in flight can be applied in either order (separate connections),
+    // and a quick Play then Pause left the viewer playing. What comes meanwhile is merged into one (later
+    // fields win, as the actions would have), so a drag of the playhead does not queue up requests.
+    const showId = this.state.meta.id;
+    const pending = this._pending && this._pending.show_id === showId ? this._pending : {};
+    this._pending = { ...pending, show_id: showId, ...body };
+    if (!this._sending) this._send();
+  }
+
+  async _send() {
+    this._sending = true;
+    try {
+      while (this._pending) {
+        const json = this._pending;
+        this._pending = null;
+        try {
+          await api.request("POST", "/api/viewer/transport", { json });
+        } catch {
+          // The viewer is gone or refused it: nothing to drive; the next action tries again.
+        }
+      }
+    } finally {
+      this._sending = false;
+    }
   }
 
   /** Follow the 3D view's clock: its play / pause, its time (beyond the drift) and its speed. */
   async _follow() {
     if (!this.parts.previewOpen() || !this.state.meta || document.hidden) return;
-    if (performance.now() < this._quietUntil) return;
+    // While the lane drives the viewer (a request unanswered), the clock lags what the lane said.
+    if (performance.now() < this._quietUntil || this._sending) return;
     let c;
     try {
       c = await api.request("GET", `/api/viewer/clock?show_id=${encodeURIComponent(this.state.meta.id)}`);
     } catch {
       return;
     }
-    if (!c.show || performance.now() < this._quietUntil) return;
+    if (!c.show || performance.now() < this._quietUntil || this._sending) return;
     this.audio.playbackRate = Math.min(4, Math.max(0.25, c.speed));
     if (c.playing && !this.playing) {
       this.time_s = c.time_s;
