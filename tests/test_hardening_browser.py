@@ -65,8 +65,8 @@ def test_editor_token_prompt_session_cookie_and_viewer_under_csp(server):
         sockets: list = []
         viewer.on("websocket", lambda ws: sockets.append(ws))
         viewer.goto(f"{server.base}/viser/")
-        viewer.wait_for_selector("canvas", timeout=30_000)
-        viewer.get_by_text("4 drones").first.wait_for(timeout=30_000)  # the scene arrived over the websocket
+        viewer.wait_for_selector("canvas", timeout=60_000)
+        viewer.get_by_text("4 drones").first.wait_for(timeout=60_000)  # the scene arrived over the websocket
         assert sockets and not sockets[0].is_closed()
         time.sleep(1.0)  # let late violations surface
         ctx.close()

@@ -101,11 +101,11 @@ def test_viewer_through_the_app_port(live_app, browser, small_show):
     page.on("websocket", lambda ws: sockets.append(ws.url))
     try:
         page.goto(f"{base}/viser/")
-        page.wait_for_selector("canvas", timeout=30_000)
+        page.wait_for_selector("canvas", timeout=60_000)
         # The websocket went through the relay, on the app's port, and viser sees the client.
         wait_until("a client connected through the relay", viewer.server.get_clients)
         assert sockets and all(u == f"ws{base[4:]}/viser" for u in sockets)
-        page.get_by_text("16 drones").first.wait_for(timeout=30_000)
+        page.get_by_text("16 drones").first.wait_for(timeout=60_000)
         # No share button (it would open a public tunnel).
         assert page.get_by_text(re.compile("share", re.I)).count() == 0
 
@@ -140,9 +140,9 @@ def test_viser_html_export_plays_from_file(browser, small_show, tmp_path):
     ctx, page = _guarded_page(browser, foreign)
     try:
         page.goto(path.as_uri())
-        page.wait_for_selector("canvas", timeout=30_000)
+        page.wait_for_selector("canvas", timeout=60_000)
         time_input = page.locator("input").first
-        time_input.wait_for(timeout=30_000)
+        time_input.wait_for(timeout=60_000)
         v0 = float(time_input.input_value())
         # It plays by itself: wait for a second of show time to pass (however slowly the machine draws).
         wait_until("the file to play", lambda: float(time_input.input_value()) > v0 + 1.0)

@@ -41,7 +41,7 @@ def _preview_panel(page):
     """The preview's viewer page with its control panel open (a narrow pane starts with it minimised)."""
     frame = page.frame_locator("#preview-frame")
     expand = frame.get_by_role("button", name="Expand panel")
-    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=30_000)
+    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=60_000)
     if expand.count():
         expand.click()
     return frame
@@ -139,11 +139,11 @@ def test_viewer_panel_collapses_and_starts_compact_in_a_small_window(browser, se
             play = page.get_by_role("button", name="Play")
             minimize, expand = (page.get_by_role("button", name=f"{w} panel") for w in ("Minimize", "Expand"))
             if compact:  # starts minimised: the panel's controls are not there until expanded
-                expect(expand).to_be_visible(timeout=30_000)
+                expect(expand).to_be_visible(timeout=60_000)
                 expect(play).to_be_hidden()
                 expand.click()
             else:
-                expect(play).to_be_visible(timeout=30_000)
+                expect(play).to_be_visible(timeout=60_000)
                 minimize.click()
                 expect(play).to_be_hidden()
                 expand.click()
@@ -168,7 +168,7 @@ def test_flown_show_beside_the_plan_with_the_gap_coloured(browser, server):
         page = ctx.new_page()
         page.goto(f"{server}/viser/")
         gap = page.get_by_text(re.compile(r"Flown vs planned max [\d.]+ m?m \(#\d+\) · mean [\d.]+ m?m"))
-        expect(gap.first).to_be_visible(timeout=30_000)
+        expect(gap.first).to_be_visible(timeout=60_000)
         page.get_by_role("button", name="Play").click()
         # The controller tracks the plan to fractions of a millimetre here, but not exactly.
         wait_until("a gap measured in flight", lambda: float(re.search(
