@@ -107,7 +107,13 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     page.wait_for_function("() => { const a = document.getElementById('music-audio'); "
                            "return !a.paused && a.currentTime > 0.5 && a.readyState >= 2; }", timeout=60_000)
-    _clock(ui.base, show_id, lambda c: c["playing"])
+    try:
+        _clock(ui.base, show_id, lambda c: c["playing"])
+    except AssertionError as exc:  # say what the lane and its preview were doing
+        lane = page.evaluate("""() => { const m = window.swarmshow.music; return {time_s: m.time_s,
+            playing: m.playing, sending: m._sending, pending: m._pending,
+            preview: window.swarmshow.playhead.preview.viewerState()}; }""")
+        raise AssertionError(f"{exc}; clock {_read_clock(ui.base, show_id)}; lane {lane}") from None
     # ... and the preview page's own playback with it, whenever the page connected (e71e2b1).
     wait_until("the preview's viewer to play", lambda: (v := page.evaluate(
         "() => window.swarmshow.playhead.preview.viewerState()")) and v["playing"])
@@ -208,3 +214,30 @@ def test_a_quick_play_then_pause_leaves_the_viewer_paused(ui: Page):
     wait_until("the viewer and the lane paused", lambda: not page.evaluate("() => window.swarmshow.music.playing")
                and not _read_clock(ui.base, show_id)["playing"], timeout_s=20.0)
     assert overtook == [], overtook  # nothing went while the Play was unanswered
+
+
+def test_the_lane_drives_the_viewer_before_the_sound_has_started(ui: Page, tmp_path):
+    """The browser's ``audio.play()`` can take many seconds to settle on a busy machine (its promise stayed
+    pending for 30 s under load while the sound already played). The lane waited for it before moving its
+    playhead and starting the viewer: the 3D view sat paused (the CI failure of the test above). Here the
+    promise is held until the test lets it go: the lane's playhead runs and the viewer plays meanwhile."""
+    page = ui.page
+    _create_show(ui, "Slow sound", 4)
+    show_id = ui.state("s.meta.id")
+    y, _ = click_track(BPM, OFFSET_S, duration_s=20.0, sr=22_050)
+    buf = io.BytesIO()
+    sf.write(buf, y, 22_050, format="WAV")
+    (tmp_path / "clicks.wav").write_bytes(buf.getvalue())
+    page.set_input_files("#music-file", str(tmp_path / "clicks.wav"))
+    expect(page.locator("#music-status")).to_contain_text("BPM", timeout=240_000)
+    page.get_by_role("button", name="3D preview").click()
+    _clock(ui.base, show_id, lambda c: c["show"] is not None, timeout_s=120.0)
+    page.evaluate("""() => { const a = document.getElementById('music-audio'), play = a.play.bind(a);
+        a.play = () => { const started = play();
+            return new Promise((ok, fail) => { window.soundStarted = () => started.then(ok, fail); }); }; }""")
+    page.get_by_role("button", name="Play or pause the music and the playhead").click()
+    _clock(ui.base, show_id, lambda c: c["playing"])
+    wait_until("the lane's playhead to run", lambda: page.evaluate("() => window.swarmshow.music.time_s") > 0.5)
+    page.evaluate("() => window.soundStarted()")
+    page.get_by_role("button", name="Play or pause the music and the playhead").click()
+    _clock(ui.base, show_id, lambda c: not c["playing"])

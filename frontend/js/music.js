@@ -177,18 +177,25 @@ export class MusicLane {
     if (this.playing) return;
     this.playing = true;
     this._clockStart = performance.now() / 1000 - this.time_s;
-    if (this.info && this.time_s < this.analysis.duration_s) {
-      this.audio.currentTime = this.time_s;
-      try {
-        await this.audio.play();
-      } catch (err) {
-        setError("music", `The browser did not start the sound (${err.message}); press Play again.`);
-      }
-    }
+    const sound = this.info && this.time_s < this.analysis.duration_s;
+    if (sound) this.audio.currentTime = this.time_s;
+    // The playhead and the viewer start now, not when the sound's play() settles: on a busy machine that
+    // promise can stay pending for many seconds while the sound already plays (the playhead then sat still
+    // and the 3D view paused). Until the sound is audible the playhead runs on the wall clock (see _tick).
     this.playBtn.textContent = "❚❚ Pause";
     this.playBtn.setAttribute("aria-pressed", "true");
     if (drive) this._transport({ time_s: this.time_s, playing: true });
     this._tick();
+    if (sound) {
+      try {
+        await this.audio.play();
+      } catch (err) {
+        // A pause before the sound started interrupts play() (AbortError): no failure.
+        if (!(err && err.name === "AbortError")) {
+          setError("music", `The browser did not start the sound (${err.message}); press Play again.`);
+        }
+      }
+    }
   }
 
   /**
