@@ -51,10 +51,9 @@ export class MusicLane {
     this._poll = 0;
     this._followed = false;
     this._quietUntil = 0;
-    /** @type {any|null} what the viewer is still to be told (sent when the request in flight has been answered) */
-    this._pending = null;
-    /** Whether a transport request is in flight. */
-    this._sending = false;
+    /** Names this lane's transport requests to the server, which ignores one overtaken by a later one. */
+    this._sender = `lane-${Math.random().toString(36).slice(2)}-${Date.now().toString(36)}`;
+    this._seq = 0;
 
     this.file.addEventListener("change", () => {
       const f = this.file.files && this.file.files[0];
@@ -243,44 +242,24 @@ export class MusicLane {
     if (!this.parts.previewOpen() || !this.state.meta) return;
     // Until the viewer has applied it, its clock still says the old state: do not follow that back.
     this._quietUntil = performance.now() + QUIET_MS;
-    // One request at a time, in order: two in flight can be applied in either order (separate connections),
-    // and a quick Play then Pause left the viewer playing. What comes meanwhile is merged into one (later
-    // fields win, as the actions would have), so a drag of the playhead does not queue up requests.
-    const showId = this.state.meta.id;
-    const pending = this._pending && this._pending.show_id === showId ? this._pending : {};
-    this._pending = { ...pending, show_id: showId, ...body };
-    if (!this._sending) this._send();
-  }
-
-  async _send() {
-    this._sending = true;
-    try {
-      while (this._pending) {
-        const json = this._pending;
-        this._pending = null;
-        try {
-          await api.request("POST", "/api/viewer/transport", { json });
-        } catch {
-          // The viewer is gone or refused it: nothing to drive; the next action tries again.
-        }
-      }
-    } finally {
-      this._sending = false;
-    }
+    // Sent at once (a request queued behind another waits for this page's main thread, which a busy 3D view
+    // can hold for many seconds); numbered, so that the server ignores one that arrives after a later one
+    // (a quick Play then Pause, each on its own connection, could leave the viewer playing).
+    const json = { show_id: this.state.meta.id, ...body, sender: this._sender, seq: ++this._seq };
+    api.request("POST", "/api/viewer/transport", { json }).catch(() => {});
   }
 
   /** Follow the 3D view's clock: its play / pause, its time (beyond the drift) and its speed. */
   async _follow() {
     if (!this.parts.previewOpen() || !this.state.meta || document.hidden) return;
-    // While the lane drives the viewer (a request unanswered), the clock lags what the lane said.
-    if (performance.now() < this._quietUntil || this._sending) return;
+    if (performance.now() < this._quietUntil) return;
     let c;
     try {
       c = await api.request("GET", `/api/viewer/clock?show_id=${encodeURIComponent(this.state.meta.id)}`);
     } catch {
       return;
     }
-    if (!c.show || performance.now() < this._quietUntil || this._sending) return;
+    if (!c.show || performance.now() < this._quietUntil) return;
     this.audio.playbackRate = Math.min(4, Math.max(0.25, c.speed));
     if (c.playing && !this.playing) {
       this.time_s = c.time_s;
