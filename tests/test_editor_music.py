@@ -111,7 +111,7 @@ def test_upload_snap_to_a_beat_and_play_with_sound(ui: Page, tmp_path):
         _clock(ui.base, show_id, lambda c: c["playing"])
     except AssertionError as exc:  # say what the lane and its preview were doing
         lane = page.evaluate("""() => { const m = window.swarmshow.music; return {time_s: m.time_s,
-            playing: m.playing, sending: m._sending, pending: m._pending,
+            playing: m.playing, transports_sent: m._seq,
             preview: window.swarmshow.playhead.preview.viewerState()}; }""")
         raise AssertionError(f"{exc}; clock {_read_clock(ui.base, show_id)}; lane {lane}") from None
     # ... and the preview page's own playback with it, whenever the page connected (e71e2b1).
