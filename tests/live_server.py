@@ -10,9 +10,9 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import httpx
 import pytest
@@ -26,6 +26,30 @@ BROWSER_MARKS = [
     pytest.mark.browser,
     pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
 ]
+
+
+#: How long a browser test's ``expect(...)`` retries, milliseconds (Playwright's default is 5 s). A busy CI
+#: machine takes longer than that to save, render or answer, and an assertion that waits for its condition
+#: proves as much with more patience: the same as the pages' default timeout (``Page``, 15 s).
+EXPECT_TIMEOUT_MS = 15_000
+
+T = TypeVar("T")
+
+
+def wait_until(what: str, fn: Callable[[], T], timeout_s: float = 60.0, interval_s: float = 0.05) -> T:
+    """Poll ``fn`` until it returns a truthy value, which is returned; fail naming ``what`` and the last value.
+
+    For conditions outside a page (the server, several pages, a computed reading): a test waits for what it
+    means rather than sleeping for a time sized for a quiet machine.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = fn()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what} (last: {value!r})")
+        time.sleep(interval_s)
 
 
 def free_port() -> int:
@@ -133,9 +157,11 @@ def server_for(name: str, **kwargs: Any) -> Any:
 
 @contextlib.contextmanager
 def chromium_browser(*args: str) -> Iterator[object]:
-    """Debian's chromium under Playwright, headless, with extra command-line ``args``."""
+    """Debian's chromium under Playwright, headless, with extra command-line ``args``; ``expect(...)``
+    retries for :data:`EXPECT_TIMEOUT_MS`."""
     from playwright import sync_api
 
+    sync_api.expect.set_options(timeout=EXPECT_TIMEOUT_MS)
     with sync_api.sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=list(args))
         try:

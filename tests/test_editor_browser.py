@@ -51,6 +51,11 @@ class Page:
     def state(self, expr: str):
         return self.page.evaluate(f"() => {{ const s = window.swarmshow.state; return {expr}; }}")
 
+    def settle(self) -> None:
+        """Let the page run its pending animation frames: opening a show fits the canvas to it on the next
+        frame (late on a busy machine), which would move the view a test has just set."""
+        self.page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r())))")
+
     def shot(self, name: str) -> None:
         SHOTS.mkdir(exist_ok=True)
         self.page.screenshot(path=str(SHOTS / f"{name}.png"))
@@ -71,6 +76,7 @@ def _create_show(ui: Page, name: str, drones: int) -> None:
     page.get_by_role("button", name="Create the show").click()
     sync_api.expect(page.locator("#dlg-shows")).to_be_hidden()
     sync_api.expect(page.locator("#show-title")).to_have_text(name)
+    ui.settle()
 
 
 def _draw_stroke(ui: Page) -> None:
@@ -150,23 +156,24 @@ def test_new_user_designs_checks_simulates_and_exports(ui: Page):
     # Check: the report and the planned transition durations.
     page.get_by_role("button", name="Check the show").click()
     report = page.locator("#report-body")
-    sync_api.expect(report).to_contain_text("Minimum distance", timeout=30_000)
+    sync_api.expect(report).to_contain_text("Minimum distance", timeout=120_000)
     sync_api.expect(report.locator(".report-ok, .report-bad").first).to_be_visible()
     sync_api.expect(page.locator(".tl-transition").first).to_contain_text(" s")
     ui.shot("editor-check")
 
     # Simulate: progress reaches 100% and the flight summary appears.
     page.get_by_role("button", name="Simulate the flight").click()
-    sync_api.expect(page.locator("#sim-percent")).to_have_text("100%", timeout=60_000)
+    sync_api.expect(page.locator("#sim-percent")).to_have_text("100%", timeout=120_000)
     sync_api.expect(page.locator("#sim-body")).to_contain_text("Flown min separation")
     assert page.eval_on_selector("#sim-progress", "el => el.value") == 1
 
     # 3D preview: the viewer page from the app's own port beside the canvas.
     page.get_by_role("button", name="3D preview").click()
     frame = page.frame_locator("#preview-frame")
-    sync_api.expect(frame.locator("canvas").first).to_be_attached(timeout=30_000)
+    sync_api.expect(frame.locator("canvas").first).to_be_attached(timeout=120_000)
     assert page.eval_on_selector("#preview-frame", "el => el.src").endswith("/viser/")
-    page.wait_for_timeout(1500)
+    # The viewer page has its playback (its state element) before the screenshot.
+    page.wait_for_function("() => window.swarmshow.playhead.preview.viewerState() !== null", timeout=120_000)
     ui.shot("editor-preview")
     page.get_by_role("button", name="Close the 3D preview").click()
 
@@ -287,6 +294,7 @@ def test_canvas_tools_and_violation_selection(ui: Page, small_show):
     page.goto(f"{ui.base}/?show={show_id}")
     sync_api.expect(page.locator("#show-title")).to_have_text("test")
     page.wait_for_function("() => window.swarmshow.view.scale > 0 && window.swarmshow.state.formation")
+    ui.settle()  # the fit of the opened show first, then this view
     page.evaluate("() => { const v = window.swarmshow.view; v.scale = 8; v.center = [0, 60]; v.redraw(); }")
     canvas = page.locator("#canvas")
     box = canvas.bounding_box()
@@ -352,8 +360,8 @@ def test_canvas_tools_and_violation_selection(ui: Page, small_show):
     # Check: the violations list; clicking one selects its formation and drones.
     page.get_by_role("button", name="Check the show").click()
     first = page.locator(".violations button").first
-    sync_api.expect(first).to_be_visible(timeout=30_000)
-    report = httpx.post(f"{ui.base}/api/shows/{show_id}/check").json()
+    sync_api.expect(first).to_be_visible(timeout=120_000)
+    report = httpx.post(f"{ui.base}/api/shows/{show_id}/check", timeout=120).json()
     # the report lists violations per transition, the worst transition first, worst violation first
     v = _worst_groups(report["report"]["by_transition"])[0]["violations"][0]
     page.locator(".tl-card .tl-swatches").nth(1).click()
@@ -377,7 +385,7 @@ def test_shows_rename_import_delete_and_autosave(ui: Page, small_show):
     page.get_by_label("Autosave").check()
     page.locator(".tl-card input[type=number]").first.fill("9")
     page.locator(".tl-card input[type=number]").first.dispatch_event("change")
-    sync_api.expect(page.locator("#dirty-indicator")).to_be_hidden(timeout=10_000)
+    sync_api.expect(page.locator("#dirty-indicator")).to_be_hidden(timeout=30_000)
     assert httpx.get(f"{ui.base}/api/shows/{show_id}").json()["show"]["formations"][0]["hold_s"] == 9
     page.get_by_label("Autosave").uncheck()
 
@@ -432,7 +440,7 @@ def _check(ui: Page):
     page = ui.page
     page.get_by_role("button", name="Check the show").click()
     report = page.locator("#report-body")
-    sync_api.expect(report.locator(".report-ok, .report-bad").first).to_be_visible(timeout=60_000)
+    sync_api.expect(report.locator(".report-ok, .report-bad").first).to_be_visible(timeout=120_000)
     return report
 
 

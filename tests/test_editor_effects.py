@@ -74,7 +74,7 @@ def test_add_sweep_and_sparkle_preview_save_and_play(ui: Page) -> None:
                       show_id)
     assert r == 200
     page.goto(ui.base + "/viser/")
-    page.wait_for_timeout(1500)
+    page.get_by_text("16 drones").first.wait_for(timeout=60_000)  # the show with its effects is on screen
 
     # Remove one: undoable.
     page.goto(ui.base + f"/?show={show_id}")
@@ -128,7 +128,7 @@ def test_image_and_video_effects_preview_on_the_canvas(ui: Page) -> None:
     page.wait_for_function("() => { const {state, effects} = window.swarmshow; const f = state.formation;"
                            " const c = effects.colorsFor(f, f.colors)[0];"
                            " return parseInt(c.slice(3, 5), 16) > 200 && parseInt(c.slice(1, 3), 16) < 60; }",
-                           timeout=15_000)
+                           timeout=30_000)
     page.keyboard.press("Control+s")
     expect(page.locator("#save-status")).to_contain_text("Saved")
 

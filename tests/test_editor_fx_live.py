@@ -6,14 +6,13 @@ server; no page error, no request off loopback."""
 from __future__ import annotations
 
 import io
-import time
 
 import httpx
 import numpy as np
 import pytest
 import soundfile as sf
 
-from tests.live_server import BROWSER_MARKS, server_for
+from tests.live_server import BROWSER_MARKS, server_for, wait_until
 from tests.test_editor_browser import Page, _create_show
 from tests.test_media_audio import click_track
 
@@ -32,17 +31,6 @@ def _viewer(page) -> dict | None:
         const el = f && f.contentDocument && f.contentDocument.getElementById('swarmshow-viewer');
         if (!el || !el.dataset.token) return null;
         return {lights: Number(el.dataset.lights), rgb: (el.dataset.rgb || '').split(' ')}; }""")
-
-
-def _wait(what: str, fn, timeout_s: float = 60.0):
-    end = time.monotonic() + timeout_s
-    while True:
-        v = fn()
-        if v:
-            return v
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what} (last: {v!r})")
-        time.sleep(0.1)
 
 
 def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_path) -> None:
@@ -77,12 +65,12 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
 
     # The 3D view shows the saved white; a colour edit (not saved) turns it red there.
     page.get_by_role("button", name="3D preview").click()
-    first = _wait("the viewer's colours", lambda: (v := _viewer(page)) and len(v["rgb"]) == 9 and v)
+    first = wait_until("the viewer's colours", lambda: (v := _viewer(page)) and len(v["rgb"]) == 9 and v)
     assert first["rgb"] == ["#ffffff"] * 9
     page.locator("input[aria-label='Effect colour']").fill("#ff0000")
     page.locator("input[aria-label='Effect colour']").dispatch_event("change")
     assert ui.state("s.dirty") is True
-    _wait("red in the 3D view", lambda: (v := _viewer(page)) and v["rgb"] == ["#ff0000"] * 9)
+    wait_until("red in the 3D view", lambda: (v := _viewer(page)) and v["rgb"] == ["#ff0000"] * 9)
 
     # The effect's bar: drag its end near the beat closest to 7.3 s; it lands on that beat.
     lane = page.locator("#fx-lane").bounding_box()
@@ -108,7 +96,7 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
     assert ui.state("s.show.lights.effects[0].target") == {"kind": "group", "group": "diagonal"}
     expect(page.get_by_role("list", name="Drone groups")).to_contain_text("diagonal · 3 drones")
     # In the 3D view only the group's drones stay red (the others show their own white).
-    _wait("the group in the 3D view",
+    wait_until("the group in the 3D view",
           lambda: (v := _viewer(page)) and [i for i, c in enumerate(v["rgb"]) if c == "#ff0000"] == want)
     # The canvas preview paints the points those drones fly to.
     colors = page.evaluate("() => { const {state, effects} = window.swarmshow; const f = state.formation;"
@@ -124,7 +112,7 @@ def test_unsaved_effects_in_the_3d_view_bars_on_beats_and_groups(ui: Page, tmp_p
     assert rev > 0
     r = httpx.post(f"{ui.base}/api/shows/{ui.state('s.meta.id')}/playback", json={}, timeout=120)
     assert r.status_code == 200, r.text
-    _wait("the group in the reloaded 3D view", lambda: (v := _viewer(page)) and v["lights"] > rev
+    wait_until("the group in the reloaded 3D view", lambda: (v := _viewer(page)) and v["lights"] > rev
           and [i for i, c in enumerate(v["rgb"]) if c == "#ff0000"] == want)
     assert ui.state("s.dirty") is True
     ui.shot("issue18-fx-live")

@@ -62,8 +62,13 @@ def test_add_a_rotation_edit_its_keys_play_it_and_check_safe(ui: Page):
     expect(table.locator("tbody")).to_have_count(2)
 
     # Playback draws the formation moved; at its end the points are the grid turned 90° about z.
-    page.get_by_role("button", name="Play the motion on the canvas").click()
-    expect(page.locator("#motion-info")).to_contain_text("t = 12.0 s of the hold", timeout=20_000)
+    play = page.get_by_role("button", name="Play the motion on the canvas")
+    play.click()
+    expect(play).to_have_text("■ Stop")
+    expect(page.locator("#motion-info")).to_contain_text("t = 12.0 s of the hold", timeout=60_000)
+    # "12.0" shows from 11.95 s on; the playback has drawn its last frame (at the end) once its button says
+    # Play again.
+    expect(play).to_have_text("▶ Play")
     drawn = page.evaluate(
         "() => { const v = window.swarmshow.view; const f = window.swarmshow.state.formation;"
         " return v.moved ? v.moved(f).points : null; }"
@@ -96,4 +101,4 @@ def test_a_too_fast_motion_is_refused_with_the_field_named(ui: Page):
     page.locator("#canvas").focus()
     page.keyboard.press("Control+s")
     # The save is refused (or kept as a draft) with the server's reason on the formation's card.
-    expect(page.locator(".tl-card .field-error").first).to_contain_text("too fast", timeout=15_000)
+    expect(page.locator(".tl-card .field-error").first).to_contain_text("too fast", timeout=30_000)

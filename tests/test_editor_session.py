@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from tests.live_server import BROWSER_MARKS, SHOTS, server_for
+from tests.live_server import BROWSER_MARKS, SHOTS, server_for, wait_until
 from tests.test_editor_browser import Page, _create_show
 
 pytestmark = BROWSER_MARKS
@@ -285,7 +285,8 @@ def test_scripted_session_300_drones(browser, server, tmp_path):
         _audience_camera(frame)
         expect(frame.get_by_role("combobox", name="Source")).to_have_value("simulated")
         frame.get_by_role("button", name="Play").click()
-        time.sleep(2.0)
+        # Waits are on the clocks (a loaded machine plays late, never wrong), not on fixed sleeps.
+        wait_until("tab 1 to play", lambda: _viewer_time(frame) > 2.0, timeout_s=120)
         # A second tab opens the viewer on the same show; each tab keeps its own clock.
         other = Page(browser, server, tmp_path)
         try:
@@ -295,18 +296,20 @@ def test_scripted_session_300_drones(browser, server, tmp_path):
             _audience_camera(tab2)
             expect(tab2.get_by_role("combobox", name="Source")).to_have_value("simulated")
             t2 = _viewer_time(tab2)
-            time.sleep(1.5)
-            t1 = _viewer_time(frame)
             # Tab 1 plays on while tab 2, paused, stays where it is.
+            t1_now = _viewer_time(frame)
+            t1 = wait_until("tab 1's clock to run on", lambda: (t := _viewer_time(frame)) > t1_now + 1.5 and t,
+                            timeout_s=120)
             assert _viewer_time(tab2) == t2 and t1 > t2 + 1.0, (t1, t2)
             # Tab 2 plays and pauses on its own; tab 1 pauses: both clocks stay apart and still.
             tab2.get_by_role("button", name="Play").click()
-            time.sleep(1.0)
+            wait_until("tab 2 to play", lambda: _viewer_time(tab2) > t2 + 1.0, timeout_s=120)
             tab2.get_by_role("button", name="Pause").click()
             frame.get_by_role("button", name="Pause").click()
-            time.sleep(0.5)
+            for tab in (frame, tab2):  # paused: the button says Play again
+                tab.get_by_role("button", name="Play").wait_for()
             t1, t2 = _viewer_time(frame), _viewer_time(tab2)
-            time.sleep(1.0)
+            time.sleep(1.0)  # still a second later
             assert (_viewer_time(frame), _viewer_time(tab2)) == (t1, t2)
             assert t2 > 0.5 and abs(t1 - t2) > 0.5, (t1, t2)
             other.shot("session-7-tab2")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sim import plan_show
-from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, free_port
+from tests.live_server import BROWSER_MARKS, SHOTS, chromium_browser, free_port, wait_until
 
 pytestmark = BROWSER_MARKS
 sync_api = pytest.importorskip("playwright.sync_api")
@@ -67,18 +67,6 @@ def _guarded_page(browser, foreign: list[str]):
     return ctx, page
 
 
-def _wait_until(what: str, fn, timeout_s: float = 30.0):
-    """Poll ``fn`` until it returns a truthy value (returned); fail naming ``what``."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = fn()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what} (last: {value!r})")
-        time.sleep(0.05)
-
-
 def _readout_time(page) -> float:
     text = page.get_by_text(re.compile(r"Time\s+[\d.]+\s*/")).first.inner_text()
     return float(re.search(r"Time\s+([\d.]+)", text).group(1))
@@ -113,31 +101,30 @@ def test_viewer_through_the_app_port(live_app, browser, small_show):
     page.on("websocket", lambda ws: sockets.append(ws.url))
     try:
         page.goto(f"{base}/viser/")
-        page.wait_for_selector("canvas", timeout=30_000)
+        page.wait_for_selector("canvas", timeout=60_000)
         # The websocket went through the relay, on the app's port, and viser sees the client.
-        deadline = time.monotonic() + 30
-        while not viewer.server.get_clients() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert viewer.server.get_clients(), "no client connected through the relay"
+        wait_until("a client connected through the relay", viewer.server.get_clients)
         assert sockets and all(u == f"ws{base[4:]}/viser" for u in sockets)
-        page.get_by_text("16 drones").first.wait_for(timeout=30_000)
+        page.get_by_text("16 drones").first.wait_for(timeout=60_000)
         # No share button (it would open a public tunnel).
         assert page.get_by_text(re.compile("share", re.I)).count() == 0
 
-        t0 = _readout_time(page)
+        # The page first draws the show at 0 s, then the time it joined at (the parked one): start from
+        # that, or the jump to it would pass for the clock running.
+        parked = ring.start_s + 0.5
+        t0 = wait_until("the joined time", lambda: (t := _readout_time(page)) > 0 and abs(t - parked) < 0.06 and t)
         page.get_by_role("button", name="Play").click()
         # Conditions, not fixed sleeps: a loaded machine renders late, never wrong.
-        _wait_until("the clock to run", lambda: _readout_time(page) > t0 + 0.5)
+        wait_until("the clock to run", lambda: _readout_time(page) > t0 + 0.5)
         assert viewer.playing
         page.get_by_role("button", name="Pause").click()
         page.get_by_role("button", name="Play").wait_for()
-        parked = ring.start_s + 0.5
         viewer.seek(parked)
-        _wait_until("the parked frame", lambda: abs(_readout_time(page) - parked) < 0.06)
+        wait_until("the parked frame", lambda: abs(_readout_time(page) - parked) < 0.06)
 
         SHOTS.mkdir(exist_ok=True)
         # Non-blank 3D view: the ring's red LEDs are drawn (once the browser has drawn the frame it was sent).
-        _wait_until("the ring's red LEDs on screen", lambda: _lit_pixels(
+        wait_until("the ring's red LEDs on screen", lambda: _lit_pixels(
             page.screenshot(path=str(SHOTS / "viewer_app.png")), (255, 0, 0)) > 20)
     finally:
         ctx.close()
@@ -153,12 +140,12 @@ def test_viser_html_export_plays_from_file(browser, small_show, tmp_path):
     ctx, page = _guarded_page(browser, foreign)
     try:
         page.goto(path.as_uri())
-        page.wait_for_selector("canvas", timeout=30_000)
+        page.wait_for_selector("canvas", timeout=60_000)
         time_input = page.locator("input").first
-        time_input.wait_for(timeout=30_000)
+        time_input.wait_for(timeout=60_000)
         v0 = float(time_input.input_value())
         # It plays by itself: wait for a second of show time to pass (however slowly the machine draws).
-        _wait_until("the file to play", lambda: float(time_input.input_value()) > v0 + 1.0)
+        wait_until("the file to play", lambda: float(time_input.input_value()) > v0 + 1.0)
         SHOTS.mkdir(exist_ok=True)
         page.screenshot(path=str(SHOTS / "viewer_export.png"))
     finally:

@@ -5,13 +5,12 @@ plan. Against a live ``swarmshow serve`` on loopback; waits are on conditions, n
 from __future__ import annotations
 
 import re
-import time
 
 import httpx
 import pytest
 
 from tests.conftest import make_show, ring
-from tests.live_server import BROWSER_MARKS, server_for
+from tests.live_server import BROWSER_MARKS, server_for, wait_until
 from tests.test_editor_browser import Page
 
 pytestmark = BROWSER_MARKS
@@ -20,17 +19,6 @@ expect = sync_api.expect
 
 
 server = server_for("viewer-editor-data", viewer=True)
-
-
-def _wait_until(what: str, fn, timeout_s: float = 60.0):
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = fn()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what} (last: {value!r})")
-        time.sleep(0.05)
 
 
 def _store(base: str, name: str, **settings) -> str:
@@ -53,7 +41,7 @@ def _preview_panel(page):
     """The preview's viewer page with its control panel open (a narrow pane starts with it minimised)."""
     frame = page.frame_locator("#preview-frame")
     expand = frame.get_by_role("button", name="Expand panel")
-    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=30_000)
+    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=60_000)
     if expand.count():
         expand.click()
     return frame
@@ -81,13 +69,13 @@ def test_violations_are_markers_on_the_timeline_and_drawn_in_the_preview(ui: Pag
     assert markers.first.inner_text() == f"⚠ {g0['from']} → {g0['to']}: {g0['violations_total']}"
 
     page.locator("#btn-preview").click()
-    vs = _wait_until("the preview's viewer", lambda: _viewer_state(page), timeout_s=90)
+    vs = wait_until("the preview's viewer", lambda: _viewer_state(page), timeout_s=90)
     assert vs["time_s"] == 0
     markers.first.click()
     g = failing[0]
     assert ui.state("s.current") == g["formation"]
     worst_t = g["violations"][0]["time_s"]
-    _wait_until("the preview at the worst violation",
+    wait_until("the preview at the worst violation",
                 lambda: (s := _viewer_state(page)) and abs(s["time_s"] - worst_t) < 0.06)
     # The viewer draws it once the check (run in a worker after the show is on screen) has arrived.
     frame = _preview_panel(page)
@@ -103,24 +91,24 @@ def test_timeline_and_preview_share_one_playhead_per_tab(ui: Page, tmp_path):
     page.goto(f"{ui.base}/?show={show_id}")
     expect(page.locator("#show-title")).to_have_text("Playhead")
     page.locator("#btn-preview").click()
-    _wait_until("the preview's viewer", lambda: _viewer_state(page), timeout_s=90)
+    wait_until("the preview's viewer", lambda: _viewer_state(page), timeout_s=90)
     other = Page(page.context.browser, ui.base, tmp_path)
     try:
         other.page.goto(f"{ui.base}/?show={show_id}")
         expect(other.page.locator("#show-title")).to_have_text("Playhead")
         other.page.locator("#btn-preview").click()
-        _wait_until("tab 2's viewer", lambda: _viewer_state(other.page), timeout_s=90)
+        wait_until("tab 2's viewer", lambda: _viewer_state(other.page), timeout_s=90)
 
         holds = _hold_starts(ui.base, show_id)
         page.get_by_label("Name of formation 3").click()
-        _wait_until("tab 1's viewer at formation 3's hold",
+        wait_until("tab 1's viewer at formation 3's hold",
                     lambda: (s := _viewer_state(page)) and abs(s["time_s"] - holds[2]) < 0.06 and s)
         expect(page.locator(".tl-card.playhead")).to_have_attribute("data-index", "2")
         assert _viewer_state(other.page)["time_s"] == 0  # the other tab's viewer did not move
         # Play in the viewer: the timeline's readout follows its clock.
         _preview_panel(page).get_by_role("button", name="Play").click()
         t0 = holds[2]
-        _wait_until("the timeline to show the viewer playing",
+        wait_until("the timeline to show the viewer playing",
                     lambda: (m := re.search(r"3D ▶ ([\d.]+) s", page.inner_text("#tl-playhead")))
                     and float(m.group(1)) > t0 + 0.3)
         page.frame_locator("#preview-frame").get_by_role("button", name="Pause").click()
@@ -151,11 +139,11 @@ def test_viewer_panel_collapses_and_starts_compact_in_a_small_window(browser, se
             play = page.get_by_role("button", name="Play")
             minimize, expand = (page.get_by_role("button", name=f"{w} panel") for w in ("Minimize", "Expand"))
             if compact:  # starts minimised: the panel's controls are not there until expanded
-                expect(expand).to_be_visible(timeout=30_000)
+                expect(expand).to_be_visible(timeout=60_000)
                 expect(play).to_be_hidden()
                 expand.click()
             else:
-                expect(play).to_be_visible(timeout=30_000)
+                expect(play).to_be_visible(timeout=60_000)
                 minimize.click()
                 expect(play).to_be_hidden()
                 expand.click()
@@ -180,10 +168,10 @@ def test_flown_show_beside_the_plan_with_the_gap_coloured(browser, server):
         page = ctx.new_page()
         page.goto(f"{server}/viser/")
         gap = page.get_by_text(re.compile(r"Flown vs planned max [\d.]+ m?m \(#\d+\) · mean [\d.]+ m?m"))
-        expect(gap.first).to_be_visible(timeout=30_000)
+        expect(gap.first).to_be_visible(timeout=60_000)
         page.get_by_role("button", name="Play").click()
         # The controller tracks the plan to fractions of a millimetre here, but not exactly.
-        _wait_until("a gap measured in flight", lambda: float(re.search(
+        wait_until("a gap measured in flight", lambda: float(re.search(
             r"max ([\d.]+) m?m", gap.first.inner_text()).group(1)) > 0.0)
         page.get_by_role("button", name="Pause").click()
         page.get_by_text("Planned beside flown").click()

@@ -7,6 +7,7 @@ seek, speed), and it drives them from its own music lane (``POST /api/viewer/tra
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
 from fastapi import APIRouter, Query, Request
@@ -31,6 +32,15 @@ class TransportIn(BaseModel):
     time_s: float | None = Field(None, ge=0, le=86_400, description="Seek to this show time, seconds.")
     playing: bool | None = Field(None, description="Play (true) or pause (false).")
     speed: float | None = Field(None, ge=0.25, le=8, description="Playback speed factor.")
+    sender: str | None = Field(None, min_length=1, max_length=64,
+                               description="Who sends it (an editor tab's lane); with ``seq``, see there.")
+    seq: int | None = Field(None, ge=0, le=2**53, description=(
+        "The sender's request number, increasing: a request that arrives after a later one of the same sender "
+        "is ignored (two requests in flight travel on separate connections and can arrive in either order)."))
+
+
+#: Senders whose last request number is remembered (the least recently heard of are forgotten first).
+MAX_SENDERS = 1024
 
 
 def _playbacks(viewer: Any, show_id: str | None) -> list[Any]:
@@ -47,6 +57,8 @@ def clock_router() -> APIRouter:
     from app.api.models import error_responses
 
     router = APIRouter(tags=["viewer"])
+    # The last request number applied per sender (only the event loop touches it).
+    last_seq: OrderedDict[str, int] = OrderedDict()
 
     def viewer_of(request: Request) -> Any:
         # No viewer (switched off): no playback shows anything, so nothing plays (not an error).
@@ -75,6 +87,14 @@ def clock_router() -> APIRouter:
     async def transport(request: Request, body: TransportIn) -> ClockOut:
         """Apply a seek, play / pause and speed to the playbacks of ``show_id`` (all when not given)."""
         viewer = viewer_of(request)
+        if body.sender is not None and body.seq is not None:
+            last = last_seq.get(body.sender)
+            if last is not None and body.seq <= last:
+                return clock(viewer, body.show_id)  # overtaken by a later request: that one stands
+            last_seq[body.sender] = body.seq
+            last_seq.move_to_end(body.sender)
+            while len(last_seq) > MAX_SENDERS:
+                last_seq.popitem(last=False)
         for pb in [] if viewer is None else _playbacks(viewer, body.show_id):
             if body.speed is not None:
                 pb.set_speed(body.speed)

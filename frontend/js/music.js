@@ -51,6 +51,9 @@ export class MusicLane {
     this._poll = 0;
     this._followed = false;
     this._quietUntil = 0;
+    /** Names this lane's transport requests to the server, which ignores one overtaken by a later one. */
+    this._sender = `lane-${Math.random().toString(36).slice(2)}-${Date.now().toString(36)}`;
+    this._seq = 0;
 
     this.file.addEventListener("change", () => {
       const f = this.file.files && this.file.files[0];
@@ -173,18 +176,25 @@ export class MusicLane {
     if (this.playing) return;
     this.playing = true;
     this._clockStart = performance.now() / 1000 - this.time_s;
-    if (this.info && this.time_s < this.analysis.duration_s) {
-      this.audio.currentTime = this.time_s;
-      try {
-        await this.audio.play();
-      } catch (err) {
-        setError("music", `The browser did not start the sound (${err.message}); press Play again.`);
-      }
-    }
+    const sound = this.info && this.time_s < this.analysis.duration_s;
+    if (sound) this.audio.currentTime = this.time_s;
+    // The playhead and the viewer start now, not when the sound's play() settles: on a busy machine that
+    // promise can stay pending for many seconds while the sound already plays (the playhead then sat still
+    // and the 3D view paused). Until the sound is audible the playhead runs on the wall clock (see _tick).
     this.playBtn.textContent = "❚❚ Pause";
     this.playBtn.setAttribute("aria-pressed", "true");
     if (drive) this._transport({ time_s: this.time_s, playing: true });
     this._tick();
+    if (sound) {
+      try {
+        await this.audio.play();
+      } catch (err) {
+        // A pause before the sound started interrupts play() (AbortError): no failure.
+        if (!(err && err.name === "AbortError")) {
+          setError("music", `The browser did not start the sound (${err.message}); press Play again.`);
+        }
+      }
+    }
   }
 
   /**
@@ -232,7 +242,11 @@ export class MusicLane {
     if (!this.parts.previewOpen() || !this.state.meta) return;
     // Until the viewer has applied it, its clock still says the old state: do not follow that back.
     this._quietUntil = performance.now() + QUIET_MS;
-    api.request("POST", "/api/viewer/transport", { json: { show_id: this.state.meta.id, ...body } }).catch(() => {});
+    // Sent at once (a request queued behind another waits for this page's main thread, which a busy 3D view
+    // can hold for many seconds); numbered, so that the server ignores one that arrives after a later one
+    // (a quick Play then Pause, each on its own connection, could leave the viewer playing).
+    const json = { show_id: this.state.meta.id, ...body, sender: this._sender, seq: ++this._seq };
+    api.request("POST", "/api/viewer/transport", { json }).catch(() => {});
   }
 
   /** Follow the 3D view's clock: its play / pause, its time (beyond the drift) and its speed. */
