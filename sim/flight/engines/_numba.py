@@ -52,6 +52,27 @@ kept: splitting the step into five stage loops over the lanes (loop fission: 0.7
 scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
 32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
 
+Memory, not arithmetic, is most of the lane loop (its machine code at 16 lanes, per 8
+drone-steps: 2,077 instructions, of which ~1,030 arithmetic, 292 loads/stores of the scratch,
+590 stack accesses: 214 spill stores, 270 reloads of them and 106 reads of 87 spilled loop
+invariants (the gains and the step's uniform inputs), 156 register moves). On Zen 4 a zmm
+load or store occupies its port twice as long as a ymm one, so a scratch that is not on a
+cache line hurts: numba aligns arrays to 32 bytes only, so in about half of the processes
+every 8-wide field access straddled two lines (the bimodal "±20 %" run-to-run spread of
+earlier measurements). The scratch now starts on a 64-byte line (``_aligned_zeros``):
+1.12x the median kernel rate against main's kernel in a process where its scratch was
+misaligned (6 alternating single-thread rounds in one process, 16 lanes; a copy forced 32
+bytes off the line ran at 1.02x of it, an unchanged copy at 1.00x of itself).
+Tried and measured no faster, so not kept: double-buffering the step's state (read the
+step from one copy of the 68 state, controller and statistics fields, write each candidate
+unconditionally to the other as soon as it is final, alternate per step with the two
+offsets as constants in two copies of the lane loop, restore the lanes that do not commit
+in a scalar pass): it removes the end-of-step selects and cuts the spills (spill stores
+214 -> 164, their reloads 270 -> 228, 2,077 -> ~1,990 instructions per copy) but measured
+0.99x (median of 6 alternating rounds in one process, both aligned; range 0.97-1.03, an
+A/A pair in the same run 0.97-1.04), the cost of the second loop copy and the fix-up pass
+eating the saving.
+
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
 without disturbances), from arbitrary states for a few steps, and with the error models
