@@ -56,20 +56,22 @@ Memory, not arithmetic, is most of the lane loop (its machine code at 16 lanes, 
 drone-steps: 2,077 instructions, of which ~1,030 arithmetic, 292 loads/stores of the scratch,
 590 stack accesses: 214 spill stores, 270 reloads of them and 106 reads of 87 spilled loop
 invariants (the gains and the step's uniform inputs), 156 register moves). On Zen 4 a zmm
-load or store occupies its port twice as long as a ymm one, so a scratch that is not on a
-cache line hurts: numba aligns arrays to 32 bytes only, so in about half of the processes
-every 8-wide field access straddled two lines (the bimodal "±20 %" run-to-run spread of
-earlier measurements). The scratch now starts on a 64-byte line (``_aligned_zeros``):
-1.12x the median kernel rate against main's kernel in a process where its scratch was
-misaligned (6 alternating single-thread rounds in one process, 16 lanes; a copy forced 32
-bytes off the line ran at 1.02x of it, an unchanged copy at 1.00x of itself).
+load or store occupies its port twice as long as a ymm one. numba aligns arrays to 32
+bytes only, so in about half of the processes every 8-wide field access of the scratch
+straddled two cache lines; the scratch now starts on a 64-byte line (``_aligned_zeros``).
+Measured (alternating single-thread rounds inside one process, median of 6): with 16 lanes
+1.12x main's kernel in a process where its scratch was misaligned, and a copy forced 32
+bytes off the line ran at 1.02x of it; with the 8 lanes kept now, 1.045x main's kernel
+(range 1.02-1.10), but the copy forced off the line also ran at 1.04x, so at 8 lanes (the
+block's scratch stays in the L1 cache) the line splits cost little and the gain is not
+the alignment itself (code placement, or the scratch as a view; not resolved).
 Tried and measured no faster, so not kept: double-buffering the step's state (read the
 step from one copy of the 68 state, controller and statistics fields, write each candidate
 unconditionally to the other as soon as it is final, alternate per step with the two
 offsets as constants in two copies of the lane loop, restore the lanes that do not commit
 in a scalar pass): it removes the end-of-step selects and cuts the spills (spill stores
 214 -> 164, their reloads 270 -> 228, 2,077 -> ~1,990 instructions per copy) but measured
-0.99x (median of 6 alternating rounds in one process, both aligned; range 0.97-1.03, an
+0.99x (16 lanes, both aligned; median of 6 alternating rounds in one process, range 0.97-1.03, an
 A/A pair in the same run 0.97-1.04), the cost of the second loop copy and the fix-up pass
 eating the saving.
 
