@@ -161,3 +161,18 @@ def test_a_process_that_compiles_the_kernel_matches_one_that_loads_it(tmp_path):
         subprocess.run([sys.executable, "-c", _FLY_AND_SAVE, str(out)], env=env, check=True, timeout=1200)
         outs.append(np.load(out))
     assert np.array_equal(outs[0], outs[1])
+
+
+def test_the_lane_scratch_starts_on_a_cache_line():
+    # numba aligns arrays to 32 bytes; the kernel's scratch must start on a 64-byte line so that
+    # its 8-wide field accesses never straddle two (issue 20 item 6). Many sizes and allocations:
+    # an allocator that returns 32-byte aligned blocks hits both cases.
+    from sim.flight.engines._numba import _aligned_zeros
+
+    keep = []
+    for size in list(range(1, 40)) + [3200, 3201, 25600]:
+        for _ in range(4):
+            a = _aligned_zeros(size)
+            keep.append(a)  # held, so that later allocations land elsewhere
+            assert a.ctypes.data % 64 == 0, (size, a.ctypes.data % 64)
+            assert a.shape == (size,) and a.dtype == np.float64 and not a.any()

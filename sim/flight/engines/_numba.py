@@ -52,6 +52,29 @@ kept: splitting the step into five stage loops over the lanes (loop fission: 0.7
 scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
 32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
 
+Memory, not arithmetic, is most of the lane loop (its machine code at 16 lanes, per 8
+drone-steps: 2,077 instructions, of which ~1,030 arithmetic, 292 loads/stores of the scratch,
+590 stack accesses: 214 spill stores, 270 reloads of them and 106 reads of 87 spilled loop
+invariants (the gains and the step's uniform inputs), 156 register moves). On Zen 4 a zmm
+load or store occupies its port twice as long as a ymm one. numba aligns arrays to 32
+bytes only, so in about half of the processes every 8-wide field access of the scratch
+straddled two cache lines; the scratch now starts on a 64-byte line (``_aligned_zeros``).
+Measured (alternating single-thread rounds inside one process, median of 6): with 16 lanes
+1.12x main's kernel in a process where its scratch was misaligned, and a copy forced 32
+bytes off the line ran at 1.02x of it; with the 8 lanes kept now, 1.045x main's kernel
+(range 1.02-1.10), but the copy forced off the line also ran at 1.04x, so at 8 lanes (the
+block's scratch stays in the L1 cache) the line splits cost little and the gain is not
+the alignment itself (code placement, or the scratch as a view; not resolved).
+Tried and measured no faster, so not kept: double-buffering the step's state (read the
+step from one copy of the 68 state, controller and statistics fields, write each candidate
+unconditionally to the other as soon as it is final, alternate per step with the two
+offsets as constants in two copies of the lane loop, restore the lanes that do not commit
+in a scalar pass): it removes the end-of-step selects and cuts the spills (spill stores
+214 -> 164, their reloads 270 -> 228, 2,077 -> ~1,990 instructions per copy) but measured
+0.99x (16 lanes, both aligned; median of 6 alternating rounds in one process, range 0.97-1.03, an
+A/A pair in the same run 0.97-1.04), the cost of the second loop copy and the fix-up pass
+eating the saving.
+
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
 without disturbances), from arbitrary states for a few steps, and with the error models
@@ -264,6 +287,19 @@ def _ref_at(sc: np.ndarray, base: int, lane: int, t: float, tf: float, tl: float
 
 
 @nb.njit(inline="always", cache=True)
+def _aligned_zeros(size: int) -> np.ndarray:
+    """``np.zeros(size)`` starting on a 64-byte cache line (a view into a slightly longer array).
+
+    numba aligns arrays to 32 bytes only; a scratch that starts half-way into a line makes every
+    8-wide (zmm) load and store of a field straddle two lines, and which of the two a process
+    gets depends on where its allocator happens to place the array (see the module docstring).
+    """
+    buf = np.zeros(size + 8)
+    a0 = (-(buf.ctypes.data // 8)) % 8
+    return buf[a0:a0 + size]
+
+
+@nb.njit(inline="always", cache=True)
 def _commit(sc: np.ndarray, field: int, lane: int, value: float, ok: bool) -> None:
     """Store ``value`` into the lane's field when ``ok`` (a select: the store itself is unconditional)."""
     idx = field * LANES + lane
@@ -367,7 +403,7 @@ def _kernel(
     for b in nb.prange(blocks):
         i0 = b * L
         cnt = min(L, n - i0)
-        sc = np.zeros(NF * L)
+        sc = _aligned_zeros(NF * L)
         nl = sc.size // NF
         cur = np.zeros(L, dtype=np.int64)
         nxt = np.zeros(L)
