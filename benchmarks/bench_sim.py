@@ -201,7 +201,11 @@ def _lane_loop_body(asm: str) -> list[str]:
 
     Loops are found by their backward jumps; the step loop and the block loop contain the lane
     loop, so the shortest loop with at least 80 % of the largest packed count is the lane loop
-    (its latch: the last backward jump to its header).
+    (its latch: the last backward jump to its header). With 8 lanes (one AVX-512 vector) LLVM
+    knows the trip count from the scratch's size and the lane loop is a single straight pass,
+    so the loop found is the step loop: its counts then include the per-step scalar parts
+    (piece search, table rows), which branches skip on most steps; the packed counts are the
+    lane step's.
     """
     lines = asm.splitlines()
     labels = {m.group(1): i for i, line in enumerate(lines) if (m := re.match(r"^(\.LBB\S+):", line))}
