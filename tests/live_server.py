@@ -36,11 +36,14 @@ EXPECT_TIMEOUT_MS = 15_000
 T = TypeVar("T")
 
 
-def wait_until(what: str, fn: Callable[[], T], timeout_s: float = 60.0, interval_s: float = 0.05) -> T:
+def wait_until(what: str, fn: Callable[[], T], timeout_s: float = 60.0, interval_s: float = 0.05,
+               sleep: Callable[[float], object] = time.sleep) -> T:
     """Poll ``fn`` until it returns a truthy value, which is returned; fail naming ``what`` and the last value.
 
     For conditions outside a page (the server, several pages, a computed reading): a test waits for what it
-    means rather than sleeping for a time sized for a quiet machine.
+    means rather than sleeping for a time sized for a quiet machine. ``sleep`` waits between polls: pass
+    ``lambda s: page.wait_for_timeout(1000 * s)`` when the condition needs Playwright's route handlers, which
+    only run inside Playwright's own calls.
     """
     deadline = time.monotonic() + timeout_s
     while True:
@@ -49,7 +52,7 @@ def wait_until(what: str, fn: Callable[[], T], timeout_s: float = 60.0, interval
             return value
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what} (last: {value!r})")
-        time.sleep(interval_s)
+        sleep(interval_s)
 
 
 def free_port() -> int:

@@ -172,17 +172,6 @@ def test_offline_html_plays_the_music_with_the_recording(browser, tmp_path):
     assert not errors, errors
 
 
-def _pump_until(page, fn, timeout_s: float):
-    """``fn()`` once true or after ``timeout_s``; meanwhile Playwright runs the route handlers (it only does
-    inside its own calls)."""
-    import time
-
-    deadline = time.monotonic() + timeout_s
-    while not fn() and time.monotonic() < deadline:
-        page.wait_for_timeout(50)
-    return fn()
-
-
 def test_a_quick_play_then_pause_leaves_the_viewer_paused(ui: Page):
     """The lane drives the viewer with one request per action; two in flight can reach the server in either
     order (they travel on separate connections, and a busy server answers them as it can). A Play applied after
@@ -208,7 +197,8 @@ def test_a_quick_play_then_pause_leaves_the_viewer_paused(ui: Page):
 
     page.route("**/api/viewer/transport", route)
     page.evaluate("() => { const m = window.swarmshow.music; m.play(); m.pause(); }")
-    assert _pump_until(page, lambda: held and overtook, 30.0), (held, overtook)
+    wait_until("the Pause to overtake the held Play", lambda: held and overtook, 30.0,
+               sleep=lambda s: page.wait_for_timeout(1000 * s))
     assert overtook[0]["playing"] is False  # the Pause went first
     released.append(True)
     held[0].fulfill(response=held[0].fetch())  # the Play, answered by the server after the Pause

@@ -47,7 +47,7 @@ What bounds the lane loop (measured, issue 20): not its flops. Square roots and 
 share one divider unit that is not pipelined like the FMA units, so they were cut where an
 exact rewrite exists (``sig`` as ``exp(h log(x·x))``, atan2's sector by products, the
 mixer's torque shares by hoisted reciprocals: 23 divisions + 17 square roots per
-drone-step down to 17 + 9, ~1.1x). Tried and measured slower on this machine, so not
+drone-step down to 14 + 9, ~1.1x). Tried and measured slower on this machine, so not
 kept: splitting the step into five stage loops over the lanes (loop fission: 0.7x, more
 scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
 32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
