@@ -255,6 +255,66 @@ def lane_loop_profile(asm: str) -> dict[str, int]:
     return prof
 
 
+def lane_step_blocks(asm: str) -> list[str]:
+    """The lane step's straight vector code: the basic blocks of :func:`_lane_loop_body`'s loop that are
+    longer than 40 instructions and mostly packed (zmm/ymm), jumps left out, in program order.
+
+    With 8 lanes the step loop's body also holds the scalar piece search, GNSS and wind-row
+    loads and frame stores, which branches skip on most steps; these blocks are what every
+    step runs (plus the GNSS epoch's innovation block, one step in 100, which is kept: it is
+    small).
+    """
+    body = _lane_loop_body(asm)
+    lines = asm.splitlines()
+    ins = [(i, x.strip()) for i, x in enumerate(lines) if x.startswith("\t") and not x.strip().startswith(".")]
+    txt = [t for _, t in ins]
+    start = next(ins[k][0] for k in range(len(txt)) if txt[k:k + 30] == body[:30])
+    blocks: list[list[str]] = [[]]
+    done, i = 0, start
+    while done < len(body) and i < len(lines):
+        line = lines[i]
+        if re.match(r"^\.LBB", line):
+            blocks.append([])
+        elif line.startswith("\t") and not line.strip().startswith("."):
+            done += 1
+            if not line.strip().startswith("j"):
+                blocks[-1].append(line.strip())
+        i += 1
+    return [x for b in blocks if len(b) > 40 and sum(re.search(r"%[yz]mm", y) is not None for y in b) > 0.6 * len(b)
+            for x in b]
+
+
+def mca_lane_step(asm: str, mcpu: str = "icelake-server") -> dict[str, float | str] | None:
+    """llvm-mca's timing of one lane step (:func:`lane_step_blocks`), or None without llvm-mca.
+
+    ``cycles``: one step simulated alone (dispatch in program order, the model's reorder
+    buffer and its latencies: what a real core does with one block's step); ``throughput``:
+    the cycles the step's instructions need on the model's ports alone (``Block RThroughput``).
+    Their ratio says whether the step waits on its dependency chains (large) or its ports (~1).
+    LLVM 14's llvm-mca has no Zen 4 model; Ice Lake's is the nearest with AVX-512 (similar
+    latencies; two 512-bit FMA ports where Zen 4 issues one 512-bit FMA per cycle).
+    """
+    import shutil
+    import subprocess
+    import tempfile
+
+    exe = shutil.which("llvm-mca")
+    if exe is None:
+        return None
+    with tempfile.NamedTemporaryFile("w", suffix=".s") as f:
+        f.write("\n".join(lane_step_blocks(asm)) + "\n")
+        f.flush()
+        out = subprocess.run([exe, f"-mcpu={mcpu}", "-iterations=1", f.name], capture_output=True, text=True,
+                             timeout=300, check=False).stdout
+    cycles = re.search(r"Total Cycles:\s+(\d+)", out)
+    rthr = re.search(r"Block RThroughput:\s+([\d.]+)", out)
+    n = re.search(r"Instructions:\s+(\d+)", out)
+    if cycles is None or rthr is None or n is None:
+        return None
+    return {"instructions": float(n.group(1)), "cycles": float(cycles.group(1)), "throughput": float(rthr.group(1)),
+            "mcpu": mcpu}
+
+
 def test_kernel_lane_loop_is_vectorised() -> None:
     """The lane loop compiles to packed (ymm/zmm) arithmetic: a libm call or a branch that stops the
     vectoriser would leave it scalar (issue 20 item 6). Slow: compiles the kernel afresh (~1 min)."""
@@ -312,6 +372,7 @@ def test_bench_kernel_against_numpy_with_error_models(record_result) -> None:
         "vector_ceiling_drone_steps_per_s": ceiling, "ratio_to_vector_ceiling": numba_wall / ceiling,
         "vector_ceiling_drone_steps_per_cpu_s": ceiling_cpu, "ratio_to_vector_ceiling_cpu": numba_cpu / ceiling_cpu,
         "lane_loop_profile": prof, "fma_pipe_ceiling_drone_steps_per_s": fma_ceiling,
+        "llvm_mca_lane_step": mca_lane_step(_kernel_lane_asm()),
         "ratio_to_fma_pipe_ceiling": numba_wall / fma_ceiling,
         "target_drone_steps_per_s": 5e7, "target_speedup": 35.0,
     }

@@ -9,7 +9,15 @@ import sys
 import numpy as np
 import pytest
 
-from sim.flight import IsmcGains, QuadrotorParams, TrackingReference, hover_state, make_disturbance, simulate
+from sim.flight import (
+    IsmcGains,
+    QuadrotorParams,
+    TrackingReference,
+    error_preset,
+    hover_state,
+    make_disturbance,
+    simulate,
+)
 from sim.flight.engines._numba import run_chunk_numba
 from sim.flight.engines._numpy import init_controller
 from sim.flight.engines._numpy import run_chunk_numpy as _run_chunk_numpy
@@ -138,6 +146,29 @@ def test_read_only_inputs_run_the_same_compiled_kernel():
     assert np.array_equal(a.positions_m, b.positions_m)
     # numba types a read-only array as Array(..., readonly=True), i.e. ``mutable`` False.
     assert not any(isinstance(t, types.Array) and not t.mutable for sig in _kernel.signatures for t in sig)
+
+
+def test_a_few_remaining_steps_ride_with_the_last_chunk_and_change_nothing():
+    # A whole-second flight has round(d/dt) + 1 steps: without the merge its last chunk is one step
+    # long and pays a chunk's table set-up. The chunks the driver takes, seen through on_chunk, and
+    # the same bits as a chunking that leaves no short remainder.
+    rng = np.random.default_rng(2)
+    n = 6
+    centers = rng.uniform(-20.0, 20.0, (n, 3)) + [0.0, 0.0, 40.0]
+    ref = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.7)
+    kw = dict(duration_s=1.0, engine="numba", output_every=10, errors=error_preset("gusty-rtk"), seed=3)
+    runs = {}
+    for chunk_steps in (1000, 250, 600, 77):
+        done: list[int] = []
+        res = simulate(ref, chunk_steps=chunk_steps, on_chunk=lambda k, _d, done=done: done.append(k), **kw)
+        runs[chunk_steps] = (res, done)
+    assert runs[1000][1] == [1001]
+    assert runs[250][1] == [250, 500, 750, 1001]
+    assert runs[600][1] == [600, 1001]  # 401 steps left: more than 600 // 16, a chunk of their own
+    assert runs[77][1][-2:] == [924, 1001]  # 77 left after 924: more than 77 // 16
+    for chunk_steps in (250, 600, 77):
+        assert np.array_equal(runs[chunk_steps][0].positions_m, runs[1000][0].positions_m)
+        assert np.array_equal(runs[chunk_steps][0].final_state, runs[1000][0].final_state)
 
 
 _FLY_AND_SAVE = """

@@ -179,6 +179,39 @@ def test_gnss_tables_are_the_numpy_formula_bit_for_bit_in_any_chunking(preset, c
 
 
 # ---------------------------------------------------------------------------------------------
+# Wind tables
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("chunks", [[1000, 1000, 1], [1, 999, 417, 584], [2001]])
+def test_wind_table_rows_are_the_same_bits_in_any_chunking(chunks):
+    # Consecutive chunks share their boundary grid row, which the tables reuse instead of summing it
+    # again: every row must still be the one a fresh, whole-flight table holds at that grid time.
+    rng = np.random.default_rng(6)
+    ref = TrackingReference.circle(rng.uniform(-80.0, 80.0, (23, 3)) + [0.0, 0.0, 40.0], radius_m=3.0,
+                                   omega_rad_s=0.5)
+
+    def tables():
+        return ErrorTables(error_preset("gusty-rtk"), seed=5, drone_ids=np.arange(23), plant=QuadrotorParams(),
+                           dt_s=1e-3, duration_s=2.0)
+
+    whole = tables().chunk(0, 2001, ref)
+    assert np.abs(whole.wind_grad).max() > 1e-3  # the rows hold a real field
+    split, step = tables(), 0
+    for count in chunks:
+        part = split.chunk(step, count, ref)
+        rows = slice(part.wind_k0 - whole.wind_k0, part.wind_k0 - whole.wind_k0 + part.wind.shape[0])
+        assert _same_bits(part.wind, whole.wind[rows]) and _same_bits(part.wind_grad, whole.wind_grad[rows])
+        step += count
+    # Another reference is another field sample: its first row is summed, not taken from the tail.
+    other = TrackingReference.circle(rng.uniform(-80.0, 80.0, (23, 3)) + [0.0, 0.0, 40.0], radius_m=3.0,
+                                     omega_rad_s=0.5)
+    fresh = tables()
+    fresh.chunk(0, 1000, ref)
+    second = fresh.chunk(1000, 1000, other)
+    assert _same_bits(second.wind, tables().chunk(0, 2001, other).wind[10:21])
+    assert not _same_bits(second.wind[0], whole.wind[10])
+
+
+# ---------------------------------------------------------------------------------------------
 # Piece evaluation
 # ---------------------------------------------------------------------------------------------
 def _random_motion(rng: np.random.Generator, n: int, pieces: int) -> Trajectories:

@@ -43,7 +43,17 @@ cosines per drone-step inside the kernel.
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
 run on a machine pays the compile time (about a minute of CPU).
 
-What bounds the lane loop (measured, issue 20): not its flops. Square roots and divisions
+What bounds the lane step (issue 20): neither its flops nor its memory traffic, but its
+dependency chains in the out-of-order window. llvm-mca (LLVM 14's Ice Lake model, its nearest
+AVX-512 model to Zen 4) on the step's machine code (8 drones, ~2,160 instructions): 1,610
+cycles for one step against 540 cycles of port throughput; the longest dependency chain
+through the step is ~640 cycles (the reference, ``sig``'s ``exp(h log)``, the limiter's and
+the attitude resolution's square roots and divisions, asin, the attitude law, the mixer, the
+integration), and a 320-entry reorder buffer holds too little of the step to run the rest
+beside it. Measured: ~1,700 cycles per step on Zen 4 (18.7 M drone-steps per CPU second at
+~4 GHz). So a shorter chain pays (Estrin polynomials in ``_vmath``: 1.02-1.035x), and more
+independent work per instruction window would (two blocks' chains interleaved) but spills
+(measured below: 0.75-0.92x). Square roots and divisions
 share one divider unit that is not pipelined like the FMA units, so they were cut where an
 exact rewrite exists (``sig`` as ``exp(h log(x·x))``, atan2's sector by products, the
 mixer's torque shares by hoisted reciprocals: 23 divisions + 17 square roots per
@@ -52,7 +62,7 @@ kept: splitting the step into five stage loops over the lanes (loop fission: 0.7
 scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
 32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
 
-Memory, not arithmetic, is most of the lane loop (its machine code at 16 lanes, per 8
+Memory operations are a third of the lane loop (its machine code at 16 lanes, per 8
 drone-steps: 2,077 instructions, of which ~1,030 arithmetic, 292 loads/stores of the scratch,
 590 stack accesses: 214 spill stores, 270 reloads of them and 106 reads of 87 spilled loop
 invariants (the gains and the step's uniform inputs), 156 register moves). On Zen 4 a zmm
@@ -73,7 +83,14 @@ in a scalar pass): it removes the end-of-step selects and cuts the spills (spill
 214 -> 164, their reloads 270 -> 228, 2,077 -> ~1,990 instructions per copy) but measured
 0.99x (16 lanes, both aligned; median of 6 alternating rounds in one process, range 0.97-1.03, an
 A/A pair in the same run 0.97-1.04), the cost of the second loop copy and the fix-up pass
-eating the saving.
+eating the saving. Also measured and not kept: skipping the telemetry stores when no
+telemetry is asked for (a kernel specialisation for ``tel=None``): 1.038x, but the machine
+code of the two specialisations contracts multiply-adds differently (a product that is also
+stored is not fused), so a flight with telemetry would differ from the same flight without
+it in the last bits, and the closed loop amplifies that (see below); moving the
+attitude's state-only part (sin/cos, W, its ``sig`` factors) ahead of the position law in
+the source, so that it could fill the window while the position chain waits: 0.97x (LLVM's
+scheduler reorders the block anyway).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and

@@ -258,6 +258,8 @@ class ErrorTables:
         self._axis_sigma = np.array([1.0, 1.0, e.gnss_vertical_factor])
         self._bias = np.zeros((n, 3))
         self._bias_epoch = -1  # epoch index the bias is at
+        # The last chunk's last wind row: (reference, grid index, wind (N, 3), derivatives (N, 11)).
+        self._wind_tail: tuple[TrackingReference, int, np.ndarray, np.ndarray] | None = None
         if self.use_gnss:
             self._bias = e.gnss_bias_m * self._axis_sigma * hashed_normal(
                 self.seed, self.ids[:, None], STREAMS["gnss_bias"], np.arange(3)[None, :]
@@ -365,14 +367,26 @@ class ErrorTables:
             if self.wind_field is None:
                 wind = np.zeros((grid.size, n, 3))
             else:
-                pts = reference.motion.evaluate(grid, derivatives=0).positions_m  # (W, N, 3)
-                if reference.offset is not None:
-                    pts = pts + np.asarray(reference.offset(grid))[:, None, 0:3]
-                times = np.broadcast_to(grid[:, None], pts.shape[:2]).reshape(-1)
-                vel, jac, shear = self.wind_field.velocity_and_gradients(pts.reshape(-1, 3), times)
-                wind = vel.reshape(grid.size, n, 3)
-                grad[..., 0:9] = jac.reshape(grid.size, n, 9)
-                grad[..., 9:11] = shear.reshape(grid.size, n, 2)
+                wind = np.empty((grid.size, n, 3))
+                # Consecutive chunks share their boundary grid time (a 1,000-step chunk spans 11
+                # rows, the last of which opens the next chunk): that row is reused, not summed
+                # again (the same planned points at the same time: the same bits).
+                r0 = 0
+                tail = self._wind_tail
+                if tail is not None and tail[0] is reference and tail[1] == k0:
+                    wind[0], grad[0] = tail[2], tail[3]
+                    r0 = 1
+                if r0 < grid.size:
+                    rows = grid[r0:]
+                    pts = reference.motion.evaluate(rows, derivatives=0).positions_m  # (W', N, 3)
+                    if reference.offset is not None:
+                        pts = pts + np.asarray(reference.offset(rows))[:, None, 0:3]
+                    times = np.broadcast_to(rows[:, None], pts.shape[:2]).reshape(-1)
+                    vel, jac, shear = self.wind_field.velocity_and_gradients(pts.reshape(-1, 3), times)
+                    wind[r0:] = vel.reshape(rows.size, n, 3)
+                    grad[r0:, :, 0:9] = jac.reshape(rows.size, n, 9)
+                    grad[r0:, :, 9:11] = shear.reshape(rows.size, n, 2)
+                self._wind_tail = (reference, k1, wind[-1].copy(), grad[-1].copy())
                 radius = self.wind_field.linear_radius_m
         return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
                            wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
