@@ -324,3 +324,21 @@ def test_check_cache_and_shows_survive_a_restart(tmp_path):
     with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         assert c.get(f"/api/shows/{sid}").json()["name"] == "persistent"
         assert c.post(f"/api/shows/{sid}/check").json()["cached"] is True
+
+
+def test_export_refusals_name_the_field(client):
+    """Every 422 of an export names the option at fault (QA: the missing origin came back with ``path`` "", so
+    neither a script nor the editor could tell which field to fix)."""
+    rec = _create(client, show_doc("refused exports"))
+    cases = [
+        ("qgc-plan", {}, "origin"),  # no settings.geo and no origin
+        ("qgc-wpl", {}, "origin"),
+        ("qgc-plan", {"origin": "95,10,0"}, "origin"),  # latitude out of range (the exporter's check)
+        ("qgc-plan", {"origin": "47,8,1e9"}, "origin"),  # altitude out of range
+        ("crazyswarm", {"source": "simulated"}, "source"),  # exact-plan formats refuse the flown source
+    ]
+    for fmt, params, field in cases:
+        r = client.get(f"/api/shows/{rec['id']}/export/{fmt}", params=params)
+        assert r.status_code == 422, (fmt, params, r.text)
+        problem = r.json()["detail"][0]
+        assert problem["path"] == field and problem["loc"] == ["query", field], (fmt, params, problem)
