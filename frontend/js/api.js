@@ -60,7 +60,8 @@ export function problemsOf(body) {
 function messageFor(status, problems, statusText) {
   if (problems.length) {
     const p = problems[0];
-    const head = p.path ? `${p.path}: ${p.msg}` : p.msg;
+    // Some messages name their field already ("file: not a mesh"): say it once.
+    const head = p.path && !p.msg.startsWith(`${p.path}:`) ? `${p.path}: ${p.msg}` : p.msg;
     return problems.length > 1 ? `${head} (and ${problems.length - 1} more)` : head;
   }
   if (status === 413) return "the upload is too large";

@@ -1,0 +1,53 @@
+"""Defects found in an exploratory session as a show designer (QA), driven with Playwright against a live
+server on loopback: the timeline's labels stay readable after a check (none overflows its item or overlaps
+its neighbour), and a refused upload names its field once."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.live_server import BROWSER_MARKS, server_for
+from tests.test_editor_browser import Page, _create_show
+
+pytestmark = BROWSER_MARKS
+
+sync_api = pytest.importorskip("playwright.sync_api")
+
+
+server = server_for("qa-data", viewer=False)
+
+
+def test_timeline_labels_do_not_overlap_after_a_check(ui: Page):
+    """After a check the takeoff item ("↑ takeoff 5.9 s") and the first transition ("→ 23.5 s") were squeezed
+    by the flex row until their texts ran into each other (seen at 1366 px with six formations)."""
+    page = ui.page
+    _create_show(ui, "Timeline labels", 9)
+    for _ in range(5):
+        page.get_by_role("button", name="Add a formation").click()
+    page.get_by_role("button", name="Check the show").click()
+    sync_api.expect(page.locator("#report-body")).to_contain_text("Minimum distance", timeout=180_000)
+    sync_api.expect(page.locator(".tl-end").first).to_contain_text("takeoff")
+    sync_api.expect(page.locator(".tl-transition").first).to_contain_text(" s")
+    boxes = page.evaluate("""() => [...document.querySelectorAll('#timeline-list > li')].map((li) => {
+        const r = li.getBoundingClientRect();
+        return { cls: li.className, text: li.textContent, left: r.left, right: r.right,
+                 overflow: li.scrollWidth - li.clientWidth }; })""")
+    assert len(boxes) >= 2 * 6 + 2
+    for b in boxes:
+        assert b["overflow"] <= 1, f"{b['text']!r} overflows its item by {b['overflow']} px"
+    for a, b in zip(boxes, boxes[1:], strict=False):
+        assert a["right"] <= b["left"] + 0.5, f"{a['text']!r} overlaps {b['text']!r}"
+
+
+def test_refused_mesh_upload_names_its_field_once(ui: Page):
+    """The mesh form showed "file: file: the file holds no vertices" (the message already named its field)."""
+    page = ui.page
+    _create_show(ui, "Mesh refusal", 4)
+    obj = ui.tmp / "empty.obj"
+    obj.write_text("garbage\n")
+    page.locator("summary", has_text="Mesh / point cloud").click()
+    page.set_input_files("#mesh-file", str(obj))
+    page.get_by_role("button", name="Replace the formation with points from the mesh or point file").click()
+    err = page.locator('[data-error-for="mesh"]')
+    sync_api.expect(err).to_contain_text("holds no vertices")
+    assert "file: file:" not in err.inner_text()
