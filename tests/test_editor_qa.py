@@ -4,6 +4,8 @@ its neighbour), and a refused upload names its field once."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.live_server import BROWSER_MARKS, server_for
@@ -51,3 +53,38 @@ def test_refused_mesh_upload_names_its_field_once(ui: Page):
     err = page.locator('[data-error-for="mesh"]')
     sync_api.expect(err).to_contain_text("holds no vertices")
     assert "file: file:" not in err.inner_text()
+
+
+def test_limit_violations_show_their_units(ui: Page):
+    """The check listed "Acceleration: 126.81 (limit 4.00) at 24.9 s, drones 1, 7, 3, 5, 4" for nine drones:
+    no unit, and five drones with nothing saying there were more. Each line now carries the value's unit and
+    an ellipsis when the list is cut."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { violationText } = await import('/js/report.js');
+        const v = (kind, n) => violationText({ kind, value: 12.5, limit: 4, time_s: 3, drones: [...Array(n).keys()] });
+        return { acc: v('acceleration', 9), vz: v('speed_z', 2), vxy: v('speed_xy', 1), alt: v('altitude', 1),
+                 floor: v('min_altitude', 1), fence: v('geofence', 1), wash: v('downwash', 2) }; }""")
+    assert got["acc"] == "Acceleration: 12.50 m/s² (limit 4.00 m/s²) at 3.0 s, drones 0, 1, 2, 3, 4, …"
+    assert got["vz"] == "Vertical speed: 12.50 m/s (limit 4.00 m/s) at 3.0 s, drones 0, 1"
+    assert got["vxy"] == "Horizontal speed: 12.50 m/s (limit 4.00 m/s) at 3.0 s, drone 0"
+    assert "12.50 m (limit 4.00 m)" in got["alt"] and "12.50 m (limit 4.00 m)" in got["floor"]
+    assert "12.50 m (limit 4.00 m)" in got["fence"]
+    assert got["wash"].startswith("In downwash (ellipsoid units")
+
+    # And in a real report: a forced one-second transition breaks the acceleration and vertical speed limits.
+    _create_show(ui, "Forced transition", 4)
+    page.get_by_role("button", name="Add a formation").click()
+    page.evaluate("() => { const s = window.swarmshow.state; s.edit('force', () => {"
+                  " s.show.formations[1].points = s.show.formations[1].points.map(([x, y, z]) => [x, y, z + 15]);"
+                  " s.show.formations[1].transition_s = 1; }); }")
+    page.get_by_role("button", name="Check the show").click()
+    report = page.locator("#report-body")
+    sync_api.expect(report).to_contain_text("Minimum distance", timeout=180_000)
+    sync_api.expect(report.locator("button", has_text="Acceleration:").first).to_contain_text("m/s² (limit 4.00 m/s²)")
+    sync_api.expect(report.locator("button", has_text="Vertical speed:").first).to_contain_text("m/s (limit 2.00 m/s)")
+    # The too-short transition names no drones: its button's name does not say "drones :".
+    short = report.locator("button", has_text="Too short")
+    name = re.compile(r'^Transition too short at [\d.]+ s: select "Formation 2"$')
+    sync_api.expect(short).to_have_attribute("aria-label", name)
