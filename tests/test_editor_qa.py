@@ -88,3 +88,29 @@ def test_limit_violations_show_their_units(ui: Page):
     short = report.locator("button", has_text="Too short")
     name = re.compile(r'^Transition too short at [\d.]+ s: select "Formation 2"$')
     sync_api.expect(short).to_have_attribute("aria-label", name)
+
+
+def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
+    """A cue that cannot be met marks the formation's card; the card's flex column then squeezed its name to
+    0.4 px and the message itself to 2.5 px (seen with a pinned formation): the card said neither which
+    formation nor what was wrong. Nothing in a card shrinks now; a tall card scrolls."""
+    page = ui.page
+    _create_show(ui, "Cue problem", 4)
+    page.get_by_role("button", name="Add a formation").click()
+    page.evaluate("() => { const s = window.swarmshow.state; s.edit('cue', () => {"
+                  " s.show.formations[1].arrive_at_s = 20; s.show.formations[1].leave_at_s = 30;"
+                  " s.show.formations[1].points = s.show.formations[1].points.map(([x, y, z]) => [x + 60, y, z]); }); }")
+    page.get_by_role("button", name="Check the show").click()
+    sync_api.expect(page.locator("#report-body")).to_contain_text("earliest feasible", timeout=180_000)
+    card = page.locator(".tl-card").nth(1)
+    sync_api.expect(card).to_have_class(re.compile("has-problem"))
+    sizes = card.evaluate("""(li) => {
+        const h = (sel) => li.querySelector(sel).getBoundingClientRect().height;
+        return { name: h('.tl-name'), meta: h('.tl-meta'), swatches: h('.tl-swatches'),
+                 error: h('.field-error'), errorText: li.querySelector('.field-error').textContent,
+                 scrolls: li.scrollHeight <= li.clientHeight || getComputedStyle(li).overflowY === 'auto' }; }""")
+    assert sizes["name"] >= 14, sizes
+    assert sizes["swatches"] >= 5.5, sizes
+    assert sizes["error"] >= 12 and "earliest feasible" in sizes["errorText"], sizes
+    assert sizes["scrolls"], sizes
+    sync_api.expect(card.locator(".tl-name")).to_have_value("Formation 2")
