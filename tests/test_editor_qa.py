@@ -99,7 +99,7 @@ def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
     page.get_by_role("button", name="Add a formation").click()
     page.evaluate("() => { const s = window.swarmshow.state; s.edit('cue', () => {"
                   " s.show.formations[1].arrive_at_s = 20; s.show.formations[1].leave_at_s = 30;"
-                  " s.show.formations[1].points = s.show.formations[1].points.map(([x, y, z]) => [x + 60, y, z]); }); }")
+                  " const f = s.show.formations[1]; f.points = f.points.map(([x, y, z]) => [x + 60, y, z]); }); }")
     page.get_by_role("button", name="Check the show").click()
     sync_api.expect(page.locator("#report-body")).to_contain_text("earliest feasible", timeout=180_000)
     card = page.locator(".tl-card").nth(1)
@@ -114,3 +114,7 @@ def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
     assert sizes["error"] >= 12 and "earliest feasible" in sizes["errorText"], sizes
     assert sizes["scrolls"], sizes
     sync_api.expect(card.locator(".tl-name")).to_have_value("Formation 2")
+    # The message names its field once (it read "arrive_at_s: formations[1].arrive_at_s = 20 s is too early").
+    assert sizes["errorText"].startswith("formations[1].arrive_at_s = 20"), sizes["errorText"]
+    report = page.locator("#report-body").inner_text()
+    assert "Not checked: formations[1].arrive_at_s = 20" in report, report
