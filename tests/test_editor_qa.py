@@ -16,7 +16,7 @@ pytestmark = BROWSER_MARKS
 sync_api = pytest.importorskip("playwright.sync_api")
 
 
-server = server_for("qa-data", viewer=False)
+server = server_for("qa-data", viewer=True)  # viewer on: the 3D preview plays a run
 
 
 def test_timeline_labels_do_not_overlap_after_a_check(ui: Page):
@@ -118,3 +118,24 @@ def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
     assert sizes["errorText"].startswith("formations[1].arrive_at_s = 20"), sizes["errorText"]
     report = page.locator("#report-body").inner_text()
     assert "Not checked: formations[1].arrive_at_s = 20" in report, report
+
+
+def test_play_worst_run_opens_the_preview_with_that_run(ui: Page):
+    """"Play worst run (seed k) in 3D" under a Monte-Carlo summary loaded the run into the viewer but, with the
+    3D preview closed (as it is after a check), nothing on screen changed: a button that seemed to do nothing.
+    It now opens the preview on that run."""
+    page = ui.page
+    _create_show(ui, "Worst run", 4)
+    page.select_option("#sim-runs", index=1)  # Monte-Carlo, 20 runs
+    page.get_by_role("button", name="Simulate the flight").click()
+    play = page.locator("#sim-body button", has_text="Play worst run")
+    sync_api.expect(play).to_be_visible(timeout=300_000)
+    assert page.locator("#preview-wrap").is_hidden()
+    job = page.evaluate("() => [...document.querySelectorAll('#sim-body a')].map((a) => a.href)"
+                        ".find((h) => h.includes('/report.html'))").split("/api/jobs/")[1].split("/")[0]
+    with page.expect_request(lambda r: r.url.endswith("/playback") and r.method == "POST") as req:
+        play.click()
+    body = req.value.post_data_json
+    assert body["source"] == "simulated" and body["job_id"] == job and isinstance(body["run"], int), body
+    sync_api.expect(page.locator("#preview-wrap")).to_be_visible()
+    page.wait_for_function("() => window.swarmshow.playhead.preview.viewerState() !== null", timeout=120_000)
