@@ -601,6 +601,10 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
     try:
         res = exports.export_show(show, fmt, **options)
     except exports.ExportError as exc:
+        from sim import PlanError
+
+        if isinstance(exc.__cause__, PlanError):  # the show cannot be planned: name its field as the check does
+            raise _plan_failure(exc.__cause__) from None
         field = exc.field  # the query option at fault; None: the show (or the format) itself
         raise TaskFailure(FailureKind.INVALID, [{"loc": ["query", field] if field else ["query"],
                                                  "path": field or "", "msg": str(exc)}]) from None

@@ -342,3 +342,20 @@ def test_export_refusals_name_the_field(client):
         assert r.status_code == 422, (fmt, params, r.text)
         problem = r.json()["detail"][0]
         assert problem["path"] == field and problem["loc"] == ["query", field], (fmt, params, problem)
+
+
+def test_export_of_an_unplannable_show_names_the_show_field(client):
+    """QA: a forced transition too short for the limits was refused by every export with loc ["query"] and
+    path "" ("the show cannot be planned: formations[1].transition_s = 0.2 s is shorter ..."): the field at fault
+    is the show's, and the 422 names it as the check's does."""
+    doc = show_doc("too short")
+    doc["formations"].append({**doc["formations"][0], "name": "lifted", "transition_s": 0.2,
+                              "points": [[x, y, z + 20] for x, y, z in doc["formations"][0]["points"]]})
+    rec = _create(client, doc)
+    for fmt in ("skyc", "skybrush-csv", "crazyswarm"):
+        r = client.get(f"/api/shows/{rec['id']}/export/{fmt}")
+        assert r.status_code == 422, (fmt, r.text)
+        problem = r.json()["detail"][0]
+        assert problem["path"] == "formations[1].transition_s", (fmt, problem)
+        assert problem["loc"] == ["show", "formations", 1, "transition_s"], (fmt, problem)
+        assert "shorter" in problem["msg"]
