@@ -359,3 +359,21 @@ def test_export_of_an_unplannable_show_names_the_show_field(client):
         assert problem["path"] == "formations[1].transition_s", (fmt, problem)
         assert problem["loc"] == ["show", "formations", 1, "transition_s"], (fmt, problem)
         assert "shorter" in problem["msg"]
+
+
+def test_show_rule_problems_have_loc_and_path_naming_the_same_field(client):
+    """QA: show-level rules answered a coarse loc beside an exact path, e.g. loc ["body","show"] with path
+    "show.groups.front", or loc ["body"] with "formations[0].points[0][2]"."""
+    high = show_doc("ceiling", max_altitude_m=8.0)
+    r = client.post("/api/shows", json=high)
+    assert r.status_code == 422
+    p = r.json()["detail"][0]
+    assert p["path"] == "formations[0].points[2][2]" and p["loc"] == ["body", "formations", 0, "points", 2, 2], p
+    rec = _create(client, show_doc("groups"))
+    doc = client.get(f"/api/shows/{rec['id']}").json()["show"]
+    doc["groups"] = {"front": [0, 1, 99]}
+    r = client.put(f"/api/shows/{rec['id']}", json={"revision": rec["revision"], "show": doc})
+    assert r.status_code == 422
+    p = r.json()["detail"][0]
+    assert p["path"] == "show.groups.front" and p["loc"] == ["body", "show", "groups", "front"], p
+    assert client.get(f"/api/shows/{rec['id']}").json()["revision"] == rec["revision"]  # nothing stored
