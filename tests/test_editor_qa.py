@@ -139,3 +139,24 @@ def test_play_worst_run_opens_the_preview_with_that_run(ui: Page):
     assert body["source"] == "simulated" and body["job_id"] == job and isinstance(body["run"], int), body
     sync_api.expect(page.locator("#preview-wrap")).to_be_visible()
     page.wait_for_function("() => window.swarmshow.playhead.preview.viewerState() !== null", timeout=120_000)
+
+
+def test_hold_arrow_keys_step_by_half_seconds(ui: Page):
+    """The card's hold field had min 0.1 and step 0.5, so its steps were 0.1 + k·0.5: ArrowDown on the default
+    5 s hold gave 4.6 s, then 4.1 s (and 5 s itself was a 'step mismatch'). Steps are whole half seconds now."""
+    page = ui.page
+    _create_show(ui, "Hold steps", 4)
+    hold = page.get_by_role("spinbutton", name="Hold time of formation 1, seconds")
+    assert ui.state("s.show.formations[0].hold_s") == 5
+    assert hold.evaluate("(el) => el.validity.valid"), "the default hold is a valid value of its own field"
+    hold.focus()
+    page.keyboard.press("ArrowDown")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s !== 5")
+    assert ui.state("s.show.formations[0].hold_s") == 4.5
+    page.keyboard.press("ArrowUp")
+    page.keyboard.press("ArrowUp")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 5.5")
+    # A typed value between the steps is kept as typed.
+    hold.fill("2.3")
+    hold.press("Tab")
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 2.3")
