@@ -160,3 +160,17 @@ def test_hold_arrow_keys_step_by_half_seconds(ui: Page):
     hold.fill("2.3")
     hold.press("Tab")
     page.wait_for_function("() => window.swarmshow.state.show.formations[0].hold_s === 2.3")
+
+
+def test_takeoff_and_landing_lines_of_the_check_read_once(ui: Page):
+    """The check listed "✓ · Landing landing → home · 5.9 s" and "✓ · Takeoff home → takeoff · 5.9 s"."""
+    page = ui.page
+    page.goto(ui.base + "/")
+    got = page.evaluate("""async () => {
+        const { groupTitle } = await import('/js/report.js');
+        const g = (kind, from, to) => groupTitle({ kind, from, to, duration_s: 5.9, stagger_s: 0, ok: true,
+                                                    min_distance_m: 4.5, violations_total: 0 });
+        return [g('takeoff', 'home', 'takeoff'), g('landing', 'landing', 'home'), g('transition', 'A', 'B')]; }""")
+    assert got == ["✓ · Takeoff from the homes · 5.9 s, closest 4.50 m",
+                   "✓ · Landing onto the homes · 5.9 s, closest 4.50 m",
+                   "✓ · Transition A → B · 5.9 s, closest 4.50 m"]

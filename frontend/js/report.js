@@ -54,9 +54,16 @@ export function worstFirst(groups) {
 
 const GROUP_KINDS = { takeoff: "Takeoff", transition: "Transition", landing: "Landing", hold: "Hold" };
 
-/** One line naming a group: its kind, ends, length, stagger and outcome. */
-function groupTitle(g) {
-  const what = g.kind === "transition" ? `${g.from} → ${g.to}` : g.kind === "hold" ? g.to : `${g.from} → ${g.to}`;
+/** Takeoff and landing say where they go ("Landing landing → home" said it twice). */
+const END_WHAT = { takeoff: "from the homes", landing: "onto the homes" };
+
+/**
+ * One line naming a group: its kind, ends, length, stagger and outcome.
+ * @param {any} g a group of the check report's `by_transition`
+ * @returns {string}
+ */
+export function groupTitle(g) {
+  const what = g.kind === "hold" ? g.to : END_WHAT[g.kind] || `${g.from} → ${g.to}`;
   const timing = `${fmt(g.duration_s, 1)} s${g.stagger_s > 0 ? ` (+${fmt(g.stagger_s, 1)} s stagger)` : ""}`;
   const closest = g.min_distance_m >= 0 ? `, closest ${fmt(g.min_distance_m)} m` : "";
   const outcome = g.ok ? "✓" : `✗ ${g.violations_total} violation${g.violations_total === 1 ? "" : "s"}`;
