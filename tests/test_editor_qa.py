@@ -174,3 +174,25 @@ def test_takeoff_and_landing_lines_of_the_check_read_once(ui: Page):
     assert got == ["✓ · Takeoff from the homes · 5.9 s, closest 4.50 m",
                    "✓ · Landing onto the homes · 5.9 s, closest 4.50 m",
                    "✓ · Transition A → B · 5.9 s, closest 4.50 m"]
+
+
+def test_fit_them_leaves_a_group_formation_that_has_enough_points(ui: Page):
+    """After raising the drone count, the prompt counted the formations short of the drones that fly them
+    ("5 formations have fewer than 12 points"), but "Fit them" refitted every formation with fewer points than
+    the whole fleet: a text flown by a 4-drone group was made again at 12 points. It fits what it counted."""
+    page = ui.page
+    _create_show(ui, "Fit groups", 4)
+    page.get_by_role("button", name="Add a formation").click()
+    page.evaluate("() => { const s = window.swarmshow.state; s.edit('group', () => {"
+                  " s.show.groups = { pair: [0, 1] };"
+                  " const f = s.show.formations[1]; f.points = [[-5, 0, 30], [5, 0, 30]];"
+                  " f.colors = ['#ff0000', '#00ff00'];"
+                  " f.drones = { group: 'pair' }; }); }")
+    page.locator("summary", has_text="Show settings").click()
+    page.fill("#set-drones", "6")
+    page.dispatch_event("#set-drones", "change")
+    dialog = page.locator("#dlg-confirm")
+    sync_api.expect(dialog).to_contain_text("1 formation has fewer than 6 points")
+    dialog.get_by_role("button", name="Fit them").click()
+    page.wait_for_function("() => window.swarmshow.state.show.formations[0].points.length === 6")
+    assert ui.state("s.show.formations[1].points") == [[-5, 0, 30], [5, 0, 30]]
