@@ -502,6 +502,15 @@ def _fly_show() -> Any:
     raise TaskFailure(FailureKind.NOT_IMPLEMENTED, "flight simulation is not available in this installation")
 
 
+def _formation_field(source: str, exc: Exception) -> str:
+    """The request field a formation source's refusal is about, when the source did not say (mesh sources
+    set ``exc.field``): a count that does not fit (``max_n`` > 0) is ``n``, anything else about the input is
+    the text, the shape's ``params`` or the uploaded ``file``."""
+    if (getattr(exc, "max_n", None) or 0) > 0:
+        return "n"
+    return {"text": "text", "shape": "params"}.get(source, "file")
+
+
 def formation_task(source: str, params: dict[str, Any], data: bytes | None = None) -> dict[str, Any]:
     """Build formation points from a shape, text, image, SVG or mesh / point file.
 
@@ -538,7 +547,7 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
     except InputTooLargeError as exc:
         raise TaskFailure(FailureKind.TOO_LARGE, str(exc)) from None
     except FormationError as exc:
-        field = getattr(exc, "field", None)  # mesh sources name the form field at fault
+        field = getattr(exc, "field", None) or _formation_field(source, exc)
         problem: dict[str, Any] = {"loc": ["body", field] if field else ["body"], "path": field or "",
                                    "msg": str(exc)}
         if getattr(exc, "max_n", None) is not None:
@@ -592,7 +601,13 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
     try:
         res = exports.export_show(show, fmt, **options)
     except exports.ExportError as exc:
-        raise TaskFailure(FailureKind.INVALID, [{"loc": ["query"], "path": "", "msg": str(exc)}]) from None
+        from sim import PlanError
+
+        if isinstance(exc.__cause__, PlanError):  # the show cannot be planned: name its field as the check does
+            raise _plan_failure(exc.__cause__) from None
+        field = exc.field  # the query option at fault; None: the show (or the format) itself
+        raise TaskFailure(FailureKind.INVALID, [{"loc": ["query", field] if field else ["query"],
+                                                 "path": field or "", "msg": str(exc)}]) from None
     except Exception as exc:
         from sim import PlanError
 

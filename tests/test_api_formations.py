@@ -127,3 +127,35 @@ def test_svg_over_5_mb_is_413(client):
     r = client.post("/api/formations/svg", files={"file": ("big.svg", big + b" " * 100_000, "image/svg+xml")},
                     data={"n": "4"})
     assert r.status_code == 413
+
+
+def _black_png() -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (32, 32), "black").save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def test_source_refusals_name_the_field(client):
+    """Every 422 of a formation source names the request field at fault (QA: a blank text, a file that is not
+    an image, an SVG without shapes and a count that does not fit came back with ``path`` "")."""
+    empty_svg = b'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10"></svg>'
+    cases = [
+        ("text", {"json": {"text": "   ", "n": 5}}, "text"),
+        ("text", {"json": {"text": "HI", "n": 500, "height_m": 2}}, "n"),
+        ("shape", {"json": {"kind": "star", "n": 5000, "size_m": 1}}, "n"),
+        ("shape", {"json": {"kind": "polygon", "n": 10, "params": {"sides": 1}}}, "params"),
+        ("shape", {"json": {"kind": "circle", "n": 5, "params": {"bogus": 1}}}, "params"),
+        ("image", {"files": {"file": ("a.png", b"not an image", "image/png")}, "data": {"n": "5"}}, "file"),
+        ("image", {"files": {"file": ("a.png", _black_png(), "image/png")}, "data": {"n": "5"}}, "file"),
+        ("image", {"files": {"file": ("a.png", _png(64, 48), "image/png")}, "data": {"n": "5000", "width_m": "5"}},
+         "n"),
+        ("svg", {"files": {"file": ("a.svg", b"<svg", "image/svg+xml")}, "data": {"n": "4"}}, "file"),
+        ("svg", {"files": {"file": ("a.svg", empty_svg, "image/svg+xml")}, "data": {"n": "4"}}, "file"),
+    ]
+    for source, kwargs, field in cases:
+        r = client.post(f"/api/formations/{source}", **kwargs)
+        assert r.status_code == 422, (source, r.text)
+        problem = r.json()["detail"][0]
+        assert problem["path"] == field and problem["loc"] == ["body", field], (source, kwargs.get("json"), problem)

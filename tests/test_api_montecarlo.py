@@ -179,9 +179,13 @@ def test_playback_run_errors_name_the_field(client, finished):
     r = client.post(url, json={"source": "simulated", "job_id": job["id"], "run": -1})
     assert r.status_code == 422 and "run" in r.json()["detail"][0]["loc"]
     r = client.post(url, json={"source": "simulated", "run": 1})
+    # QA: loc said job_id while path said run; both name the missing field.
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "job_id"]
+    assert r.json()["detail"][0]["path"] == "job_id"
+    r = client.post(url, json={"source": "simulated", "job_id": job["id"]})
+    assert r.status_code == 422 and r.json()["detail"][0]["path"] == "run"
     r = client.post(url, json={"source": "planned", "job_id": job["id"], "run": 1})
-    assert r.status_code == 422
+    assert r.status_code == 422 and r.json()["detail"][0]["path"] == "source"
     assert client.post(url, json={"source": "simulated", "job_id": "nope", "run": 0}).status_code == 404
     other = _show_id(client, show_doc("mc elsewhere"))
     r = client.post(f"/api/shows/{other}/playback", json={"source": "simulated", "job_id": job["id"], "run": 0})

@@ -324,3 +324,56 @@ def test_check_cache_and_shows_survive_a_restart(tmp_path):
     with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         assert c.get(f"/api/shows/{sid}").json()["name"] == "persistent"
         assert c.post(f"/api/shows/{sid}/check").json()["cached"] is True
+
+
+def test_export_refusals_name_the_field(client):
+    """Every 422 of an export names the option at fault (QA: the missing origin came back with ``path`` "", so
+    neither a script nor the editor could tell which field to fix)."""
+    rec = _create(client, show_doc("refused exports"))
+    cases = [
+        ("qgc-plan", {}, "origin"),  # no settings.geo and no origin
+        ("qgc-wpl", {}, "origin"),
+        ("qgc-plan", {"origin": "95,10,0"}, "origin"),  # latitude out of range (the exporter's check)
+        ("qgc-plan", {"origin": "47,8,1e9"}, "origin"),  # altitude out of range
+        ("crazyswarm", {"source": "simulated"}, "source"),  # exact-plan formats refuse the flown source
+    ]
+    for fmt, params, field in cases:
+        r = client.get(f"/api/shows/{rec['id']}/export/{fmt}", params=params)
+        assert r.status_code == 422, (fmt, params, r.text)
+        problem = r.json()["detail"][0]
+        assert problem["path"] == field and problem["loc"] == ["query", field], (fmt, params, problem)
+
+
+def test_export_of_an_unplannable_show_names_the_show_field(client):
+    """QA: a forced transition too short for the limits was refused by every export with loc ["query"] and
+    path "" ("the show cannot be planned: formations[1].transition_s = 0.2 s is shorter ..."): the field at fault
+    is the show's, and the 422 names it as the check's does."""
+    doc = show_doc("too short")
+    doc["formations"].append({**doc["formations"][0], "name": "lifted", "transition_s": 0.2,
+                              "points": [[x, y, z + 20] for x, y, z in doc["formations"][0]["points"]]})
+    rec = _create(client, doc)
+    for fmt in ("skyc", "skybrush-csv", "crazyswarm"):
+        r = client.get(f"/api/shows/{rec['id']}/export/{fmt}")
+        assert r.status_code == 422, (fmt, r.text)
+        problem = r.json()["detail"][0]
+        assert problem["path"] == "formations[1].transition_s", (fmt, problem)
+        assert problem["loc"] == ["show", "formations", 1, "transition_s"], (fmt, problem)
+        assert "shorter" in problem["msg"]
+
+
+def test_show_rule_problems_have_loc_and_path_naming_the_same_field(client):
+    """QA: show-level rules answered a coarse loc beside an exact path, e.g. loc ["body","show"] with path
+    "show.groups.front", or loc ["body"] with "formations[0].points[0][2]"."""
+    high = show_doc("ceiling", max_altitude_m=8.0)
+    r = client.post("/api/shows", json=high)
+    assert r.status_code == 422
+    p = r.json()["detail"][0]
+    assert p["path"] == "formations[0].points[2][2]" and p["loc"] == ["body", "formations", 0, "points", 2, 2], p
+    rec = _create(client, show_doc("groups"))
+    doc = client.get(f"/api/shows/{rec['id']}").json()["show"]
+    doc["groups"] = {"front": [0, 1, 99]}
+    r = client.put(f"/api/shows/{rec['id']}", json={"revision": rec["revision"], "show": doc})
+    assert r.status_code == 422
+    p = r.json()["detail"][0]
+    assert p["path"] == "show.groups.front" and p["loc"] == ["body", "show", "groups", "front"], p
+    assert client.get(f"/api/shows/{rec['id']}").json()["revision"] == rec["revision"]  # nothing stored

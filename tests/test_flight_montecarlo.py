@@ -226,3 +226,33 @@ def test_dask_gives_identical_numbers(plan12) -> None:
         j["show_min"]["worst_run"].pop("flight_wall_time_s", None)
     assert remote == local
     assert seen[-1] == 1.0
+
+
+def test_a_drone_that_flies_into_the_ground_counts_as_diverged(plan12) -> None:
+    """QA: a calm-RTK Monte-Carlo run of a 9-drone show had drone 4 lose height control in the landing and fly to
+    z = -24 m, 'below the ground', with 'diverged 0' in the safety report (its tracking error stayed under the
+    25 m runaway limit). The model has no ground, so the reduction calls it what it is: a crash ("ground") at the
+    first frame more than GROUND_STRIKE_M below z = 0, after which the drone no longer counts in the separation.
+    A landing's few centimetres below zero is not one."""
+    from dataclasses import replace
+
+    from sim.flight._montecarlo import GROUND_STRIKE_M
+
+    flight = fly_show(plan12, FlightOptions())
+    assert flight.diverged == []
+    pos = flight.positions_m.copy()
+    t = flight.times_s
+    n_frames = t.size
+    pos[-5:, 1, 2] = -0.2  # a landing that sinks a little: not a crash
+    dive = np.arange(n_frames) >= n_frames // 2
+    pos[dive, 3, 2] = -np.linspace(0.1, 30.0, dive.sum())  # drone 3 dives through the ground
+    first = int(np.flatnonzero(pos[:, 3, 2] < -GROUND_STRIKE_M)[0])
+    pos[first + 1:, 3] = pos[first + 1:, 5]  # ... and, being gone, may sit on drone 5 without counting
+    crashed = replace(flight, positions_m=pos)
+    stats = reduce_flight(plan12, crashed)
+    assert stats.diverged == [(3, pytest.approx(float(t[first])), "ground")]
+    others = np.delete(np.arange(pos.shape[1]), 3)
+    # The crashed drone counts before the frame of its crash, not from it on (as a runaway does).
+    brute = np.array([pdist(p[others if f >= first else slice(None)].astype(np.float64)).min()
+                      for f, p in enumerate(pos)])
+    assert stats.min_distance_m == pytest.approx(brute.min(), rel=1e-9) and stats.min_distance_m > 0

@@ -123,3 +123,20 @@ def test_unknown_preset_and_scenario_mix_exit_2(show_file, capsys) -> None:
     assert exc.value.code == 2
     assert main(["simulate", "--scenario", "paper", "--runs", "2"]) == 2
     assert "--runs" in capsys.readouterr().err
+
+
+def test_summary_states_the_largest_deviation_in_metres_and_names_the_drone(show_file, capsys) -> None:
+    """QA: the summary printed 'largest deviation from the plan: 2.445e+01 m' (a drone 24 m off under calm RTK),
+    in scientific notation and without saying which drone. It reads '24.45 m (drone 4)' now, and small values
+    keep their digits."""
+    assert main(["simulate", str(show_file), "--runs", "2", "--preset", "calm-rtk", "--json"]) in (0, 1)
+    out = json.loads(capsys.readouterr().out)
+    dev = out["deviation"]
+    worst = dev["worst_drones"][0]
+    line = next(s for s in cli_sim.format_montecarlo(out).splitlines() if "largest deviation" in s)
+    assert line.strip() == f"largest deviation from the plan: {dev['max_m']:.4g} m (drone {worst['drone']})"
+    assert worst["max_m"] == dev["max_m"] == max(dev["per_drone_max_m"])
+    for value, text in [(24.4531, "24.45 m"), (0.000125490, "0.0001255 m"), (1.5, "1.5 m")]:
+        fake = {**out, "deviation": {**dev, "max_m": value, "worst_drones": [{"drone": 4, "max_m": value}]}}
+        line = next(s for s in cli_sim.format_montecarlo(fake).splitlines() if "largest deviation" in s)
+        assert line.strip() == f"largest deviation from the plan: {text} (drone 4)"

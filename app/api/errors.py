@@ -88,12 +88,29 @@ def loc_path(loc: list[str | int] | tuple[str | int, ...]) -> str:
     return out
 
 
+def path_loc(path: str) -> list[str | int]:
+    """'formations[2].points[0][2]' -> ['formations', 2, 'points', 0, 2] (the inverse of :func:`loc_path`)."""
+    out: list[str | int] = []
+    for part in path.replace("[", ".[").split("."):
+        if part:
+            out.append(int(part[1:-1]) if part.startswith("[") and part[1:-1].isdigit() else part)
+    return out
+
+
 def show_problems(errors: list[dict[str, Any]], *, prefix: tuple[str | int, ...] = ()) -> list[dict[str, Any]]:
-    """``ShowValidationError.errors`` as API problems located in the request body under ``prefix``."""
+    """``ShowValidationError.errors`` as API problems located in the request body under ``prefix``.
+
+    A show-level rule (a group index out of range, a point above the ceiling) reports an empty or coarse
+    ``loc`` but the exact ``path``: the ``loc`` is then taken from the path, so that both name the same field.
+    """
     out = []
     for err in errors:
         path = ".".join(p for p in (loc_path(prefix), err.get("path") or "") if p)
-        out.append({"loc": ["body", *prefix, *err.get("loc", ())], "path": path, "msg": err["msg"]})
+        loc = list(err.get("loc", ()))
+        from_path = path_loc(err.get("path") or "")
+        if len(from_path) > len(loc):
+            loc = from_path
+        out.append({"loc": ["body", *prefix, *loc], "path": path, "msg": err["msg"]})
     return out
 
 

@@ -198,6 +198,9 @@ def format_montecarlo(r: dict) -> str:
 
     s = r["show_min"]
     q = s["flown_min_m"]["quantiles"]
+    # Plain metres with four significant digits (24.45 m, 0.0001255 m), and whose it is.
+    worst = r["deviation"].get("worst_drones") or []
+    worst_drone = f" (drone {worst[0]['drone']})" if worst else ""
 
     def prob(p: dict) -> str:
         return (f"{p['runs_below']}/{p['runs']} runs ({100 * p['ci_low']:.1f}-{100 * p['ci_high']:.1f} % at "
@@ -212,7 +215,7 @@ def format_montecarlo(r: dict) -> str:
         f"  closer than {r['min_distance_m']:g} m: {prob(s['p_below_min_distance'])}",
         f"  closer than {r['collision_distance_m']:g} m (collision): {prob(s['p_collision'])}",
         f"  extra spacing needed at {100 * r['confidence']:g} %: {num(s['extra_spacing']['extra_m'], '.3f')} m",
-        f"  largest deviation from the plan: {num(r['deviation']['max_m'], '.3e')} m",
+        f"  largest deviation from the plan: {num(r['deviation']['max_m'], '.4g')} m{worst_drone}",
     ]
     for seg in r["segments"]:
         if seg["extra_spacing"]["extra_m"] > 0 or seg["p_below_min_distance"]["runs_below"]:

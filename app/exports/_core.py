@@ -35,9 +35,14 @@ MAX_OFFSET_M = 10_000.0
 class ExportError(ValueError):
     """An export cannot be made as asked (bad option, unknown format, unplannable show).
 
-    The message is one line meant for the user; the API maps it to HTTP 422 and
-    the command line to exit code 2.
+    The message is one line meant for the user; the API maps it to HTTP 422 naming
+    ``field`` (the option at fault, e.g. ``"origin"``; None when it is the show itself)
+    and the command line to exit code 2.
     """
+
+    def __init__(self, message: str, *, field: str | None = None) -> None:
+        super().__init__(message)
+        self.field = field
 
 
 @dataclass(frozen=True)
@@ -74,38 +79,39 @@ class ExportOptions:
         if self.fps is not None:
             fps = _number(self.fps, "fps")
             if not 0 < fps <= MAX_FPS:
-                raise ExportError(f"fps must be in (0, {MAX_FPS:g}], got {self.fps!r}")
+                raise ExportError(f"fps must be in (0, {MAX_FPS:g}], got {self.fps!r}", field="fps")
             object.__setattr__(self, "fps", fps)
         if self.origin is not None:
             try:
                 lat, lon, alt = (float(v) for v in self.origin)
             except (TypeError, ValueError) as exc:
-                raise ExportError(f"origin must be (latitude, longitude, altitude), got {self.origin!r}") from exc
+                raise ExportError(f"origin must be (latitude, longitude, altitude), got {self.origin!r}",
+                                  field="origin") from exc
             if not all(math.isfinite(v) for v in (lat, lon, alt)):
-                raise ExportError(f"origin must be finite, got {self.origin!r}")
+                raise ExportError(f"origin must be finite, got {self.origin!r}", field="origin")
             if not -90.0 <= lat <= 90.0:
-                raise ExportError(f"origin latitude must be in [-90, 90] degrees, got {lat}")
+                raise ExportError(f"origin latitude must be in [-90, 90] degrees, got {lat}", field="origin")
             if not -180.0 <= lon <= 180.0:
-                raise ExportError(f"origin longitude must be in [-180, 180] degrees, got {lon}")
+                raise ExportError(f"origin longitude must be in [-180, 180] degrees, got {lon}", field="origin")
             if not -1_000.0 <= alt <= 100_000.0:
-                raise ExportError(f"origin altitude must be in [-1000, 100000] m, got {alt}")
+                raise ExportError(f"origin altitude must be in [-1000, 100000] m, got {alt}", field="origin")
             object.__setattr__(self, "origin", (lat, lon, alt))
         heading = _number(self.heading_deg, "heading_deg")
         object.__setattr__(self, "heading_deg", heading % 360.0)
         scale = _number(self.scale, "scale")
         if not 0.0 < scale <= MAX_SCALE:
-            raise ExportError(f"scale must be in (0, {MAX_SCALE:g}], got {self.scale!r}")
+            raise ExportError(f"scale must be in (0, {MAX_SCALE:g}], got {self.scale!r}", field="scale")
         object.__setattr__(self, "scale", scale)
         try:
             offset = tuple(_number(v, "offset") for v in self.offset_m)
         except TypeError as exc:
-            raise ExportError(f"offset must be (x, y, z) metres, got {self.offset_m!r}") from exc
+            raise ExportError(f"offset must be (x, y, z) metres, got {self.offset_m!r}", field="offset") from exc
         if len(offset) != 3 or max(abs(v) for v in offset) > MAX_OFFSET_M:
             raise ExportError(f"offset must be three numbers (x, y, z) within +-{MAX_OFFSET_M:g} m, "
-                              f"got {self.offset_m!r}")
+                              f"got {self.offset_m!r}", field="offset")
         object.__setattr__(self, "offset_m", offset)
         if self.source not in ("planned", "simulated"):
-            raise ExportError(f"source must be 'planned' or 'simulated', got {self.source!r}")
+            raise ExportError(f"source must be 'planned' or 'simulated', got {self.source!r}", field="source")
 
     def fps_or(self, default: float) -> float:
         """``fps`` if given, else ``default`` (frames per second)."""
@@ -114,13 +120,13 @@ class ExportOptions:
 
 def _number(value: Any, name: str) -> float:
     if isinstance(value, bool):
-        raise ExportError(f"{name} must be a number, got {value!r}")
+        raise ExportError(f"{name} must be a number, got {value!r}", field=name)
     try:
         x = float(value)
     except (TypeError, ValueError) as exc:
-        raise ExportError(f"{name} must be a number, got {value!r}") from exc
+        raise ExportError(f"{name} must be a number, got {value!r}", field=name) from exc
     if not math.isfinite(x):
-        raise ExportError(f"{name} must be finite, got {value!r}")
+        raise ExportError(f"{name} must be finite, got {value!r}", field=name)
     return x
 
 
@@ -213,4 +219,4 @@ def require_planned(ctx: ExportContext) -> None:
     """Refuse ``source="simulated"`` in a format that exports the exact plan."""
     if ctx.options.source != "planned":
         raise ExportError(f"format {ctx.fmt!r} exports the exact plan; --source simulated is only for "
-                          "skybrush-csv and waypoints-csv")
+                          "skybrush-csv and waypoints-csv", field="source")

@@ -92,7 +92,8 @@ def _origin(ctx: ExportContext) -> tuple[float, float, float]:
     if ctx.options.origin is None:
         raise ExportError(
             f"format {ctx.fmt!r} needs the show's place on Earth: set its origin (latitude, longitude, "
-            "altitude) and heading in the show settings"
+            "altitude) and heading in the show settings",
+            field="origin",
         )
     return ctx.options.origin
 

@@ -60,7 +60,7 @@ def check_sample_count(ctx: ExportContext, n_times: int) -> None:
     if total > MAX_SAMPLES:
         raise ExportError(
             f"{ctx.show.drones} drones x {n_times} frames = {total} samples exceeds the limit of {MAX_SAMPLES}; "
-            "lower --fps"
+            "lower --fps", field="fps"
         )
 
 

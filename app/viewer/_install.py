@@ -250,7 +250,8 @@ def playback_router() -> APIRouter:
         run: tuple[str, int] | None = None
         if req.job_id is not None or req.run is not None:
             if source != "simulated" or req.job_id is None or req.run is None:
-                raise ApiError(422, [{"loc": ["body", "run" if req.run is None else "job_id"], "path": "run",
+                field = "run" if req.run is None else "job_id" if req.job_id is None else "source"
+                raise ApiError(422, [{"loc": ["body", field], "path": field,
                                       "msg": "job_id and run go together, with source 'simulated'"}])
             run = (req.job_id, req.run)
         # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).

@@ -57,10 +57,22 @@ export function problemsOf(body) {
   return [];
 }
 
+/**
+ * Whether a problem's message starts by naming its own path ("path: ..." or "path = ...").
+ * @param {string} msg
+ * @param {string} path
+ * @returns {boolean}
+ */
+export function namesPath(msg, path) {
+  return msg.startsWith(`${path}:`) || msg.startsWith(`${path} `);
+}
+
 function messageFor(status, problems, statusText) {
   if (problems.length) {
     const p = problems[0];
-    const head = p.path ? `${p.path}: ${p.msg}` : p.msg;
+    // Some messages name their field already ("file: not a mesh", "formations[2].arrive_at_s = 64 s is ..."):
+    // say it once.
+    const head = p.path && !namesPath(p.msg, p.path) ? `${p.path}: ${p.msg}` : p.msg;
     return problems.length > 1 ? `${head} (and ${problems.length - 1} more)` : head;
   }
   if (status === 413) return "the upload is too large";

@@ -2,6 +2,8 @@
 // API problems shown next to the control they concern: settings fields, timeline cards, or a
 // fallback message element.
 
+import { namesPath } from "./api.js";
+
 /** Formation problems by index, read by the timeline when it renders. */
 export const formationProblems = new Map();
 
@@ -38,7 +40,7 @@ export function showShowErrors(problems, fallback) {
     const m = /^formations\[(\d+)\]\.?(.*)$/.exec(path);
     if (m) {
       const k = Number(m[1]);
-      const where = m[2] ? `${m[2]}: ` : "";
+      const where = m[2] && !namesPath(p.msg, path) ? `${m[2]}: ` : "";
       if (!formationProblems.has(k)) formationProblems.set(k, `${where}${p.msg}`);
       formations.push(k);
       continue;

@@ -72,7 +72,10 @@ new LaunchPanel(/** @type {HTMLElement} */ ($("launch-body")), state);
 const sources = new Sources(state, view);
 settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
-const simulate = new SimulatePanel(state, persist, { onFlown: () => preview.isOpen && preview.load() });
+const simulate = new SimulatePanel(state, persist, {
+  onFlown: () => preview.isOpen && preview.load(),
+  onPlayRun: (run) => (preview.isOpen ? preview.load(run) : preview.open(run)),
+});
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"));
 const playhead = new Playhead(state, timeline, preview);

@@ -42,12 +42,15 @@ export class Preview {
     else this.open();
   }
 
-  /** Show the preview with the current show. */
-  async open() {
+  /**
+   * Show the preview with the current show.
+   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run to fly and play instead
+   */
+  async open(run) {
     this.wrap.hidden = false;
     this.button.setAttribute("aria-pressed", "true");
     this._layout();
-    await this.load();
+    await this.load(run);
   }
 
   /** Hide the preview. */
@@ -87,8 +90,12 @@ export class Preview {
     };
   }
 
-  /** Save if needed, load the show into the viewer and (re)load the viewer page. */
-  async load() {
+  /**
+   * Save if needed, load the show into the viewer and (re)load the viewer page.
+   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run of the show to fly and play (its
+   *   simulated flight) instead of the planned or last simulated show
+   */
+  async load(run) {
     setError("preview", "");
     const st = this.state;
     if (st.meta) {
@@ -96,7 +103,7 @@ export class Preview {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");
       }
       try {
-        await api.loadPlayback(st.meta.id, this.source());
+        await api.loadPlayback(st.meta.id, run ? "simulated" : this.source(), run);
       } catch (err) {
         setError("preview", `Cannot load the show into the 3D view: ${err.message}`);
       }

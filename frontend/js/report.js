@@ -23,6 +23,7 @@ const KIND_NAMES = {
   min_altitude: "Below the altitude floor",
   geofence: "Outside the geofence",
   transition_duration: "Transition too short",
+  downwash: "In downwash (ellipsoid units, < 1 inside)",
 };
 
 /**
@@ -53,20 +54,43 @@ export function worstFirst(groups) {
 
 const GROUP_KINDS = { takeoff: "Takeoff", transition: "Transition", landing: "Landing", hold: "Hold" };
 
-/** One line naming a group: its kind, ends, length, stagger and outcome. */
-function groupTitle(g) {
-  const what = g.kind === "transition" ? `${g.from} → ${g.to}` : g.kind === "hold" ? g.to : `${g.from} → ${g.to}`;
+/** Takeoff and landing say where they go ("Landing landing → home" said it twice). */
+const END_WHAT = { takeoff: "from the homes", landing: "onto the homes" };
+
+/**
+ * One line naming a group: its kind, ends, length, stagger and outcome.
+ * @param {any} g a group of the check report's `by_transition`
+ * @returns {string}
+ */
+export function groupTitle(g) {
+  const what = g.kind === "hold" ? g.to : END_WHAT[g.kind] || `${g.from} → ${g.to}`;
   const timing = `${fmt(g.duration_s, 1)} s${g.stagger_s > 0 ? ` (+${fmt(g.stagger_s, 1)} s stagger)` : ""}`;
   const closest = g.min_distance_m >= 0 ? `, closest ${fmt(g.min_distance_m)} m` : "";
   const outcome = g.ok ? "✓" : `✗ ${g.violations_total} violation${g.violations_total === 1 ? "" : "s"}`;
   return `${outcome} · ${GROUP_KINDS[g.kind] || g.kind} ${what} · ${timing}${closest}`;
 }
 
-/** A violation as a short line (the report's message is the tooltip). */
-function violationText(v) {
+/** The unit of a violation's value and limit (sim.verify.Violation: metres, m/s, m/s²; downwash in ellipsoid units). */
+const KIND_UNITS = {
+  speed_xy: " m/s",
+  speed_z: " m/s",
+  acceleration: " m/s²",
+  altitude: " m",
+  min_altitude: " m",
+  geofence: " m",
+};
+
+/**
+ * A violation as a short line (the report's message is the tooltip).
+ * @param {{kind: string, drones: number[], value: number, limit: number, time_s: number}} v
+ * @returns {string}
+ */
+export function violationText(v) {
   if (v.kind === "min_distance") return `Drones ${v.drones[0]} & ${v.drones[1]}: ${fmt(v.value)} m at ${fmt(v.time_s, 1)} s`;
   if (v.kind === "transition_duration") return `Too short: ${fmt(v.value, 1)} s, needs ${fmt(v.limit, 1)} s`;
-  return `${KIND_NAMES[v.kind] || v.kind}: ${fmt(v.value)} (limit ${fmt(v.limit)}) at ${fmt(v.time_s, 1)} s, drone${v.drones.length === 1 ? "" : "s"} ${v.drones.slice(0, 5).join(", ")}`;
+  const unit = KIND_UNITS[v.kind] || "";
+  const more = v.drones.length > 5 ? ", …" : "";
+  return `${KIND_NAMES[v.kind] || v.kind}: ${fmt(v.value)}${unit} (limit ${fmt(v.limit)}${unit}) at ${fmt(v.time_s, 1)} s, drone${v.drones.length === 1 ? "" : "s"} ${v.drones.slice(0, 5).join(", ")}${more}`;
 }
 
 /** The check panel. */
@@ -278,8 +302,12 @@ export class ReportPanel {
       const k = formationOfSegment(segments, v.segment, count);
       const fname = this.state.show.formations[k]?.name ?? "";
       b.textContent = violationText(v);
-      b.title = `${v.message || ""}\nSelect formation "${fname}" and drones ${v.drones.join(", ")}`;
-      b.setAttribute("aria-label", `${KIND_NAMES[v.kind] || v.kind} at ${fmt(v.time_s, 1)} s, drones ${v.drones.join(", ")}: select them in "${fname}"`);
+      // A transition that is too short names no drones: the button then selects the formation only.
+      const who = v.drones.length ? ` and drones ${v.drones.join(", ")}` : "";
+      b.title = `${v.message || ""}\nSelect formation "${fname}"${who}`;
+      b.setAttribute("aria-label", v.drones.length
+        ? `${KIND_NAMES[v.kind] || v.kind} at ${fmt(v.time_s, 1)} s, drones ${v.drones.join(", ")}: select them in "${fname}"`
+        : `${KIND_NAMES[v.kind] || v.kind} at ${fmt(v.time_s, 1)} s: select "${fname}"`);
       b.addEventListener("click", () => this.select(v, k));
       li.append(b);
       ul.append(li);

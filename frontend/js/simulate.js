@@ -11,6 +11,7 @@ const REASONS = {
   overpowered: "overpowered: held at its tilt/thrust limit and blown off (wind beyond its authority)",
   runaway: "runaway: unstable control or a tumble",
   "non-finite": "non-finite: the state broke down",
+  ground: "ground: flew into the ground (below z = 0)",
 };
 
 /** "2 overpowered, 1 runaway" from a `{reason: count}` map. @param {Record<string, number>|undefined} byReason */
@@ -22,7 +23,9 @@ export class SimulatePanel {
   /**
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
-   * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void}} [hooks] onFlown: a simulation finished
+   * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
+   *   onPlayRun?: (run: {job_id: string, run: number}) => Promise<void>}} [hooks] onFlown: a simulation finished;
+   *   onPlayRun: play a Monte-Carlo run in the 3D preview
    */
   constructor(state, persist, hooks = {}) {
     this.state = state;
@@ -239,8 +242,12 @@ export class SimulatePanel {
       play.id = "sim-play-worst";
       play.textContent = `Play worst run (seed ${worst.seed}) in 3D`;
       play.addEventListener("click", async () => {
+        const run = { job_id: jobId, run: worst.run };
+        // In the editor the run plays in the 3D preview, opened for it (loading it into the viewer
+        // alone changed nothing on screen while the preview was closed).
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run);
         try {
-          await api.loadPlayback(showId, "simulated", { job_id: jobId, run: worst.run });
+          await api.loadPlayback(showId, "simulated", run);
         } catch (err) {
           this._message("report-bad", `Cannot play the run: ${err.message}`);
         }

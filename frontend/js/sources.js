@@ -9,6 +9,7 @@ import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./
 import { closePairs, repairSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
+import { flyingCount } from "./groups.js";
 
 // The plane a new formation is built in: the one the designer is looking at (the 3D view builds in the front plane).
 const PLANE_OF_VIEW = { front: "xz", top: "xy", side: "yz" };
@@ -377,7 +378,8 @@ export class Sources {
     const st = this.state;
     const msgs = [];
     for (let k = 0; k < st.show.formations.length; k++) {
-      if (st.show.formations[k].points.length >= st.show.drones) continue;
+      // A subset formation (issue 21) needs points for the drones that fly it only (as the settings' prompt counts).
+      if (st.show.formations[k].points.length >= flyingCount(st.show, st.show.formations[k])) continue;
       const m = await this.fitFormation(k);
       if (m) msgs.push(`"${st.show.formations[k].name}": ${m}`);
     }
@@ -393,7 +395,7 @@ export class Sources {
   async fitFormation(k) {
     const st = this.state;
     const f = st.show.formations[k];
-    const n = st.show.drones;
+    const n = flyingCount(st.show, f);
     const d = st.show.settings.min_distance_m;
     const src = f.source;
     const file = src && src.file ? uploads.get(src.file) : undefined;

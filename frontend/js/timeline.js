@@ -268,7 +268,9 @@ export class Timeline {
     holdLabel.textContent = "hold";
     const hold = document.createElement("input");
     hold.type = "number";
-    hold.min = "0.1";
+    // Steps count from min: with min 0 the arrows move by whole half seconds (5 -> 4.5, not 4.6); a hold of 0
+    // is refused below (the show file needs > 0).
+    hold.min = "0";
     hold.step = "0.5";
     hold.value = String(f.hold_s);
     hold.setAttribute("aria-label", `Hold time of formation ${k + 1}, seconds`);

@@ -73,6 +73,9 @@ PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
 DEFAULT_COLLISION_DISTANCE_M = 1.0
 #: Most time bins of the separation band and the speed curves (a 10-minute show: one per second).
 MAX_TIME_BINS = 600
+#: Depth below the ground (z = 0, where homes are) at which a flown drone has crashed into it (m): the model has
+#: no ground, and a landing sinks a few centimetres under zero while the controller settles.
+GROUND_STRIKE_M = 0.5
 #: Edges of the deviation histogram (m): log-spaced from 0.1 mm to 100 m.
 DEVIATION_EDGES_M = np.geomspace(1e-4, 1e2, 61)
 #: Quantiles of the flown minimum separation over the runs that the report lists.
@@ -214,7 +217,8 @@ class RunStats:
         bin_speed_xy_mps: ``(B,)`` largest horizontal speed of any drone per time bin (m/s, from frames).
         bin_speed_z_mps: ``(B,)`` largest vertical speed of any drone per time bin (m/s).
         deviation_max_m: ``(N,)`` each drone's largest distance from its planned position (m).
-        diverged: ``[(drone, time_s, reason)]``.
+        diverged: ``[(drone, time_s, reason)]``: the flight's, and ``"ground"`` for a drone that sank
+            more than :data:`GROUND_STRIKE_M` below z = 0 (a crash the model does not stop).
         wall_time_s: Wall-clock time of the flight and its reduction (s).
         flight_wall_time_s: Of that, the engine's loop alone (``FlightResult.wall_time_s``: the
             kernel and the per-chunk tables); the rest is setup and reduction (s).
@@ -295,8 +299,17 @@ def reduce_flight(
     every = max(int(round(frame_dt / result.dt_s)), 1)
     where = {int(d): k for k, d in enumerate(ids)}
     dstep = np.full(ids.size, -1, dtype=np.int64)
-    for drone, t, _reason in result.diverged:
+    diverged = list(result.diverged)
+    for drone, t, _reason in diverged:
         dstep[where[drone]] = int(round(t / result.dt_s))
+    # The model has no ground: a drone that sinks more than GROUND_STRIKE_M below z = 0 has crashed there
+    # (seen: a calm-RTK landing that lost height control and "flew" to z = -24 m, under the runaway limit).
+    below = pos[:, :, 2] < -GROUND_STRIKE_M  # (T, N)
+    struck = np.flatnonzero(below.any(axis=0) & (dstep < 0))
+    for k in struck.tolist():
+        f = int(np.argmax(below[:, k]))
+        dstep[k] = f * every
+        diverged.append((int(ids[k]), float(times[f]), "ground"))
     d, ii, jj = frame_min_distances(pos, dstep, every)
     vxy, vz = _frame_speeds(pos, frame_dt)
     starts = time_bin_starts(n_frames, max_bins)
@@ -314,7 +327,7 @@ def reduce_flight(
         bin_speed_xy_mps=np.maximum.reduceat(vxy, starts) if n_frames else np.zeros(0),
         bin_speed_z_mps=np.maximum.reduceat(vz, starts) if n_frames else np.zeros(0),
         deviation_max_m=np.asarray(result.tracking_max_m, dtype=np.float64).copy(),
-        diverged=list(result.diverged),
+        diverged=diverged,
         wall_time_s=float(result.wall_time_s),
         flight_wall_time_s=float(result.wall_time_s),
     )
@@ -517,7 +530,7 @@ class MonteCarloResult:
             "diverged_count": len(self.diverged),
             # By physical reason (engines._state): "overpowered" = blown off, lacking the authority
             # (wind beyond the drone's limits); "runaway" = unstable control or a tumble;
-            # "non-finite" = the numbers broke down.
+            # "non-finite" = the numbers broke down; "ground" = flew into the ground (reduce_flight).
             "diverged_by_reason": {r: sum(1 for *_, why in self.diverged if why == r)
                                    for r in sorted({why for *_, why in self.diverged})},
             "run_list": self.runs,
