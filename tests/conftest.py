@@ -6,7 +6,9 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
+from typing import IO
 
 import numpy as np
 import pytest
@@ -204,7 +206,8 @@ INTEGRATION_TESTS = frozenset({
 
 
 def _module(item: pytest.Item) -> str:
-    return item.module.__name__.rpartition(".")[2] if getattr(item, "module", None) is not None else ""
+    module = getattr(item, "module", None)
+    return module.__name__.rpartition(".")[2] if module is not None else ""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -229,7 +232,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # modules below run, and the first test outside them waits for it. With a warm cache the child only
 # loads the kernels. Tests of cold-cache behaviour use cache directories of their own and are
 # unaffected. These modules neither fly nor start a process that does (checked with a fresh cache:
-# running them alone writes no flight kernel).
+# running them alone writes no flight kernel), nor analyse music.
 KERNEL_FREE_MODULES = frozenset({
     "test_api_store", "test_architecture", "test_assignment_scale", "test_editor_static",
     "test_exports_crazyswarm", "test_exports_moving", "test_exports_qgc", "test_exports_skybrush_readers",
@@ -244,53 +247,80 @@ KERNEL_FREE_MODULES = frozenset({
 #: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
 #: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.
 _WARM_UP_MIN_OVERLAP = 50
-_WARM_UP_CODE = "from sim.flight.engines import warm_up; warm_up()"
-_warm_up: dict[str, object] = {}
+#: Then librosa's beat tracker (its jitted kernels, about 25 s of CPU cold), which the first test that
+#: analyses music would compile in its server process.
+_WARM_UP_CODE = """
+from sim.flight.engines import warm_up
+warm_up()
+import numpy as np
+from app.media._beats import detect_beats
+clicks = np.zeros(4 * 22_050, np.float32)
+clicks[::11_025] = 1.0
+detect_beats(clicks, 22_050)
+"""
+
+
+class _WarmUp:
+    """The warm-up child process (:data:`_WARM_UP_CODE`) and its figures."""
+
+    def __init__(self) -> None:
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.log: IO[bytes] | None = None
+        self.t0 = self.took_s = self.waited_s = 0.0
+        self.error = ""
+        self.done = False
+
+    def start(self) -> None:
+        self.log = tempfile.TemporaryFile()  # its stderr (a pipe could fill up and stall it)
+        self.proc = subprocess.Popen([sys.executable, "-c", _WARM_UP_CODE], stdout=subprocess.DEVNULL,
+                                     stderr=self.log, start_new_session=True)
+        self.t0 = time.monotonic()
+
+    def wait(self) -> None:
+        if self.proc is None or self.done:
+            return
+        t = time.monotonic()
+        try:
+            self.proc.wait(timeout=1800)
+        except subprocess.TimeoutExpired:  # then the tests compile on first use
+            self.stop()
+        self.done = True
+        self.waited_s, self.took_s = time.monotonic() - t, time.monotonic() - self.t0
+        if self.proc.returncode and self.log is not None:  # not fatal: each process compiles on first use
+            self.log.seek(0)
+            self.error = self.log.read().decode(errors="replace")[-2000:] or f"exit {self.proc.returncode}"
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)  # its compiling grandchild too
+            self.proc.wait()
+
+
+_warm_up = _WarmUp()
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     free = sum(_module(item) in KERNEL_FREE_MODULES for item in session.items)
-    if free < _WARM_UP_MIN_OVERLAP or free == len(session.items):
-        return
-    _warm_up["proc"] = subprocess.Popen([sys.executable, "-c", _WARM_UP_CODE], stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.PIPE, start_new_session=True)
-    _warm_up["t0"] = time.monotonic()
+    if free >= _WARM_UP_MIN_OVERLAP and free < len(session.items):
+        _warm_up.start()
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
-    proc = _warm_up.get("proc")
-    if not isinstance(proc, subprocess.Popen) or "waited_s" in _warm_up or _module(item) in KERNEL_FREE_MODULES:
-        return
-    t = time.monotonic()
-    try:
-        _, err = proc.communicate(timeout=1800)
-    except subprocess.TimeoutExpired:  # pragma: no cover - then the tests compile on first use
-        _stop_warm_up()
-        err = b"timed out"
-    _warm_up["waited_s"], _warm_up["took_s"] = time.monotonic() - t, time.monotonic() - float(_warm_up["t0"])
-    if proc.returncode:  # not fatal: every flight compiles on first use as without the warm-up
-        _warm_up["error"] = err.decode(errors="replace")[-2000:]
-
-
-def _stop_warm_up() -> None:
-    proc = _warm_up.get("proc")
-    if isinstance(proc, subprocess.Popen) and proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGKILL)  # its compiling grandchild too
-        proc.wait()
+    if _module(item) not in KERNEL_FREE_MODULES:
+        _warm_up.wait()
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
-    _stop_warm_up()
+    _warm_up.stop()
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
-    if "took_s" in _warm_up:
-        terminalreporter.write_line(f"numba flight-kernel warm-up: {_warm_up['took_s']:.1f} s beside the first "
-                                    f"tests, then waited {_warm_up['waited_s']:.1f} s for it")
-    if "error" in _warm_up:
-        terminalreporter.write_line(f"numba flight-kernel warm-up failed (tests compiled on first use):\n"
-                                    f"{_warm_up['error']}")
+    if _warm_up.done:
+        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker): {_warm_up.took_s:.1f} s beside "
+                                    f"the first tests, then waited {_warm_up.waited_s:.1f} s for it")
+    if _warm_up.error:
+        terminalreporter.write_line(f"numba warm-up failed (the tests compiled on first use):\n{_warm_up.error}")
 
 
 # -- browser tests -------------------------------------------------------------------------------
