@@ -301,6 +301,8 @@ _warm_up = _WarmUp()
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     free = sum(_module(item) in KERNEL_FREE_MODULES for item in session.items)
+    if os.environ.get("SWARMSHOW_TEST_WARM_UP", "1") == "0":  # off (e.g. to measure without it)
+        return
     if free >= _WARM_UP_MIN_OVERLAP and free < len(session.items):
         _warm_up.start()
 
