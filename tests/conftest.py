@@ -2,6 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from typing import IO
+
 import numpy as np
 import pytest
 
@@ -197,12 +205,124 @@ INTEGRATION_TESTS = frozenset({
 })
 
 
+def _module(item: pytest.Item) -> str:
+    module = getattr(item, "module", None)
+    return module.__name__.rpartition(".")[2] if module is not None else ""
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
-        module = item.module.__name__.rpartition(".")[2] if item.module is not None else ""
         name = item.originalname if isinstance(item, pytest.Function) else item.name
-        if module in INTEGRATION_MODULES or name in INTEGRATION_TESTS:
+        if _module(item) in INTEGRATION_MODULES or name in INTEGRATION_TESTS:
             item.add_marker(pytest.mark.integration)
+    # The modules that never fly run first, while the flight kernel compiles beside them (below).
+    # A stable sort: each module's tests keep their order, and the modules theirs within each group.
+    items.sort(key=lambda item: _module(item) not in KERNEL_FREE_MODULES)
+
+
+# -- the flight kernel, compiled beside the first tests ----------------------------------------------
+# A fresh clone has no numba cache, and the parallel flight kernel (sim/flight/engines/_numba.py) takes
+# about a minute of CPU to compile for each of its two variants (float64 frames for ``simulate``,
+# float32 for ``fly_show``). Every process of the run (this one, each server, worker pool and Dask
+# worker a test starts) shares one on-disk cache (``__pycache__`` next to the source, or
+# ``NUMBA_CACHE_DIR`` when set, which child processes inherit), so each variant is compiled once per
+# run; but the first test that flies used to wait for that compile on one core while the other
+# idled. So a child process compiles both variants into that same cache (``warm_up``, which compiles
+# through numba's cache exactly as a first flight would, see ``_cached_machine_code``) while the
+# modules below run, and the first test outside them waits for it. With a warm cache the child only
+# loads the kernels. Tests of cold-cache behaviour use cache directories of their own and are
+# unaffected. These modules neither fly nor start a process that does (checked with a fresh cache:
+# running them alone writes no flight kernel), nor analyse music.
+KERNEL_FREE_MODULES = frozenset({
+    "test_api_store", "test_architecture", "test_assignment_scale", "test_editor_static",
+    "test_exports_crazyswarm", "test_exports_moving", "test_exports_qgc", "test_exports_skybrush_readers",
+    "test_exports_trajectories", "test_formations_closest_pair", "test_formations_filled",
+    "test_formations_image_svg", "test_formations_shapes", "test_formations_strokes_text",
+    "test_formations_transforms", "test_geometry_closest_pair", "test_launch", "test_launch_exports",
+    "test_light_effects", "test_plan_assignment", "test_plan_blend", "test_plan_cache", "test_plan_quintic",
+    "test_plan_schedule", "test_plan_show", "test_plan_timelaw", "test_plan_trajectory", "test_plan_verify",
+    "test_show_file", "test_verify_bounds", "test_verify_downwash", "test_verify_exact", "test_verify_sweep",
+    "test_viewer_export",
+})
+#: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
+#: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.
+_WARM_UP_MIN_OVERLAP = 50
+#: Then librosa's beat tracker (its jitted kernels, about 25 s of CPU cold), which the first test that
+#: analyses music would compile in its server process.
+_WARM_UP_CODE = """
+from sim.flight.engines import warm_up
+warm_up()
+import numpy as np
+from app.media._beats import detect_beats
+clicks = np.zeros(4 * 22_050, np.float32)
+clicks[::11_025] = 1.0
+detect_beats(clicks, 22_050)
+"""
+
+
+class _WarmUp:
+    """The warm-up child process (:data:`_WARM_UP_CODE`) and its figures."""
+
+    def __init__(self) -> None:
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.log: IO[bytes] | None = None
+        self.t0 = self.took_s = self.waited_s = 0.0
+        self.error = ""
+        self.done = False
+
+    def start(self) -> None:
+        self.log = tempfile.TemporaryFile()  # its stderr (a pipe could fill up and stall it)
+        self.proc = subprocess.Popen([sys.executable, "-c", _WARM_UP_CODE], stdout=subprocess.DEVNULL,
+                                     stderr=self.log, start_new_session=True)
+        self.t0 = time.monotonic()
+
+    def wait(self) -> None:
+        if self.proc is None or self.done:
+            return
+        t = time.monotonic()
+        try:
+            self.proc.wait(timeout=1800)
+        except subprocess.TimeoutExpired:  # then the tests compile on first use
+            self.stop()
+        self.done = True
+        self.waited_s, self.took_s = time.monotonic() - t, time.monotonic() - self.t0
+        if self.proc.returncode and self.log is not None:  # not fatal: each process compiles on first use
+            self.log.seek(0)
+            self.error = self.log.read().decode(errors="replace")[-2000:] or f"exit {self.proc.returncode}"
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)  # its compiling grandchild too
+            self.proc.wait()
+
+
+_warm_up = _WarmUp()
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    free = sum(_module(item) in KERNEL_FREE_MODULES for item in session.items)
+    if os.environ.get("SWARMSHOW_TEST_WARM_UP", "1") == "0":  # off (e.g. to measure without it)
+        return
+    if free >= _WARM_UP_MIN_OVERLAP and free < len(session.items):
+        _warm_up.start()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    if _module(item) not in KERNEL_FREE_MODULES:
+        _warm_up.wait()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    _warm_up.stop()
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if _warm_up.done:
+        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker): {_warm_up.took_s:.1f} s beside "
+                                    f"the first tests, then waited {_warm_up.waited_s:.1f} s for it")
+    if _warm_up.error:
+        terminalreporter.write_line(f"numba warm-up failed (the tests compiled on first use):\n{_warm_up.error}")
 
 
 # -- browser tests -------------------------------------------------------------------------------
