@@ -174,7 +174,18 @@ def home_points_from_csv(data: bytes | str) -> tuple[list[list[float]], list[str
     points: list[list[float]] = []
     names: list[str] = []
     named: bool | None = None
-    for line_no, row in enumerate(csv.reader(io.StringIO(data)), start=1):
+    # newline="": the csv module's own line handling, so a lone carriage return (classic Mac line
+    # ends) ends a row instead of raising csv.Error; any other csv.Error is the file's fault too.
+    rows = csv.reader(io.StringIO(data, newline=""))
+    line_no = 0
+    while True:
+        try:
+            row = next(rows)
+        except StopIteration:
+            break
+        except csv.Error as exc:
+            raise HomeCsvError(f"not readable as CSV ({exc})", line=rows.line_num) from None
+        line_no += 1
         cells = [c.strip() for c in row]
         if not any(cells):
             continue

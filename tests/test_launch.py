@@ -131,6 +131,25 @@ def test_hostile_home_csv_says_where(data, words):
     assert words in str(err.value)
 
 
+def test_home_csv_with_classic_mac_line_ends_reads_its_rows():
+    # A lone carriage return ends a row (old spreadsheets write them); it raised csv.Error, a 500 in
+    # POST /api/formations/home-csv (found by the API fuzz test with b"0,0\r1\n").
+    assert home_points_from_csv(b"1,2\r3,4,0.5\r")[0] == [[1.0, 2.0, 0.0], [3.0, 4.0, 0.5]]
+    with pytest.raises(HomeCsvError, match="line 2"):
+        home_points_from_csv(b"0,0\r1\n")
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=st.one_of(st.binary(max_size=80), st.text(alphabet="0123456789.,-\r\n\"\x00 abNe", max_size=60)))
+def test_any_home_csv_reads_or_says_why(data):
+    # Whatever the upload holds, the reader returns points or raises HomeCsvError (a 422), nothing else.
+    try:
+        points, names = home_points_from_csv(data)
+    except HomeCsvError:
+        return
+    assert len(points) == len(names) > 0 and all(len(p) == 3 for p in points)
+
+
 # ------------------------------------------------------------------ waves
 
 def chromatic_number(n: int, pairs: np.ndarray) -> int:
