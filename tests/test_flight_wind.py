@@ -61,33 +61,6 @@ def test_jacobian_matches_central_differences_of_the_exact_field():
         np.testing.assert_array_equal(a, b)
 
 
-def test_parallel_mode_sum_gives_the_serial_bits_and_a_shard_the_fleets():
-    # From PARALLEL_MIN_POINTS points the Jacobian sum runs its blocks on every core; each block is
-    # summed in the same order on any thread, so the bits are the one-thread loop's, and a point's
-    # values are those it gets evaluated alone (a Dask shard's tables equal the local fleet's).
-    from sim.flight import _windsum
-
-    f = _field(seed=11)
-    rng = np.random.default_rng(4)
-    n = _windsum.PARALLEL_MIN_POINTS + 1234  # a partial last block too
-    pts, t = _points(rng, n)
-    pts_a, t_a, x, y, z = f._advected(pts, t)
-    modes = f._modes()
-    outs = []
-    for run in (_windsum._sum_and_jacobian_parallel, _windsum._sum_and_jacobian_serial):
-        out, jac = np.zeros((n, 3)), np.zeros((n, 9))
-        run(out, jac, x, y, z, t_a, *modes)
-        outs.append((out, jac))
-    assert np.abs(outs[0][1]).max() > 0.01  # the sums are not trivially zero
-    for a, b in zip(outs[0], outs[1], strict=True):
-        np.testing.assert_array_equal(a, b)
-    vel, jac, shear = f.velocity_and_gradients(pts, t)  # the dispatching entry point takes the parallel path
-    for i in (0, 1023, 1024, n - 1):
-        one = f.velocity_and_gradients(pts[i:i + 1], t[i:i + 1])
-        for a, b in zip(one, (vel[i:i + 1], jac[i:i + 1], shear[i:i + 1]), strict=True):
-            np.testing.assert_array_equal(a, b)
-
-
 def test_mean_shear_is_the_derivative_of_the_power_law():
     f = _field(sigma_mps=0.0)
     z = np.array([0.5, 1.5, 10.0, 37.0, 120.0])

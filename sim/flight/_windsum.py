@@ -7,12 +7,11 @@ time of the wind alone) at every drone's planned position on a 10 Hz grid, evalu
 M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here
 the modes are summed in a loop over points that LLVM vectorises (a polynomial cosine instead
 of a libm call, which would keep the loop scalar), in blocks of points that stay in the L1
-cache. :func:`turbulence_sum` runs in one thread: on this 2-core machine, shared with the
-kernel's threads, a parallel region cost ~50 ms per call to start (55 ms for 1,050 points
-against 1.2 ms in one thread, measured at a load of 16). The wind tables' Jacobian sum of a
-whole chunk (11 grid times x every drone: 44,000 points at 4,000 drones, ~15 % of a
-simulation's wall time in one thread) spreads its blocks over the cores from
-``PARALLEL_MIN_POINTS`` points, where that start is small against the sum.
+cache. One thread: on this 2-core machine, shared with the kernel's threads, a parallel
+region cost ~50 ms per call to start (55 ms for 1,050 points against 1.2 ms in one thread,
+measured at a load of 16), and a ``prange`` over the blocks of the Jacobian sum (each block the
+same arithmetic, so the same bits) measured 3.5x *slower* than this loop on an idle machine
+(44,000 points, 128 modes: numba's parfor body is not vectorised like the plain loop).
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
@@ -38,8 +37,6 @@ _COS_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(12, -1, -
 # and of sin r / r in r²: (-1)^k / (2k+1)!, k = 12 .. 0 (truncation π²⁷/27! = 3e-15).
 _SIN_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(12, -1, -1))
 _BLOCK = 1024
-#: From this many points the Jacobian sum runs its blocks on every core (four blocks).
-PARALLEL_MIN_POINTS = 4 * _BLOCK
 
 
 @numba.njit(inline="always", cache=True)
@@ -102,85 +99,54 @@ def turbulence_sum(
         out[p0:p1, 2] = o2
 
 
-@numba.njit(inline="always", cache=True)
-def _sum_and_jacobian_block(
-    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
-    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, p0: int, p1: int,
-) -> None:  # pragma: no cover - compiled
-    """:func:`turbulence_sum_and_jacobian` for the points ``p0 .. p1 - 1`` (one block, in the L1 cache)."""
-    o0 = out[p0:p1, 0].copy()
-    o1 = out[p0:p1, 1].copy()
-    o2 = out[p0:p1, 2].copy()
-    # One contiguous array per entry: the vectoriser needs to see that the nine do not alias.
-    j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
-    j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
-    j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
-    for m in range(k.shape[0]):
-        kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
-        a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
-        for q in range(p1 - p0):
-            p = p0 + q
-            c, s = _cos_sin(kx * x[p] + ky * y[p] + kz * z[p] + w * t[p] + ph)
-            o0[q] += a0 * c
-            o1[q] += a1 * c
-            o2[q] += a2 * c
-            s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
-            j0[q] += s0 * kx
-            j1[q] += s0 * ky
-            j2[q] += s0 * kz
-            j3[q] += s1 * kx
-            j4[q] += s1 * ky
-            j5[q] += s1 * kz
-            j6[q] += s2 * kx
-            j7[q] += s2 * ky
-            j8[q] += s2 * kz
-    out[p0:p1, 0] = o0
-    out[p0:p1, 1] = o1
-    out[p0:p1, 2] = o2
-    for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
-        jac[p0:p1, e] = col
-
-
 @numba.njit(cache=True, nogil=True)
-def _sum_and_jacobian_serial(
-    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
-    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    n = x.shape[0]
-    for b in range((n + _BLOCK - 1) // _BLOCK):
-        _sum_and_jacobian_block(out, jac, x, y, z, t, k, amp, omega, phase, b * _BLOCK, min(b * _BLOCK + _BLOCK, n))
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def _sum_and_jacobian_parallel(
-    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
-    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    n = x.shape[0]
-    for b in numba.prange((n + _BLOCK - 1) // _BLOCK):
-        _sum_and_jacobian_block(out, jac, x, y, z, t, k, amp, omega, phase, b * _BLOCK, min(b * _BLOCK + _BLOCK, n))
-
-
 def turbulence_sum_and_jacobian(
     out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
     k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
-) -> None:
+) -> None:  # pragma: no cover - compiled
     """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
 
     The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
     so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
     from the same argument as the value (one reduction for both).
 
-    Blocks of points are independent and each is summed in the same order whichever thread
-    takes it, so the parallel path (taken from ``PARALLEL_MIN_POINTS`` points: a whole chunk's
-    wind table, ~15 % of a 4,000-drone simulation's wall time in one thread) gives the same bits
-    as the serial one; small calls stay in one thread (a parallel region's start costs more
-    than their sum, see the module docstring).
-
     Args:
         out: ``(P, 3)`` wind (m/s), added to.
         jac: ``(P, 9)`` Jacobian (1/s), added to.
         x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
     """
-    run = _sum_and_jacobian_parallel if x.shape[0] >= PARALLEL_MIN_POINTS else _sum_and_jacobian_serial
-    run(out, jac, x, y, z, t, k, amp, omega, phase)
+    n = x.shape[0]
+    for b in range((n + _BLOCK - 1) // _BLOCK):
+        p0 = b * _BLOCK
+        p1 = min(p0 + _BLOCK, n)
+        o0 = out[p0:p1, 0].copy()
+        o1 = out[p0:p1, 1].copy()
+        o2 = out[p0:p1, 2].copy()
+        # One contiguous array per entry: the vectoriser needs to see that the nine do not alias.
+        j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
+        j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
+        j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
+        for m in range(k.shape[0]):
+            kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
+            a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
+            for q in range(p1 - p0):
+                p = p0 + q
+                c, s = _cos_sin(kx * x[p] + ky * y[p] + kz * z[p] + w * t[p] + ph)
+                o0[q] += a0 * c
+                o1[q] += a1 * c
+                o2[q] += a2 * c
+                s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                j0[q] += s0 * kx
+                j1[q] += s0 * ky
+                j2[q] += s0 * kz
+                j3[q] += s1 * kx
+                j4[q] += s1 * ky
+                j5[q] += s1 * kz
+                j6[q] += s2 * kx
+                j7[q] += s2 * ky
+                j8[q] += s2 * kz
+        out[p0:p1, 0] = o0
+        out[p0:p1, 1] = o1
+        out[p0:p1, 2] = o2
+        for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
+            jac[p0:p1, e] = col
