@@ -19,6 +19,20 @@ sync_api = pytest.importorskip("playwright.sync_api")
 server = server_for("qa-data", viewer=True)  # viewer on: the 3D preview plays a run
 
 
+def _second_formation_checked(ui: Page, title: str, label: str, js_edit: str, wait_text: str):
+    """A new show of 4 drones whose second formation ``f`` is edited by the JS ``js_edit``, checked; returns
+    the report once it shows ``wait_text``."""
+    page = ui.page
+    _create_show(ui, title, 4)
+    page.get_by_role("button", name="Add a formation").click()
+    page.evaluate(f"() => {{ const s = window.swarmshow.state; s.edit('{label}', () => {{"
+                  f" const f = s.show.formations[1]; {js_edit} }}); }}")
+    page.get_by_role("button", name="Check the show").click()
+    report = page.locator("#report-body")
+    sync_api.expect(report).to_contain_text(wait_text, timeout=180_000)
+    return report
+
+
 def test_timeline_labels_do_not_overlap_after_a_check(ui: Page):
     """After a check the takeoff item ("↑ takeoff 5.9 s") and the first transition ("→ 23.5 s") were squeezed
     by the flex row until their texts ran into each other (seen at 1366 px with six formations)."""
@@ -74,14 +88,9 @@ def test_limit_violations_show_their_units(ui: Page):
     assert got["wash"].startswith("In downwash (ellipsoid units")
 
     # And in a real report: a forced one-second transition breaks the acceleration and vertical speed limits.
-    _create_show(ui, "Forced transition", 4)
-    page.get_by_role("button", name="Add a formation").click()
-    page.evaluate("() => { const s = window.swarmshow.state; s.edit('force', () => {"
-                  " s.show.formations[1].points = s.show.formations[1].points.map(([x, y, z]) => [x, y, z + 15]);"
-                  " s.show.formations[1].transition_s = 1; }); }")
-    page.get_by_role("button", name="Check the show").click()
-    report = page.locator("#report-body")
-    sync_api.expect(report).to_contain_text("Minimum distance", timeout=180_000)
+    report = _second_formation_checked(ui, "Forced transition", "force",
+                                       "f.points = f.points.map(([x, y, z]) => [x, y, z + 15]); f.transition_s = 1;",
+                                       "Minimum distance")
     sync_api.expect(report.locator("button", has_text="Acceleration:").first).to_contain_text("m/s² (limit 4.00 m/s²)")
     sync_api.expect(report.locator("button", has_text="Vertical speed:").first).to_contain_text("m/s (limit 2.00 m/s)")
     # The too-short transition names no drones: its button's name does not say "drones :".
@@ -95,13 +104,8 @@ def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
     0.4 px and the message itself to 2.5 px (seen with a pinned formation): the card said neither which
     formation nor what was wrong. Nothing in a card shrinks now; a tall card scrolls."""
     page = ui.page
-    _create_show(ui, "Cue problem", 4)
-    page.get_by_role("button", name="Add a formation").click()
-    page.evaluate("() => { const s = window.swarmshow.state; s.edit('cue', () => {"
-                  " s.show.formations[1].arrive_at_s = 20; s.show.formations[1].leave_at_s = 30;"
-                  " const f = s.show.formations[1]; f.points = f.points.map(([x, y, z]) => [x + 60, y, z]); }); }")
-    page.get_by_role("button", name="Check the show").click()
-    sync_api.expect(page.locator("#report-body")).to_contain_text("earliest feasible", timeout=180_000)
+    _second_formation_checked(ui, "Cue problem", "cue", "f.arrive_at_s = 20; f.leave_at_s = 30;"
+                              " f.points = f.points.map(([x, y, z]) => [x + 60, y, z]);", "earliest feasible")
     card = page.locator(".tl-card").nth(1)
     sync_api.expect(card).to_have_class(re.compile("has-problem"))
     sizes = card.evaluate("""(li) => {
