@@ -2,6 +2,8 @@
 // Fetch wrapper for the swarmshow REST API: JSON in and out, errors as ApiError with
 // per-field messages taken from FastAPI's 422 `detail` (its `path`, or `loc` turned into a path).
 
+import { namesPath } from "./errors.js";
+
 const TOKEN_KEY = "swarmshow.token";
 
 /** An HTTP error from the API, with the problems it names. */
@@ -55,16 +57,6 @@ export function problemsOf(body) {
   if (typeof detail === "string") return [{ path: "", msg: detail }];
   if (detail && typeof detail === "object" && (detail.message || detail.msg)) return [{ path: "", msg: String(detail.message || detail.msg) }];
   return [];
-}
-
-/**
- * Whether a problem's message starts by naming its own path ("path: ..." or "path = ...").
- * @param {string} msg
- * @param {string} path
- * @returns {boolean}
- */
-export function namesPath(msg, path) {
-  return msg.startsWith(`${path}:`) || msg.startsWith(`${path} `);
 }
 
 function messageFor(status, problems, statusText) {

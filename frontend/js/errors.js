@@ -2,7 +2,15 @@
 // API problems shown next to the control they concern: settings fields, timeline cards, or a
 // fallback message element.
 
-import { namesPath } from "./api.js";
+/**
+ * Whether a problem's message starts by naming its own path ("path: ..." or "path = ...").
+ * @param {string} msg
+ * @param {string} path
+ * @returns {boolean}
+ */
+export function namesPath(msg, path) {
+  return msg.startsWith(`${path}:`) || msg.startsWith(`${path} `);
+}
 
 /** Formation problems by index, read by the timeline when it renders. */
 export const formationProblems = new Map();
