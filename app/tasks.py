@@ -287,7 +287,7 @@ def validate_show_data(data: bytes | dict[str, Any], *, draft: bool = False) -> 
 
 def _plan_failure(exc: Exception) -> TaskFailure:
     path = getattr(exc, "path", "") or ""
-    problem: dict[str, Any] = {"loc": ["show", *_path_loc(path)], "path": path, "msg": str(exc)}
+    problem: dict[str, Any] = {"loc": ["show", *path_loc(path)], "path": path, "msg": str(exc)}
     if getattr(exc, "minimum_s", None) is not None:
         problem["minimum_s"] = exc.minimum_s  # type: ignore[attr-defined]
     if getattr(exc, "earliest_s", None) is not None:
@@ -295,8 +295,8 @@ def _plan_failure(exc: Exception) -> TaskFailure:
     return TaskFailure(FailureKind.INVALID, [problem])
 
 
-def _path_loc(path: str) -> list[str | int]:
-    """'formations[2].transition_s' -> ['formations', 2, 'transition_s']."""
+def path_loc(path: str) -> list[str | int]:
+    """'formations[2].transition_s' -> ['formations', 2, 'transition_s'] (inverse of ``app.api.errors.loc_path``)."""
     out: list[str | int] = []
     for part in path.replace("[", ".[").split("."):
         if not part:

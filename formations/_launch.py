@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Iterator
 from typing import Annotated
 
 import numpy as np
@@ -174,18 +175,7 @@ def home_points_from_csv(data: bytes | str) -> tuple[list[list[float]], list[str
     points: list[list[float]] = []
     names: list[str] = []
     named: bool | None = None
-    # newline="": the csv module's own line handling, so a lone carriage return (classic Mac line
-    # ends) ends a row instead of raising csv.Error; any other csv.Error is the file's fault too.
-    rows = csv.reader(io.StringIO(data, newline=""))
-    line_no = 0
-    while True:
-        try:
-            row = next(rows)
-        except StopIteration:
-            break
-        except csv.Error as exc:
-            raise HomeCsvError(f"not readable as CSV ({exc})", line=rows.line_num) from None
-        line_no += 1
+    for line_no, row in enumerate(_csv_rows(data), start=1):
         cells = [c.strip() for c in row]
         if not any(cells):
             continue
@@ -210,6 +200,19 @@ def home_points_from_csv(data: bytes | str) -> tuple[list[list[float]], list[str
     if not points:
         raise HomeCsvError("no home points in the CSV")
     return points, names
+
+
+def _csv_rows(text: str) -> Iterator[list[str]]:
+    """The CSV rows of ``text``; a malformed file raises HomeCsvError (naming the line), not csv.Error.
+
+    ``newline=""`` hands line ends to the csv module, so a lone carriage return (classic Mac line
+    ends) ends a row instead of raising csv.Error.
+    """
+    rows = csv.reader(io.StringIO(text, newline=""))
+    try:
+        yield from rows
+    except csv.Error as exc:
+        raise HomeCsvError(f"not readable as CSV ({exc})", line=rows.line_num) from None
 
 
 def _is_number(cell: str) -> bool:

@@ -23,7 +23,7 @@ from fastapi.responses import JSONResponse
 from app.api.models import error_responses as error_responses  # documented next to the handlers
 from app.jobs import ErrorKind, JobFinished, JobNotFound, JobsBusy, TaskError
 from app.store import RevisionConflict, ShowNotFound, StoreError
-from app.tasks import FailureKind, TaskFailure
+from app.tasks import FailureKind, TaskFailure, path_loc
 from formations import plain_path
 
 if TYPE_CHECKING:
@@ -85,15 +85,6 @@ def loc_path(loc: list[str | int] | tuple[str | int, ...]) -> str:
     out = ""
     for part in loc:
         out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
-
-
-def path_loc(path: str) -> list[str | int]:
-    """'formations[2].points[0][2]' -> ['formations', 2, 'points', 0, 2] (the inverse of :func:`loc_path`)."""
-    out: list[str | int] = []
-    for part in path.replace("[", ".[").split("."):
-        if part:
-            out.append(int(part[1:-1]) if part.startswith("[") and part[1:-1].isdigit() else part)
     return out
 
 
