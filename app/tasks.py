@@ -295,6 +295,14 @@ def _plan_failure(exc: Exception) -> TaskFailure:
     return TaskFailure(FailureKind.INVALID, [problem])
 
 
+def forced_problems(plan: Any) -> list[dict[str, Any]]:
+    """The transitions ``plan`` flies shorter than the limits allow (``ShowPlan.forced``), as the 422 problems
+    that the exports give for them (``loc``, ``path``, ``msg``, ``minimum_s``): what the 3D preview and a
+    simulation say about a show they play as designed."""
+    return [{"loc": ["show", *path_loc(f.path)], "path": f.path, "msg": f.message, "minimum_s": f.minimum_s}
+            for f in getattr(plan, "forced", ())]
+
+
 def path_loc(path: str) -> list[str | int]:
     """'formations[2].transition_s' -> ['formations', 2, 'transition_s'] (inverse of ``app.api.errors.loc_path``)."""
     out: list[str | int] = []
@@ -366,7 +374,9 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     """
     progress = Progress(job_id, queue, cancel)
     progress.started()
-    plan = _plan_job(show_text, progress)
+    # A what-if: a transition forced shorter than the limits allow is flown as designed (``problems``
+    # says which), as the check plans it, so that the designer sees what the drones would do.
+    plan = _plan_job(show_text, progress, enforce_limits=False)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
     fly_show = _fly_show()
     try:
@@ -383,16 +393,18 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
         progress.check_cancelled(force=True)
         raise
     progress(1.0)
-    return {"plan": plan_summary(plan), "flight": result.summary()}
+    return {"plan": plan_summary(plan), "flight": result.summary(), "problems": forced_problems(plan)}
 
 
-def _plan_job(show_text: str, progress: Progress) -> Any:
+def _plan_job(show_text: str, progress: Progress, *, enforce_limits: bool = True) -> Any:
     """Plan a job's show, the first :data:`PLAN_SHARE` of its progress; a show that cannot be
-    planned is a :class:`TaskFailure` (``_plan_failure``), a cancellation stops here."""
+    planned is a :class:`TaskFailure` (``_plan_failure``), a cancellation stops here.
+    ``enforce_limits``: as in ``plan_show`` (False: a transition forced too short is flown as asked)."""
     from sim import PlanError, plan_show
 
     try:
-        plan = plan_show(_show(show_text), progress=progress.scaled(0.0, PLAN_SHARE))
+        plan = plan_show(_show(show_text), enforce_limits=enforce_limits,
+                         progress=progress.scaled(0.0, PLAN_SHARE))
     except PlanError as exc:
         raise _plan_failure(exc) from None
     progress.check_cancelled(force=True)
@@ -625,6 +637,9 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
 def viewer_plan_task(show_text: str) -> Any:
     """Plan a stored show for the 3D viewer (in a worker: the server process stays free of CPU work).
 
+    As the check does: a transition forced shorter than the limits allow is flown as designed
+    (``ShowPlan.forced``), so that the designer watches what the check reports, drawn by the viewer.
+
     Returns:
         The ``ShowPlan`` (pickled back to the server).
 
@@ -634,7 +649,7 @@ def viewer_plan_task(show_text: str) -> Any:
     from sim import PlanError, plan_show
 
     try:
-        return plan_show(_show(show_text))
+        return plan_show(_show(show_text), enforce_limits=False)
     except PlanError as exc:
         raise _plan_failure(exc) from None
 

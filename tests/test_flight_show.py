@@ -178,3 +178,24 @@ def test_staggered_show_flies_on_its_own_timing(staggered_small):
     assert flown_error.max() < 0.3
     quintic_only = ~np.any(np.array(legs.cubic), axis=0)
     assert quintic_only.any() and res.tracking_max_m[quintic_only].max() < 1e-3
+
+
+def test_cli_simulate_flies_a_forced_short_transition_as_designed(tmp_path, capsys):
+    """As the app's simulate (a what-if): a transition forced shorter than the limits allow is flown as designed,
+    the summary names the field and the command exits 1 (not flyable), where it used to refuse it (exit 2). The
+    Monte-Carlo safety margin still refuses it, naming the field (exit 2)."""
+    from tests.test_api_forced_short import forced_doc
+
+    show = tmp_path / "forced.json"
+    show.write_text(json.dumps(forced_doc()))
+    code = main(["simulate", str(show), "--json", "--output-hz", "10"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 1
+    assert [p["path"] for p in out["problems"]] == ["formations[1].transition_s"]
+    assert "shorter than the minimum" in out["problems"][0]["msg"]
+    code = main(["simulate", str(show), "--output-hz", "10"])
+    text = capsys.readouterr().out
+    assert code == 1 and "NOT FLYABLE AS DESIGNED: formations[1].transition_s = 0.2 s" in text
+    assert main(["simulate", str(show), "--runs", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "formations[1].transition_s" in err and len(err.strip().splitlines()) == 1

@@ -115,6 +115,13 @@ def test_forced_short_duration_names_the_minimum(small_show) -> None:
     with pytest.raises(PlanError) as info:
         plan_show(show)
     assert info.value.minimum_s == pytest.approx(minimum)
+    # flown as asked, the plan says what enforcing the limits refuses, word for word (the preview and
+    # simulation name it as the exports' refusal does); a show within its limits has nothing there
+    loose = plan_show(show, enforce_limits=False)
+    assert [(f.path, f.message, f.forced_s) for f in loose.forced] == [
+        ("formations[1].transition_s", str(info.value), 0.5)]
+    assert loose.forced[0].minimum_s == info.value.minimum_s
+    assert plan_show(small_show).forced == () and plan_show(small_show, enforce_limits=False).forced == ()
     # check mode flies it as asked and reports which drones break the limits, and when
     report = check_plan(plan_show(show, enforce_limits=False))
     assert not report.ok

@@ -8,7 +8,8 @@ diverged drones. Exit 1 (unsafe) when any drone diverged, or when the flown mini
 distance is below the show's ``min_distance_m`` by more than
 ``sim.flight.FLOWN_DISTANCE_TOLERANCE_M`` (1 cm: plans that sit exactly on the limit,
 such as a home grid spaced at the minimum distance, must not fail on millimetre
-tracking deviations).
+tracking deviations). A transition forced shorter than the limits allow is flown as designed (a
+what-if, as the app's simulate) and named under ``problems``; the command then exits 1.
 
 ``--engine dask --scheduler tcp://HOST:PORT`` flies the drones in shards on a Dask
 ``distributed`` cluster (same results as the local engine; ``--scheduler local`` starts
@@ -257,16 +258,19 @@ def _show(args: argparse.Namespace) -> int:
     dask = _dask_options(args)
     show = load_show_arg(args.show)
     with contextlib.ExitStack() as stack:
-        plan = _connect_and_plan(args, stack, dask, show)
+        # A what-if, as the app's simulate: a transition forced shorter than the limits allow is flown as
+        # designed and named in ``problems`` (then exit 1: the show cannot be flown as it is).
+        plan = _connect_and_plan(args, stack, dask, show, enforce_limits=False)
         with progress_bar("simulate") as update:
             result = fly_show(plan, _flight_options(args, dask), progress=update)
     summary = result.summary()
     summary["show"] = show.name
+    summary["problems"] = [{"path": f.path, "msg": f.message, "minimum_s": f.minimum_s} for f in plan.forced]
     if args.json:
         print_json(summary)
     else:
         print(format_flight(summary))
-    return EXIT_OK if result.ok else EXIT_FAILED
+    return EXIT_OK if result.ok and not plan.forced else EXIT_FAILED
 
 
 def format_flight(s: dict) -> str:
@@ -291,7 +295,10 @@ def format_flight(s: dict) -> str:
         lines.append(f"  DIVERGED drone {d['drone']} at t = {d['time_s']:.3f} s ({d['reason']})")
     if len(s["diverged"]) > 20:
         lines.append(f"  ... and {len(s['diverged']) - 20} more (see --json)")
-    lines.append("OK: every drone flew and kept the separation" if s["ok"] else "UNSAFE: see above")
+    for p in s.get("problems", []):
+        lines.append(f"  NOT FLYABLE AS DESIGNED: {p['msg']}")
+    lines.append("OK: every drone flew and kept the separation" if s["ok"] and not s.get("problems")
+                 else "UNSAFE: see above")
     return "\n".join(lines)
 
 
@@ -344,11 +351,12 @@ def format_paper(r: dict) -> str:
 
 
 def _connect_and_plan(args: argparse.Namespace, stack: contextlib.ExitStack, dask: dict[str, Any] | None,
-                      show: Any) -> Any:
+                      show: Any, *, enforce_limits: bool = True) -> Any:
     """Connect to the Dask cluster (kept open by ``stack``) when asked, then plan ``show``.
 
     Connecting comes first so that an unreachable cluster fails in seconds, not after a large show
-    has been planned. Both failures are one-line :class:`CliError` (exit 2).
+    has been planned. Both failures are one-line :class:`CliError` (exit 2). ``enforce_limits``: as in
+    ``plan_show`` (False: a transition forced shorter than the limits allow is flown as designed).
     """
     from sim import PlanError, cached_plan_show
     from sim.flight import SchedulerUnreachableError, connect_scheduler
@@ -359,6 +367,6 @@ def _connect_and_plan(args: argparse.Namespace, stack: contextlib.ExitStack, das
         except SchedulerUnreachableError as exc:
             raise CliError(" ".join(str(exc).split())) from None
     try:
-        return cached_plan_show(show)
+        return cached_plan_show(show, enforce_limits=enforce_limits)
     except PlanError as exc:
         raise CliError(f"{args.show}: {exc}") from exc

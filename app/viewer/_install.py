@@ -17,6 +17,7 @@ from typing import Any, Literal
 from fastapi import APIRouter, Body, FastAPI, Request
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from app.api.models import Problem
 from app.viewer._clock import clock_router
 from app.viewer._marks import check_report_json
 from app.viewer._relay import viewer_router
@@ -86,6 +87,9 @@ class PlaybackOut(BaseModel):
     duration_s: float
     viewer_url: str
     cached: bool
+    problems: list[Problem] = Field(default_factory=list, description=(
+        "What makes the show unflyable as designed although it plays (a transition forced shorter than the "
+        "limits allow, named as the exports' 422 names it); the viewer draws the check's violations in red."))
 
 
 def _label(record: Any) -> str:
@@ -224,6 +228,7 @@ def _viewer_page(request: Request, token: str) -> Any:
 
 def playback_router() -> APIRouter:
     """``POST /shows/{show_id}/playback`` (include with prefix ``/api``)."""
+    from app import tasks
     from app.api.models import error_responses
 
     router = APIRouter(tags=["viewer"])
@@ -259,6 +264,7 @@ def playback_router() -> APIRouter:
         return PlaybackOut(
             show_id=record.id, revision=record.revision, name=record.name, source=source,
             drones=plan.drone_count, duration_s=plan.duration_s, viewer_url="/viser/", cached=cached,
+            problems=[Problem(**p) for p in tasks.forced_problems(plan)],
         )
 
     @router.post(

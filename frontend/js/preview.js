@@ -103,7 +103,14 @@ export class Preview {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");
       }
       try {
-        await api.loadPlayback(st.meta.id, run ? "simulated" : this.source(), run);
+        const out = await api.loadPlayback(st.meta.id, run ? "simulated" : this.source(), run);
+        // A transition forced shorter than the limits allow plays as designed (the viewer draws the
+        // check's violations in red), but no drone could fly it: say so, as the exports will refuse it.
+        const problems = (out && out.problems) || [];
+        if (problems.length) {
+          setError("preview", `Plays as designed, but cannot be flown: ${problems.map((p) => p.msg).join("; ")}. `
+            + "The red marks show where; exports refuse the show until that is fixed.");
+        }
       } catch (err) {
         setError("preview", `Cannot load the show into the 3D view: ${err.message}`);
       }

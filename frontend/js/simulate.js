@@ -259,11 +259,15 @@ export class SimulatePanel {
 
   _summary(result, cached) {
     const f = result.flight || result;
+    /** @type {{path: string, msg: string}[]} transitions forced shorter than the limits allow, flown as designed */
+    const problems = Array.isArray(result.problems) ? result.problems : [];
     this.body.replaceChildren();
-    const ok = f.ok !== false;
+    const ok = f.ok !== false && !problems.length;
     const lim = f.min_distance_limit_m;
     const flown = f.flown_min_distance_m;
-    this.body.append(...summaryTable(ok, ok ? "✓ Flown: separation kept, no divergence" : "✗ The flown show breaks a limit",
+    const headline = ok ? "✓ Flown: separation kept, no divergence"
+      : problems.length ? "✗ Flown as designed, but the design breaks the limits" : "✗ The flown show breaks a limit";
+    this.body.append(...summaryTable(ok, headline,
       "Flight summary", [
         ["Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m")],
         ["Tracking error (max)", fmt(f.tracking_max_m, 3, " m")],
@@ -274,6 +278,12 @@ export class SimulatePanel {
         ["Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—"],
         f.wall_time_s != null && ["Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
       ]));
+    for (const pr of problems) {
+      const p = document.createElement("p");
+      p.className = "report-bad sim-problem";
+      p.textContent = `${pr.msg} (exports refuse the show until this is fixed)`;
+      this.body.append(p);
+    }
     if (Array.isArray(f.diverged) && f.diverged.length) {
       const p = document.createElement("p");
       p.className = "report-bad";

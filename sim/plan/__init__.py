@@ -12,6 +12,7 @@ from sim.plan._cache import clear_plan_cache as clear_plan_cache
 from sim.plan._cache import plan_cache_info as plan_cache_info
 from sim.plan._motion import FIT_TOLERANCE_M as FIT_TOLERANCE_M
 from sim.plan._motion import hold_pieces as hold_pieces
+from sim.plan._plan import ForcedTransition as ForcedTransition
 from sim.plan._plan import PlanError as PlanError
 from sim.plan._plan import PlanSample as PlanSample
 from sim.plan._plan import Segment as Segment

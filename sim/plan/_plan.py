@@ -85,6 +85,21 @@ class PlanError(ValueError):
 
 
 @dataclass(frozen=True)
+class ForcedTransition:
+    """A transition flown as the show forces it although that is shorter than the limits allow
+    (``plan_show(enforce_limits=False)``): what ``enforce_limits=True`` refuses with a :class:`PlanError`.
+
+    ``path`` names the show's field (``formations[k].transition_s``), ``message`` says it as that
+    error does, ``forced_s`` is the duration flown and ``minimum_s`` the shortest the limits allow.
+    """
+
+    path: str
+    message: str
+    forced_s: float
+    minimum_s: float
+
+
+@dataclass(frozen=True)
 class Segment:
     """One show-wide segment: every drone flies (or holds) from knot ``index`` to ``index + 1``."""
 
@@ -190,6 +205,10 @@ class ShowPlan:
     #: from the start of their descent and to the end of their climb, seconds; the altitude floor does not
     #: apply to them then.
     grounded: tuple[tuple[float, float, np.ndarray], ...] = field(default=(), repr=False)
+    #: Transitions flown shorter than the limits allow, as the show forces them (only with
+    #: ``plan_show(enforce_limits=False)``, which plays and simulates a show as designed: the check,
+    #: the 3D preview and simulation; the exports that drones fly refuse such a show).
+    forced: tuple[ForcedTransition, ...] = ()
 
     def __post_init__(self) -> None:
         if self.trajectories is None:
@@ -353,15 +372,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         if np.any(np.broadcast_to(until_s, (len(home),)) > builder.times_s + 1e-12):
             builder.hold_until(until_s)
 
+    too_short: list[ForcedTransition] = []
+
     def forced(start: np.ndarray, end: np.ndarray, forced_s: float | None, where: str, label: str) -> float | None:
         t_min = round_up(sync_min_duration(end - start, lim))
-        if forced_s is not None and forced_s < t_min - 1e-9 and enforce_limits:
-            raise PlanError(
-                f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
-                f"acceleration limits allow for the transition {label}",
-                path=where,
-                minimum_s=t_min,
-            )
+        if forced_s is not None and forced_s < t_min - 1e-9:
+            message = (f"{where} = {forced_s} s is shorter than the minimum {t_min:.1f} s that the speed and "
+                       f"acceleration limits allow for the transition {label}")
+            if enforce_limits:
+                raise PlanError(message, path=where, minimum_s=t_min)
+            too_short.append(ForcedTransition(path=where, message=message, forced_s=float(forced_s),
+                                              minimum_s=float(t_min)))
         return forced_s
 
     def vertical(start: np.ndarray, end: np.ndarray) -> float:
@@ -820,10 +841,12 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         trajectories=builder.build(end_s=times[-1]),
         launch=launch,
         grounded=tuple(grounded),
+        forced=tuple(too_short),
     )
 
 
 __all__ = [
+    "ForcedTransition",
     "LaunchInfo",
     "PlanError",
     "PlanSample",

@@ -1,0 +1,59 @@
+"""The editor as a demanding designer uses it (QA round 2), in Chromium against a live ``swarmshow serve``: a show
+the check finds unflyable still plays in the 3D preview and simulates, with its problems shown, while the exports
+refuse it naming the field. Waits are on conditions, not fixed sleeps."""
+
+from __future__ import annotations
+
+import re
+
+import httpx
+import pytest
+
+from tests.live_server import BROWSER_MARKS, server_for, wait_until
+from tests.test_api_forced_short import forced_doc
+
+pytestmark = BROWSER_MARKS
+sync_api = pytest.importorskip("playwright.sync_api")
+expect = sync_api.expect
+
+server = server_for("designer-data", viewer=True)
+
+
+def _store(base: str, doc: dict) -> str:
+    r = httpx.post(f"{base}/api/shows", json=doc)
+    assert r.status_code == 201, r.text
+    return r.json()["id"]
+
+
+def test_forced_short_transition_previews_and_simulates_but_does_not_export(ui):
+    """QA: the check listed the violations of a transition forced too short, but the 3D preview answered "Cannot
+    load the show into the 3D view" and simulate failed, so the designer could not watch what was wrong."""
+    page = ui.page
+    show_id = _store(ui.base, forced_doc("Forced"))
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("Forced")
+
+    page.locator("#btn-preview").click()
+    note = page.locator('[data-error-for="preview"]')
+    expect(note).to_contain_text("Plays as designed, but cannot be flown: formations[1].transition_s = 0.2 s",
+                                 timeout=90_000)
+    wait_until("the preview's viewer", lambda: page.evaluate(
+        "() => window.swarmshow.playhead.preview.viewerState()"), timeout_s=90)
+    # The viewer draws the check's violations (computed in a worker once the show is on screen).
+    frame = page.frame_locator("#preview-frame")
+    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=60_000)
+    expand = frame.get_by_role("button", name="Expand panel")
+    if expand.count():
+        expand.click()
+    expect(frame.get_by_text(re.compile(r"Problems\s+\d+ in the check"))).to_be_visible(timeout=60_000)
+    expect(frame.get_by_role("button", name="Next problem")).to_be_enabled()
+
+    page.get_by_role("button", name="Simulate the flight").click()
+    body = page.locator("#sim-body")
+    expect(body).to_contain_text("Flown as designed, but the design breaks the limits", timeout=120_000)
+    expect(body.locator(".sim-problem")).to_contain_text("formations[1].transition_s = 0.2 s is shorter")
+
+    page.select_option("#export-format", "skyc")
+    page.get_by_role("button", name="Export in the chosen format").click()
+    expect(page.locator("#export-error")).to_contain_text("formations[1].transition_s = 0.2 s is shorter",
+                                                          timeout=30_000)
