@@ -57,3 +57,29 @@ def test_forced_short_transition_previews_and_simulates_but_does_not_export(ui):
     page.get_by_role("button", name="Export in the chosen format").click()
     expect(page.locator("#export-error")).to_contain_text("formations[1].transition_s = 0.2 s is shorter",
                                                           timeout=30_000)
+
+
+def _console_errors(page) -> list[str]:
+    """Every console error of ``page`` from now on (Chromium logs a failed request's status there)."""
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(f"{m.text} ({m.location.get('url', '')})") if m.type == "error"
+            else None)
+    return errors
+
+
+def test_a_show_without_music_opens_without_console_errors(ui):
+    """QA: opening a show without music logged "Failed to load resource: ... 404" for /audio/info: the editor
+    asked for music it could know was not there (the show says ``has_audio``)."""
+    page = ui.page
+    errors = _console_errors(page)
+    show_id = _store(ui.base, forced_doc("No music"))
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("No music")
+    page.get_by_role("button", name="Check the show").click()
+    expect(page.locator("#tl-problems .tl-problem").first).to_be_visible(timeout=60_000)
+    # Another show, opened from the list (the editor reloads the music lane on every load).
+    other = _store(ui.base, forced_doc("No music either"))
+    page.goto(f"{ui.base}/?show={other}")
+    expect(page.locator("#show-title")).to_have_text("No music either")
+    page.wait_for_load_state("networkidle")
+    assert errors == [], errors

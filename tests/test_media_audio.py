@@ -275,3 +275,25 @@ def test_a_track_over_the_length_limit_is_413_before_decoding(client):
     r = client.put(f"/api/shows/{sid}/audio", content=data)
     assert r.status_code == 413, r.text
     assert r.json()["detail"][0]["path"] == "file" and "the limit is 1200 s" in r.json()["detail"][0]["msg"]
+
+
+def test_the_show_says_whether_it_has_music(client):
+    """QA: the editor asked GET .../audio/info of every show it opened, and a show without music answered 404,
+    which the browser logs as an error. The music is a sub-resource of the show: the show's own answer (GET, and
+    the answers of POST and PUT that the editor loads) says ``has_audio``, so a client asks only for what exists;
+    asking anyway stays a 404 (there is no such resource)."""
+    sid = _new_show(client)
+    show = client.get(f"/api/shows/{sid}").json()
+    assert show["has_audio"] is False
+    assert client.get(f"/api/shows/{sid}/audio/info").status_code == 404
+    data = encode(np.zeros(22_050, np.float32) + 0.1, "WAV", sr=22_050)
+    assert client.put(f"/api/shows/{sid}/audio", content=data).status_code == 201
+    assert client.get(f"/api/shows/{sid}").json()["has_audio"] is True
+    put = client.put(f"/api/shows/{sid}", json={"revision": show["revision"], "show": {**show["show"], "name": "x"}})
+    assert put.status_code == 200 and put.json()["has_audio"] is True
+    assert client.delete(f"/api/shows/{sid}/audio").status_code == 204
+    assert client.get(f"/api/shows/{sid}").json()["has_audio"] is False
+    created = client.post("/api/shows", json=show_doc("new"))
+    assert created.status_code == 201 and created.json()["has_audio"] is False
+    # The list stays a summary (no per-show look-up of music).
+    assert "has_audio" not in client.get("/api/shows", params={"limit": 1}).json()["items"][0]

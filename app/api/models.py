@@ -109,6 +109,8 @@ class ShowOut(ShowSummary):
 
     show: ShowFile | dict[str, Any] = Field(description="The show file; for a draft (``draft: true``) the "
                                             "JSON object as it was saved, which may break the show file's rules.")
+    has_audio: bool = Field(False, description="Whether the show has music (``GET /api/shows/{id}/audio/info`` "
+                            "describes it; without music that resource does not exist: 404).")
 
 
 class ShowList(BaseModel):

@@ -55,11 +55,15 @@ def _summary(record: ShowRecord) -> dict[str, Any]:
     return ShowSummary(**fields, draft=problems is not None, problems=problems or []).model_dump()
 
 
-def _show_response(record: ShowRecord, *, status: int = 200, headers: dict[str, str] | None = None) -> Response:
+def _show_response(request: Request, record: ShowRecord, *, status: int = 200,
+                   headers: dict[str, str] | None = None) -> Response:
     # The stored text is already valid show JSON: splice it in rather than parse and re-encode megabytes.
     head = json.dumps(_summary(record))[:-1]
+    # Whether the music sub-resource exists, so that a client (the editor) never asks for one that is not
+    # there (a 404 the browser logs as an error on every music-less show).
+    has_audio = deps.store(request).get_audio(record.id) is not None
     return Response(
-        f'{head},"show":{record.json}}}',
+        f'{head},"has_audio":{json.dumps(has_audio)},"show":{record.json}}}',
         status_code=status,
         media_type="application/json",
         headers={"ETag": f'"{record.revision}"', **(headers or {})},
@@ -135,7 +139,7 @@ async def create_show(request: Request, draft: bool = _DRAFT_QUERY) -> Response:
     data = await _read_upload(request, max_bytes=s.max_show_bytes)
     show = await _parse_show(request, data, size=len(data), draft=draft)
     record = await deps.write(request, deps.store(request).create, show)
-    return _show_response(record, status=201, headers={"Location": f"/api/shows/{record.id}"})
+    return _show_response(request, record, status=201, headers={"Location": f"/api/shows/{record.id}"})
 
 
 @router.get("/shows", response_model=ShowList, summary="List shows")
@@ -152,7 +156,7 @@ async def list_shows(
 @router.get("/shows/{show_id}", response_model=ShowOut, summary="Read a show", responses=error_responses(404))
 async def get_show(request: Request, show_id: str) -> Response:
     """The show with its revision (also in the ``ETag`` header) and its show file."""
-    return _show_response(deps.store(request).get(show_id))
+    return _show_response(request, deps.store(request).get(show_id))
 
 
 @router.get("/shows/{show_id}/revisions", response_model=RevisionList, summary="A show's revision history",
@@ -267,7 +271,7 @@ async def update_show(request: Request, show_id: str, draft: bool = _DRAFT_QUERY
         raise RevisionConflict(show_id, expected=revision, current=current)
     show = await _parse_show(request, show_data, size=len(raw), prefix=prefix, draft=draft)
     record = await deps.write(request, store.update, show_id, show, expected_revision=revision)
-    return _show_response(record)
+    return _show_response(request, record)
 
 
 @router.delete(

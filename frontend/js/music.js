@@ -80,8 +80,12 @@ export class MusicLane {
 
   // ---- track ---------------------------------------------------------------------------------
 
-  /** The stored track of the open show (none: an empty lane). */
-  async reload() {
+  /**
+   * The stored track of the open show (none: an empty lane).
+   * @param {boolean} [hasAudio] whether the show has music now (default: what its record said when it was
+   *   opened); without music nothing is asked (the track's info would be a 404, logged by the browser)
+   */
+  async reload(hasAudio = undefined) {
     this.pause(false);
     this.analysis = this.info = null;
     this.audio.removeAttribute("src");
@@ -89,7 +93,8 @@ export class MusicLane {
     this.time_s = 0;
     setError("music", "");
     const meta = this.state.meta;
-    if (meta) {
+    if (meta) meta.has_audio = hasAudio ?? meta.has_audio !== false;
+    if (meta && meta.has_audio) {
       try {
         this.info = await api.request("GET", `/api/shows/${meta.id}/audio/info`);
         this.analysis = await api.request("GET", `/api/shows/${meta.id}/audio/analysis`);
@@ -117,7 +122,7 @@ export class MusicLane {
       await api.request("PUT", `/api/shows/${meta.id}/audio?filename=${encodeURIComponent(file.name)}`, {
         body: file, headers: { "Content-Type": file.type || "application/octet-stream" },
       });
-      await this.reload();
+      await this.reload(true);
     } catch (err) {
       setError("music", `Music not loaded: ${err.message}`);
     } finally {
@@ -131,12 +136,16 @@ export class MusicLane {
   async remove() {
     const meta = this.state.meta;
     if (!meta || !this.info) return;
+    let gone = true;
     try {
       await api.request("DELETE", `/api/shows/${meta.id}/audio`);
     } catch (err) {
-      setError("music", `Cannot remove the music: ${err.message}`);
+      if (!(err instanceof api.ApiError && err.status === 404)) {  // 404: removed already (another tab)
+        gone = false;
+        setError("music", `Cannot remove the music: ${err.message}`);
+      }
     }
-    await this.reload();
+    await this.reload(gone ? false : undefined);
   }
 
   _chrome() {

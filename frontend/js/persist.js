@@ -6,6 +6,7 @@
 import * as api from "./api.js";
 import { confirmAction, toast } from "./dialogs.js";
 import { clearShowErrors, showShowErrors } from "./errors.js";
+import { recordMeta } from "./state.js";
 
 const DRAFT_PREFIX = "swarmshow.draft.";
 const AUTOSAVE_KEY = "swarmshow.autosave";
@@ -218,12 +219,13 @@ export class Persistence extends EventTarget {
       const oldId = st.meta.id;
       // The music goes with the copy (before the load below, which reloads the music lane).
       let musicLost = "";
+      let copied = null;
       try {
-        await api.copyAudio(rec.id, oldId);
+        copied = await api.copyAudio(rec.id, oldId);
       } catch (err) {
         musicLost = ` (its music was not copied: ${err.message})`;
       }
-      st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
+      st.load(rec.show, recordMeta({ ...rec, has_audio: !!copied }), { keepCurrent: true });
       this.dropDraft(oldId);
       this.dispatchEvent(new CustomEvent("opened", { detail: rec }));
       this.ui.status(`Saved as a new show "${rec.name}"${musicLost}`, !!musicLost);
@@ -242,7 +244,7 @@ export class Persistence extends EventTarget {
     try {
       const rec = await api.getShow(st.meta.id);
       this.dropDraft(rec.id);
-      st.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems }, { keepCurrent: true });
+      st.load(rec.show, recordMeta(rec), { keepCurrent: true });
       clearShowErrors();
       this.dispatchEvent(new CustomEvent("opened", { detail: rec }));
       this.ui.status(`Reloaded revision ${rec.revision}`);

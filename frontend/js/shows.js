@@ -5,7 +5,7 @@
 import * as api from "./api.js";
 import { askText, choose, confirmAction, toast } from "./dialogs.js";
 import { setError } from "./errors.js";
-import { DEFAULT_SETTINGS } from "./state.js";
+import { DEFAULT_SETTINGS, recordMeta } from "./state.js";
 import { gridFormation } from "./timeline.js";
 
 /**
@@ -177,7 +177,7 @@ export class ShowsDialog {
       setError("shows-list", `Cannot open: ${err.message}`);
       return;
     }
-    this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
+    this.state.load(rec.show, recordMeta(rec));
     const draft = this.persist.draftFor(id);
     if (draft) {
       const { choice } = await choose({
@@ -213,7 +213,7 @@ export class ShowsDialog {
     if (!(await this._leaveCurrent())) return;
     try {
       const rec = await api.createShow(newShowDocument(p));
-      this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
+      this.state.load(rec.show, recordMeta(rec));
       localStorage.setItem("swarmshow.last", rec.id);
       this.dlg.close();
       this.onOpen(rec);
@@ -242,7 +242,7 @@ export class ShowsDialog {
       }
       const res = await api.request("POST", "/api/shows", { body: text, headers: { "Content-Type": "application/json" } });
       const rec = api.normalizeRecord(res);
-      this.state.load(rec.show, { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems });
+      this.state.load(rec.show, recordMeta(rec));
       localStorage.setItem("swarmshow.last", rec.id);
       this.dlg.close();
       this.onOpen(rec);

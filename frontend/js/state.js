@@ -71,13 +71,28 @@ export function spliceDiff(before, after) {
   return { start, before: before.slice(start, endB), after: after.slice(start, endA) };
 }
 
+/**
+ * Where an open show is stored: its id and revision, whether it is a draft (and what is wrong), and whether it
+ * has music (the music lane asks for the track only then: asking a show without music is a 404).
+ * @typedef {{id: string, revision: number, draft?: boolean, problems?: any[], has_audio?: boolean}} ShowMeta
+ */
+
+/**
+ * The `ShowMeta` of a show record as the API answers it (GET, POST or PUT /api/shows).
+ * @param {{id: string, revision: number, draft?: boolean, problems?: any[], has_audio?: boolean}} rec
+ * @returns {ShowMeta}
+ */
+export function recordMeta(rec) {
+  return { id: rec.id, revision: rec.revision, draft: rec.draft, problems: rec.problems, has_audio: !!rec.has_audio };
+}
+
 /** The editor state. Listen with `store.addEventListener("change", ...)`; `detail.kind` says what changed. */
 export class EditorState extends EventTarget {
   constructor() {
     super();
     /** @type {any|null} the swarmshow/1 document being edited */
     this.show = null;
-    /** @type {{id: string, revision: number, draft?: boolean, problems?: any[]}|null} where it is stored (a draft: with what is wrong) */
+    /** @type {ShowMeta|null} where it is stored (a draft: with what is wrong) */
     this.meta = null;
     this.current = 0;
     /** @type {Set<number>} selected point indices of the current formation */
@@ -107,7 +122,7 @@ export class EditorState extends EventTarget {
   /**
    * Open a show (drops the undo history).
    * @param {any} show
-   * @param {{id: string, revision: number, draft?: boolean, problems?: any[]}} meta
+   * @param {ShowMeta} meta
    * @param {{keepCurrent?: boolean}} [opts] keep the formation index (reloading the same show)
    */
   load(show, meta, opts = {}) {
