@@ -567,7 +567,7 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
         if getattr(exc, "fit_size_m", None) is not None:
             problem["fit_size_m"] = getattr(exc, "fit_size_m")  # noqa: B009 - set by MeshFitError only
         raise TaskFailure(FailureKind.INVALID, [problem]) from None
-    _check_formation_result(source, points.points_m)
+    _check_formation_result(source, points.points_m, params)
     out = points.to_json()
     out["count"] = len(out["points"])
     if source == "mesh":
@@ -575,13 +575,20 @@ def formation_task(source: str, params: dict[str, Any], data: bytes | None = Non
     return out
 
 
-def _check_formation_result(source: str, points_m: Any) -> None:
+#: The request field that scales each formation source's points (what to lower when they reach too far).
+_SIZE_FIELD = {"shape": "size_m", "text": "height_m", "image": "width_m", "svg": "width_m", "mesh": "size_m"}
+
+
+def _check_formation_result(source: str, points_m: Any, params: dict[str, Any] | None = None) -> None:
     """Refuse a formation no show could use: non-finite points, below the ground or above the highest
     ceiling a show may have, or outside the largest show area (a 1 x 400,000 pixel image once gave
     points 8,000 km below the ground).
 
+    The problem names the request field to change: ``center_m`` when the centre itself is outside those
+    bounds, else the source's size (:data:`_SIZE_FIELD`); points that are not finite blame the input.
+
     Raises:
-        TaskFailure: ``invalid``, naming the source and the bound.
+        TaskFailure: ``invalid``, naming the source, the bound and the field.
     """
     import numpy as np
 
@@ -596,9 +603,18 @@ def _check_formation_result(source: str, points_m: Any) -> None:
                    f"[0, {ceiling_m:g}] m; lower the size or move the centre")
     elif pts.size and np.abs(pts[:, :2]).max() > MAX_HORIZONTAL_EXTENT_M:
         problem = (f"points reach {np.abs(pts[:, :2]).max():.4g} m from the origin, outside the largest show "
-                   f"area +-{MAX_HORIZONTAL_EXTENT_M:g} m; lower the size")
-    if problem is not None:
-        raise TaskFailure(FailureKind.INVALID, [{"loc": ["body"], "path": "", "msg": f"{source}: {problem}"}])
+                   f"area +-{MAX_HORIZONTAL_EXTENT_M:g} m; lower the size or move the centre")
+    if problem is None:
+        return
+    centre = np.asarray((params or {}).get("center_m") or (0.0, 0.0, 0.0), dtype=np.float64).reshape(-1)[:3]
+    if not np.isfinite(pts).all():
+        field = _formation_field(source, ValueError())
+    elif centre.size == 3 and (not 0.0 <= centre[2] <= ceiling_m
+                               or np.abs(centre[:2]).max() > MAX_HORIZONTAL_EXTENT_M):
+        field = "center_m"
+    else:
+        field = _SIZE_FIELD.get(source, _formation_field(source, ValueError()))
+    raise TaskFailure(FailureKind.INVALID, [{"loc": ["body", field], "path": field, "msg": f"{source}: {problem}"}])
 
 
 def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, Any]:

@@ -38,6 +38,10 @@ from formations._motion import Motion, motion_problem
 from formations._points import closest_pair
 from formations._points import rgb_to_hex as rgb_to_hex  # one implementation, re-exported here
 
+#: Context key of a model validator's ``PydanticCustomError`` naming the field it blames (a rule across fields
+#: of one object is reported at that field, not at the object: ``settings.takeoff_altitude_m``, not ``settings``).
+FIELD_CTX = "at_field"
+
 #: Most drones a show may have. The largest show flown so far had 15,947 drones;
 #: 20,000 leaves headroom while bounding memory (a 20k x 20k cost matrix is never built).
 MAX_DRONES = 20_000
@@ -129,7 +133,10 @@ class Geofence(BaseModel):
     @model_validator(mode="after")
     def _ordered(self) -> Geofence:
         if not (self.x_min_m < self.x_max_m and self.y_min_m < self.y_max_m):
-            raise PydanticCustomError("geofence_empty", "the geofence needs x_min_m < x_max_m and y_min_m < y_max_m")
+            # Named by the bound that does not exceed its minimum (the first such axis).
+            field = "x_max_m" if not self.x_min_m < self.x_max_m else "y_max_m"
+            raise PydanticCustomError("geofence_empty", "the geofence needs x_min_m < x_max_m and y_min_m < y_max_m",
+                                      {FIELD_CTX: field})
         return self
 
 
@@ -228,7 +235,7 @@ class Settings(BaseModel):
             raise PydanticCustomError(
                 "floor_above_ceiling",
                 "min_altitude_m {floor} must be below max_altitude_m {ceiling}",
-                {"floor": self.min_altitude_m, "ceiling": self.max_altitude_m},
+                {"floor": self.min_altitude_m, "ceiling": self.max_altitude_m, FIELD_CTX: "min_altitude_m"},
             )
         return self
 
@@ -238,7 +245,7 @@ class Settings(BaseModel):
             raise PydanticCustomError(
                 "takeoff_above_ceiling",
                 "takeoff_altitude_m {takeoff} is above max_altitude_m {ceiling}",
-                {"takeoff": self.takeoff_altitude_m, "ceiling": self.max_altitude_m},
+                {"takeoff": self.takeoff_altitude_m, "ceiling": self.max_altitude_m, FIELD_CTX: "takeoff_altitude_m"},
             )
         return self
 
@@ -382,12 +389,13 @@ class Formation(_ArrayCachingModel):
     @model_validator(mode="after")
     def _colors_match(self) -> Formation:
         if self.colors is not None and self.color is not None:
-            raise PydanticCustomError("color_conflict", "give either 'color' or 'colors', not both")
+            raise PydanticCustomError("color_conflict", "give either 'color' or 'colors', not both",
+                                      {FIELD_CTX: "colors"})
         if self.colors is not None and len(self.colors) != len(self.points):
             raise PydanticCustomError(
                 "colors_length",
                 "'colors' has {n_colors} entries but 'points' has {n_points}",
-                {"n_colors": len(self.colors), "n_points": len(self.points)},
+                {"n_colors": len(self.colors), "n_points": len(self.points), FIELD_CTX: "colors"},
             )
         return self
 
@@ -395,13 +403,14 @@ class Formation(_ArrayCachingModel):
     def _pins_ok(self) -> Formation:
         if self.arrive_at_s is not None and self.transition_s is not None:
             raise PydanticCustomError(
-                "pin_conflict", "give either 'transition_s' or 'arrive_at_s' (the arrival fixes the transition)"
+                "pin_conflict", "give either 'transition_s' or 'arrive_at_s' (the arrival fixes the transition)",
+                {FIELD_CTX: "arrive_at_s"},
             )
         if self.arrive_at_s is not None and self.leave_at_s is not None \
                 and self.leave_at_s - self.arrive_at_s < MIN_DURATION_S - 1e-9:
             raise PydanticCustomError(
                 "pin_order", "leave_at_s {leave} s must be at least {gap} s after arrive_at_s {arrive} s",
-                {"leave": self.leave_at_s, "arrive": self.arrive_at_s, "gap": MIN_DURATION_S},
+                {"leave": self.leave_at_s, "arrive": self.arrive_at_s, "gap": MIN_DURATION_S, FIELD_CTX: "leave_at_s"},
             )
         return self
 
@@ -781,6 +790,8 @@ class ShowValidationError(ValueError):
                 path = ".".join(p for p in (_path(prefix), ctx["path"]) if p)
                 out.append({"loc": loc, "path": path, "msg": ctx["message"]})
                 continue
+            if isinstance(ctx.get(FIELD_CTX), str):  # a rule across fields of one object names its field
+                loc = (*loc, ctx[FIELD_CTX])
             # Unions report every branch; "home" is the only union and its branch names help.
             out.append({"loc": loc, "path": _path(loc), "msg": msg})
         return cls(out)

@@ -423,11 +423,15 @@ def test_every_formation_result_is_checked_against_the_show_bounds():
 
     good = np.array([[0.0, 0.0, 10.0], [5.0, 0.0, 10.0]])
     tasks._check_formation_result("shape", good)
-    for bad, words in ((good * [1, 1, -1], "altitudes"), (good + [0, 0, 1e5], "altitudes"),
-                       (good + [3e4, 0, 0], "largest show area"), (good * np.nan, "finite")):
+    # Each names the request field to change (QA round 2: the path was empty): the drawing's width, the input
+    # itself for points that are not numbers.
+    for bad, words, field in ((good * [1, 1, -1], "altitudes", "width_m"), (good + [0, 0, 1e5], "altitudes", "width_m"),
+                              (good + [3e4, 0, 0], "largest show area", "width_m"), (good * np.nan, "finite", "file")):
         with pytest.raises(tasks.TaskFailure) as info:
             tasks._check_formation_result("svg", bad)
-        assert info.value.kind == "invalid" and words in str(info.value) and str(info.value).startswith("svg:")
+        assert info.value.kind == "invalid" and words in str(info.value)
+        assert info.value.detail[0]["msg"].startswith("svg:")
+        assert info.value.detail[0]["path"] == field and info.value.detail[0]["loc"] == ["body", field]
 
 
 # -- 4c. a live server: slow connections, odd paths, rebinding through uvicorn -----------------------
