@@ -155,7 +155,13 @@ def test_cli_overwrites_atomically(show, tmp_path):
     [
         (["--format", "gcode"], "unknown format"),
         (["--format", "qgc-wpl"], "--origin"),
-        (["--format", "qgc-plan", "--origin", "1,2"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "1"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "1,2,3,4"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "nan,2"], "--origin"),
+        (["--format", "qgc-plan", "--origin", "47,8", "--heading", "400"], "--heading"),
+        (["--format", "qgc-plan", "--origin", "47,8", "--heading", "-360.5"], "--heading"),
+        (["--format", "qgc-plan", "--origin", "47,8", "--heading", "nan"], "--heading"),
+        (["--format", "qgc-plan", "--origin", "47,8", "--heading", "inf"], "--heading"),
         (["--format", "qgc-plan", "--origin", "a,b,c"], "--origin"),
         (["--format", "qgc-plan", "--origin", "95,0,0"], "latitude"),
         (["--format", "skybrush-csv", "--fps", "0"], "fps"),
@@ -207,3 +213,68 @@ def test_cli_scale_and_offset_reach_the_crazyswarm_files(show, tmp_path):
         row = z.read(first).decode().splitlines()[1].split(",")
     assert manifest["scale"] == 0.5 and manifest["offset_m"] == [1.0, 2.0, 3.0]
     assert float(row[1 + 16]) == pytest.approx(3.0, abs=1e-9)  # z^0 of the first piece, on the ground: 0.5·0 + 3
+
+
+def test_cli_usage_errors_are_one_line(show, tmp_path, capsys):
+    """argparse's own refusals (a non-number, an unknown command) are one line too, exit 2 (QA: they printed the
+    whole usage block first)."""
+    src = _write_show(tmp_path, show)
+    for argv in (["export", str(src), "-f", "skyc", "-o", str(tmp_path / "a"), "--heading", "north"],
+                 ["exprot", str(src)]):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        err = capsys.readouterr().err.strip()
+        assert info.value.code == 2 and "\n" not in err and err.startswith("swarmshow"), err
+
+
+@pytest.fixture(scope="module")
+def api(tmp_path_factory):
+    from fastapi.testclient import TestClient
+
+    from app.server import create_app
+    from app.settings import AppSettings
+
+    app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=1, viewer=False))
+    with TestClient(app, base_url="http://127.0.0.1") as c:
+        yield c
+
+
+def test_cli_and_api_share_the_origin_and_heading_rules(show, tmp_path, capsys, api):
+    """QA: ``--heading 400`` was accepted (the API refuses > 360) and ``--origin`` needed an altitude (the API takes
+    'lat,lon'). Both now go through ``app.exports.parse_origin`` / ``check_heading``: the same values pass or fail,
+    and 'lat,lon' means altitude 0 in both (the file is the one of 'lat,lon,0', and the API's)."""
+    from app.exports import MAX_HEADING_DEG
+
+    src = _write_show(tmp_path, show)
+    sid = api.post("/api/shows", content=dump_show(show), headers={"content-type": "application/json"}).json()["id"]
+    # The API's query bound is the shared constant.
+    schema = api.get("/api/openapi.json").json()["paths"]["/api/shows/{show_id}/export/{fmt}"]["get"]["parameters"]
+    heading = next(p for p in schema if p["name"] == "heading_deg")["schema"]
+    assert heading["maximum"] == MAX_HEADING_DEG and heading["minimum"] == -MAX_HEADING_DEG
+
+    def cli(origin: str, heading: str) -> tuple[int, bytes | None]:
+        out = tmp_path / "out.waypoints"
+        out.unlink(missing_ok=True)
+        code = main(["export", str(src), "-f", "qgc-wpl", "-o", str(out), "--origin", origin, "--heading", heading])
+        capsys.readouterr()
+        return code, out.read_bytes() if out.exists() else None
+
+    def http(origin: str, heading: str) -> tuple[int, bytes]:
+        r = api.get(f"/api/shows/{sid}/export/qgc-wpl", params={"origin": origin, "heading_deg": heading})
+        return r.status_code, r.content
+
+    for origin, heading in (("47.1,8.2", "0"), ("47.1,8.2,0", "0"), ("47.1,8.2", "360"), ("47.1,8.2", "-360"),
+                            ("47.1,8.2,12.5", "359.5")):
+        code, data = cli(origin, heading)
+        status, body = http(origin, heading)
+        assert code == 0 and status == 200, (origin, heading, code, status, body[:200])
+        assert data == body, (origin, heading)
+    assert cli("47.1,8.2", "0") == cli("47.1,8.2,0", "0")
+    assert cli("47.1,8.2", "0") != cli("47.1,8.2,12.5", "0")  # the altitude is used when given
+    for origin, heading in (("47.1,8.2", "400"), ("47.1,8.2", "-360.5"), ("47.1", "0"), ("a,b", "0"),
+                            ("47.1,8.2,1,2", "0"), ("inf,8.2", "0"), ("95,8.2", "0")):
+        code, data = cli(origin, heading)
+        status, body = http(origin, heading)
+        assert code == 2 and data is None and status == 422, (origin, heading, code, status)
+        field = "heading_deg" if heading not in ("0",) else "origin"
+        assert json.loads(body)["detail"][0]["path"] == field, (origin, heading, body)

@@ -405,15 +405,14 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.") or "show"
 
 
-def _parse_origin(origin: str) -> tuple[float, ...]:
+def _parse_origin(origin: str) -> tuple[float, float, float]:
+    """The ``origin`` query as ``(lat, lon, alt_m)``, as the CLI's ``--origin`` (``app.exports.parse_origin``)."""
+    from app.exports import ExportError, parse_origin
+
     try:
-        values = tuple(float(v) for v in origin.split(","))
-    except ValueError:
-        values = ()
-    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
-        raise ApiError(422, [{"loc": ["query", "origin"], "path": "origin",
-                              "msg": "must be 'latitude,longitude' or 'latitude,longitude,altitude_m'"}])
-    return values if len(values) == 3 else (*values, 0.0)
+        return parse_origin(origin)
+    except ExportError as exc:
+        raise ApiError(422, [{"loc": ["query", "origin"], "path": "origin", "msg": str(exc)}]) from None
 
 
 def _parse_offset(offset: str) -> tuple[float, ...]:
@@ -443,6 +442,7 @@ async def export_show(
     fmt: str,
     fps: float | None = Query(None, gt=0, le=1000, description="Sample rate of trajectory formats, Hz."),
     origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
+    # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
     heading_deg: float = Query(0.0, ge=-360, le=360, description="Direction of the show's +y axis, degrees."),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
     scale: float = Query(1.0, gt=0, le=10, description="Scale factor for positions (crazyswarm, indoor shows)."),

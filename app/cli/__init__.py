@@ -16,6 +16,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from app.cli._common import CliError
 
@@ -57,6 +58,14 @@ def _modules_for(argv: Sequence[str] | None) -> tuple[str, ...]:
     return _COMMAND_MODULES
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's usage errors: one line on stderr (no usage block), exit 2. The
+    subcommands' parsers are of this class too (``add_subparsers`` uses the parent's class)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def build_parser(argv: Sequence[str] | None = ()) -> argparse.ArgumentParser:
     """Return the top-level parser with the commands registered.
 
@@ -65,7 +74,7 @@ def build_parser(argv: Sequence[str] | None = ()) -> argparse.ArgumentParser:
             module is imported and registered. The default ``()`` registers every
             command (``swarmshow --help`` lists them all).
     """
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="swarmshow",
         description="Design, plan, verify, fly and export drone light shows.",
     )

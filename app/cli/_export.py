@@ -32,10 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="output file ('-' for stdout; an existing directory receives the suggested file name)")
     p.add_argument("--fps", type=float, default=None, help="samples per second of sampled formats "
                    "(skybrush-csv default 4, waypoints-csv default 10)")
-    p.add_argument("--origin", default=None, metavar="LAT,LON,ALT",
-                   help="WGS84 latitude, longitude (degrees) and altitude (m) of the show origin (qgc-plan, qgc-wpl)")
+    p.add_argument("--origin", default=None, metavar="LAT,LON[,ALT]",
+                   help="WGS84 latitude, longitude (degrees) and altitude (m, default 0) of the show origin "
+                   "(qgc-plan, qgc-wpl, skyc)")
     p.add_argument("--heading", type=float, default=0.0, metavar="DEG",
-                   help="bearing of the show's +y axis, degrees clockwise from true north (default 0)")
+                   help="bearing of the show's +y axis, degrees clockwise from true north, within +-360 (default 0)")
     p.add_argument("--source", choices=("planned", "simulated"), default="planned",
                    help="planned trajectory (default) or the simulated flight (sampled formats)")
     p.add_argument("--audio", default=None, metavar="FILE",
@@ -68,15 +69,26 @@ def load_audio_arg(path: str) -> AudioTrack:
 
 
 def parse_origin(text: str) -> tuple[float, float, float]:
-    """``"LAT,LON,ALT"`` -> floats; a malformed value is a :class:`CliError`."""
-    parts = text.split(",")
-    if len(parts) != 3:
-        raise CliError(f"--origin must be LAT,LON,ALT, got {text!r}")
+    """``"LAT,LON"`` or ``"LAT,LON,ALT"`` -> floats, as the API's ``origin`` (``app.exports.parse_origin``: the
+    altitude defaults to 0 m); a malformed value is a :class:`CliError`."""
+    from app.exports import ExportError
+    from app.exports import parse_origin as shared
+
     try:
-        lat, lon, alt = (float(x) for x in parts)
-    except ValueError as exc:
-        raise CliError(f"--origin must be three numbers LAT,LON,ALT, got {text!r}") from exc
-    return lat, lon, alt
+        return shared(text)
+    except ExportError as exc:
+        raise CliError(f"--{exc}") from None
+
+
+def check_heading_arg(value: float) -> float:
+    """``--heading`` checked as the API checks ``heading_deg`` (``app.exports.check_heading``: within +-360
+    degrees); a bad value is a :class:`CliError`."""
+    from app.exports import ExportError, check_heading
+
+    try:
+        return check_heading(value)
+    except ExportError as exc:
+        raise CliError(str(exc).replace("heading_deg", "--heading", 1)) from None
 
 
 def parse_offset(text: str) -> tuple[float, float, float]:
@@ -95,6 +107,7 @@ def _export(args: argparse.Namespace) -> int:
     if args.format not in EXPORT_FORMATS:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
     origin = parse_origin(args.origin) if args.origin is not None else None
+    check_heading_arg(args.heading)
     target = _target_dir_check(args.output)
     show = load_show_arg(args.show)
     audio = load_audio_arg(args.audio) if args.audio is not None else None
@@ -116,7 +129,7 @@ def _export(args: argparse.Namespace) -> int:
         msg = str(exc)
         if args.origin is None and "place on Earth" in msg:
             # The command line's way to give it, beside the show's settings.geo.
-            msg += " (settings.geo), or pass --origin LAT,LON,ALT [--heading DEG]"
+            msg += " (settings.geo), or pass --origin LAT,LON[,ALT] [--heading DEG]"
         raise CliError(msg) from exc
     for warning in result.warnings:
         print(f"swarmshow: warning: {warning}", file=sys.stderr)

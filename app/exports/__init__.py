@@ -16,10 +16,13 @@ from __future__ import annotations
 
 from app.exports._archive import drone_file_stems as drone_file_stems
 from app.exports._archive import safe_stem as safe_stem
+from app.exports._core import MAX_HEADING_DEG as MAX_HEADING_DEG
 from app.exports._core import ExportContext as ExportContext
 from app.exports._core import ExportError as ExportError
 from app.exports._core import ExportOptions as ExportOptions
 from app.exports._core import ExportResult as ExportResult
+from app.exports._core import check_heading as check_heading
+from app.exports._core import parse_origin as parse_origin
 from app.exports._formats import EXPORT_FORMATS as EXPORT_FORMATS
 from app.exports._formats import export_plan as export_plan
 from app.exports._formats import export_show as export_show
@@ -35,6 +38,9 @@ from app.exports._tracks import make_track as make_track
 from app.exports._tracks import show_bounds as show_bounds
 
 __all__ = [
+    "MAX_HEADING_DEG",
+    "check_heading",
+    "parse_origin",
     "EXPORT_FORMATS",
     "REPORT_FORMATS",
     "render_safety_report",

@@ -96,7 +96,7 @@ class ExportOptions:
             if not -1_000.0 <= alt <= 100_000.0:
                 raise ExportError(f"origin altitude must be in [-1000, 100000] m, got {alt}", field="origin")
             object.__setattr__(self, "origin", (lat, lon, alt))
-        heading = _number(self.heading_deg, "heading_deg")
+        heading = check_heading(self.heading_deg)
         object.__setattr__(self, "heading_deg", heading % 360.0)
         scale = _number(self.scale, "scale")
         if not 0.0 < scale <= MAX_SCALE:
@@ -116,6 +116,46 @@ class ExportOptions:
     def fps_or(self, default: float) -> float:
         """``fps`` if given, else ``default`` (frames per second)."""
         return float(self.fps) if self.fps is not None else float(default)
+
+
+#: Largest |heading_deg| an export takes, degrees (the API's query bound too): a bearing beyond a full turn
+#: either way is a typo (400 for 40), not a direction.
+MAX_HEADING_DEG = 360.0
+#: Altitude of an origin given as 'latitude,longitude' alone, metres (the API's default as well).
+DEFAULT_ORIGIN_ALT_M = 0.0
+#: How an origin is written on the command line and in the API's query.
+ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
+
+
+def check_heading(value: Any) -> float:
+    """``value`` as a heading in degrees, within +-:data:`MAX_HEADING_DEG` (the API and the CLI share it).
+
+    Raises:
+        ExportError: not a finite number, or beyond a full turn (``field="heading_deg"``).
+    """
+    heading = _number(value, "heading_deg")
+    if not -MAX_HEADING_DEG <= heading <= MAX_HEADING_DEG:
+        raise ExportError(f"heading_deg must be in [-{MAX_HEADING_DEG:g}, {MAX_HEADING_DEG:g}] degrees, got {value!r}",
+                          field="heading_deg")
+    return heading
+
+
+def parse_origin(text: str) -> tuple[float, float, float]:
+    """An origin as text, ``"lat,lon"`` or ``"lat,lon,alt_m"``, as ``(lat, lon, alt_m)`` (altitude
+    :data:`DEFAULT_ORIGIN_ALT_M` when left out): the API's ``origin`` query and the CLI's ``--origin`` alike.
+    The ranges are :class:`ExportOptions`' to check.
+
+    Raises:
+        ExportError: not two or three finite numbers (``field="origin"``).
+    """
+    try:
+        values = tuple(float(v) for v in str(text).split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise ExportError(f"origin must be {ORIGIN_SYNTAX}, got {text!r}", field="origin")
+    lat, lon, *rest = values
+    return lat, lon, rest[0] if rest else DEFAULT_ORIGIN_ALT_M
 
 
 def _number(value: Any, name: str) -> float:

@@ -1,7 +1,7 @@
 """``qgc-plan`` and ``qgc-wpl``: one QGroundControl mission per drone, in a zip.
 
 Each drone's mission, in WGS84 coordinates from the show's place on Earth
-(``settings.geo`` or ``--origin LAT,LON,ALT`` and ``--heading DEG``; exact
+(``settings.geo`` or ``--origin LAT,LON[,ALT]`` and ``--heading DEG``; exact
 conversion, see :mod:`app.exports._geodesy`):
 
 1. ``MAV_CMD_NAV_TAKEOFF`` (22) straight up to the takeoff altitude above its home;
