@@ -11,6 +11,7 @@ import pytest
 
 from tests.live_server import BROWSER_MARKS, server_for, wait_until
 from tests.test_api_forced_short import forced_doc
+from tests.test_api_shows import show_doc
 
 pytestmark = BROWSER_MARKS
 sync_api = pytest.importorskip("playwright.sync_api")
@@ -83,3 +84,37 @@ def test_a_show_without_music_opens_without_console_errors(ui):
     expect(page.locator("#show-title")).to_have_text("No music either")
     page.wait_for_load_state("networkidle")
     assert errors == [], errors
+
+
+def test_export_options_refuse_a_heading_beyond_a_turn_and_drop_stale_errors(ui):
+    """QA (a designer's session): the heading field took 400 and stored 40 (the API and the CLI refuse |heading| >
+    360), and the origin error of a refused QGroundControl export stayed on screen after another format had
+    downloaded."""
+    page = ui.page
+    show_id = _store(ui.base, show_doc("Export options"))
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("Export options")
+    page.locator("#export-options").evaluate("(d) => { d.open = true; }")
+    origin_error = page.locator('[data-error-for="origin"]')
+    # No place on Earth: the QGroundControl export is refused and says where to give it.
+    page.select_option("#export-format", "qgc-wpl")
+    page.get_by_role("button", name="Export in the chosen format").click()
+    expect(origin_error).to_contain_text("place on Earth")
+    # Another format downloads: the stale origin error goes.
+    page.select_option("#export-format", "show")
+    with page.expect_download():
+        page.get_by_role("button", name="Export in the chosen format").click()
+    expect(origin_error).to_have_text("")
+    # A heading beyond a full turn is refused, not wrapped to 40: the stored heading stays as it was.
+    page.fill("#exp-origin", "47.1, 8.2")
+    page.dispatch_event("#exp-origin", "change")
+    assert ui.state("s.show.settings.geo.heading_deg") == 0
+    page.fill("#exp-heading", "400")
+    page.dispatch_event("#exp-heading", "change")
+    expect(origin_error).to_contain_text("Heading")
+    assert ui.state("s.show.settings.geo.heading_deg") == 0
+    page.fill("#exp-heading", "-90")
+    page.dispatch_event("#exp-heading", "change")
+    expect(origin_error).to_have_text("")
+    assert ui.state("s.show.settings.geo") == {"origin_lat_deg": 47.1, "origin_lon_deg": 8.2, "origin_alt_m": 0,
+                                               "heading_deg": 270}

@@ -30,7 +30,7 @@ export class ExportMenu {
     this.select = /** @type {HTMLSelectElement} */ (document.getElementById("export-format"));
     this.button = /** @type {HTMLButtonElement} */ (document.getElementById("btn-export"));
     this.button.addEventListener("click", () => this.run());
-    this.select.addEventListener("change", () => { document.getElementById("export-error").textContent = ""; });
+    this.select.addEventListener("change", () => this._clearErrors());
     this.fields = {
       origin: /** @type {HTMLInputElement} */ (document.getElementById("exp-origin")),
       heading_deg: /** @type {HTMLInputElement} */ (document.getElementById("exp-heading")),
@@ -52,6 +52,12 @@ export class ExportMenu {
     state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "load" || e.detail.kind === "edit") this._showGeo();
     });
+  }
+
+  /** Clear the last export's refusal (beside the menu and, for a missing origin, under the origin field). */
+  _clearErrors() {
+    document.getElementById("export-error").textContent = "";
+    document.querySelector('[data-error-for="origin"]').textContent = "";
   }
 
   /** Fill the origin and heading fields from the show's `settings.geo`. */
@@ -78,7 +84,11 @@ export class ExportMenu {
       err.textContent = "Origin: latitude, longitude (degrees) and optionally altitude (m), e.g. 47.3977, 8.5456, 410";
       return;
     }
-    if (!Number.isFinite(heading)) return;
+    // As the API and the command line: within one turn either way (400 is a typo for 40, not a bearing).
+    if (!Number.isFinite(heading) || Math.abs(heading) > 360) {
+      err.textContent = "Heading: degrees clockwise from north, between -360 and 360";
+      return;
+    }
     const geo = { origin_lat_deg: v[0], origin_lon_deg: v[1], origin_alt_m: v[2] ?? 0, heading_deg: ((heading % 360) + 360) % 360 };
     st.edit("Set the show's origin", () => { st.show.settings.geo = geo; });
   }
@@ -113,7 +123,7 @@ export class ExportMenu {
     const st = this.state;
     if (!st.meta) return;
     const el = document.getElementById("export-error");
-    el.textContent = "";
+    this._clearErrors();
     const format = this.select.value;
     this.button.disabled = true;
     this.button.setAttribute("aria-busy", "true");
