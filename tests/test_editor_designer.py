@@ -118,3 +118,42 @@ def test_export_options_refuse_a_heading_beyond_a_turn_and_drop_stale_errors(ui)
     expect(origin_error).to_have_text("")
     assert ui.state("s.show.settings.geo") == {"origin_lat_deg": 47.1, "origin_lon_deg": 8.2, "origin_alt_m": 0,
                                                "heading_deg": 270}
+
+
+def test_a_shape_lands_on_the_formation_it_was_made_for(ui):
+    """QA (a designer's session): "Apply shape" then, before the server answered, "Add a formation": the shape replaced
+    the new formation instead of the one it was made for (the answer went to whichever formation was current)."""
+    page = ui.page
+    show_id = _store(ui.base, show_doc("Quick hands"))
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("Quick hands")
+    held = []
+    page.route("**/api/formations/shape", lambda route: held.append(route))
+    page.select_option("#shape-kind", "circle")
+    page.fill("#shape-size", "40")
+    page.fill("#shape-z", "40")
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    wait_until("the shape request", lambda: held, sleep=lambda s: page.wait_for_timeout(1000 * s))
+    page.get_by_role("button", name="Add a formation").click()
+    expect(page.locator(".tl-card")).to_have_count(2)
+    added = ui.state("s.show.formations[1].points")
+    before = ui.state("s.show.formations[0].points")
+    held[0].continue_()
+    wait_until("the shape applied", lambda: ui.state("s.show.formations[0].points") != before,
+               sleep=lambda s: page.wait_for_timeout(1000 * s))
+    circle = ui.state("s.show.formations[0].points")
+    cx = sum(p[0] for p in circle) / len(circle)  # the editor centres a shape on the view
+    radii = [(((x - cx) ** 2 + (z - 40) ** 2) ** 0.5) for x, _, z in circle]
+    assert len(circle) == 4 and max(radii) - min(radii) < 0.01 and abs(radii[0] - 20) < 0.01, circle
+    assert ui.state("s.show.formations[1].points") == added  # the formation added meanwhile is untouched
+    assert ui.state("s.current") == 1
+    # Undone while in flight: the formation it was made for is gone; nothing is replaced, the designer is told.
+    held.clear()
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    wait_until("the second shape request", lambda: held, sleep=lambda s: page.wait_for_timeout(1000 * s))
+    page.keyboard.press("Control+z")
+    page.keyboard.press("Control+z")
+    shows = ui.state("JSON.stringify(s.show.formations)")
+    held[0].continue_()
+    expect(page.locator('[data-error-for="shape"]')).to_contain_text("apply it again")
+    assert ui.state("JSON.stringify(s.show.formations)") == shows

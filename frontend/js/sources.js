@@ -214,6 +214,7 @@ export class Sources {
       const button = /** @type {HTMLButtonElement} */ (form.querySelector("button[type=submit]"));
       button.disabled = true;
       button.setAttribute("aria-busy", "true");
+      const target = st.formation;
       try {
         const res = await api.buildFormation(source, body, file);
         const label = key === "shape" ? `Shape: ${body.kind}` : key === "text" ? `Text "${body.text.slice(0, 20)}"` : `From ${file.name}`;
@@ -222,14 +223,9 @@ export class Sources {
           made.file = file.name;
           uploads.set(file.name, file);
         }
-        st.edit(label, () => {
-          st.formation.points = roundPoints(res.points);
-          st.formation.colors = res.colors;
-          st.formation.source = { ...made, fingerprint: fingerprint(st.formation.points) };
-          st.selection = new Set();
-        });
-        this.view.fit();
-        toast(`${label}: ${res.points.length} points, nearest pair ${res.min_spacing_m != null ? res.min_spacing_m.toFixed(2) + " m" : "—"}`);
+        const where = this._replace(key, label, target, res, made);
+        if (where == null) return;
+        toast(`${label}${where}: ${res.points.length} points, nearest pair ${res.min_spacing_m != null ? res.min_spacing_m.toFixed(2) + " m" : "—"}`);
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
@@ -245,6 +241,37 @@ export class Sources {
         button.removeAttribute("aria-busy");
       }
     });
+  }
+
+  /**
+   * Replace the points of formation `target` (the one current when the server was asked) with what it built.
+   * The designer may have moved on meanwhile: the points go to that formation wherever it now is, not to the
+   * current one; when it is gone (deleted, undone, another show opened) nothing changes and the form says so.
+   * @param {string} key the form's error slot
+   * @param {string} label the undo step's name
+   * @param {any} target the formation object the request was made for
+   * @param {{points: number[][], colors: string[]}} res the server's formation
+   * @param {any} made the formation's `source` (without its fingerprint)
+   * @returns {string|null} "" when it was the current formation, ` → "name"` for another one, null when gone
+   */
+  _replace(key, label, target, res, made) {
+    const st = this.state;
+    const k = st.show ? st.show.formations.indexOf(target) : -1;
+    if (k < 0) {
+      setError(key, `Not applied: "${target.name}" changed while the points were being made (undone, deleted `
+        + "or another show opened); apply it again.");
+      return null;
+    }
+    st.edit(label, () => {
+      const f = st.show.formations[k];
+      f.points = roundPoints(res.points);
+      f.colors = res.colors;
+      f.source = { ...made, fingerprint: fingerprint(f.points) };
+      if (k === st.current) st.selection = new Set();
+    });
+    if (k !== st.current) return ` → "${target.name}"`;
+    this.view.fit();
+    return "";
   }
 
   /**
@@ -274,19 +301,15 @@ export class Sources {
       const button = /** @type {HTMLButtonElement} */ (form.querySelector("button[type=submit]"));
       button.disabled = true;
       button.setAttribute("aria-busy", "true");
+      const target = st.formation;
       try {
         const res = /** @type {any} */ (await api.buildFormation(/** @type {any} */ ("mesh"), body, file));
         uploads.set(file.name, file);
         const label = `From ${file.name}`;
-        st.edit(label, () => {
-          st.formation.points = roundPoints(res.points);
-          st.formation.colors = res.colors;
-          st.formation.source = { kind: "mesh", params: withoutCount(body), file: file.name,
-            fingerprint: fingerprint(st.formation.points) };
-          st.selection = new Set();
-        });
-        this.view.fit();
-        toast(`${label}: ${res.points.length} points, ${res.size_m != null ? res.size_m.toFixed(1) + " m across" : ""}`);
+        const where = this._replace("mesh", label, target, res,
+          { kind: "mesh", params: withoutCount(body), file: file.name });
+        if (where == null) return;
+        toast(`${label}${where}: ${res.points.length} points, ${res.size_m != null ? res.size_m.toFixed(1) + " m across" : ""}`);
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
