@@ -4,7 +4,7 @@
 
 import * as api from "./api.js";
 import { clearShowErrors, showShowErrors } from "./errors.js";
-import { fmt, summaryTable } from "./summary.js";
+import { fmt, plannerText, summaryTable } from "./summary.js";
 
 const LIMIT_ROWS = [
   ["Minimum distance", "min_distance_m", "min_distance_m", "m", "min"],
@@ -222,7 +222,8 @@ export class ReportPanel {
       sum.textContent = groupTitle(g);
       det.append(sum);
       if (g.stagger_s > 0 || g.resolution) {
-        det.append(this._p("muted", `${g.resolution ? `Planner: ${g.resolution}. ` : ""}${g.stagger_s > 0 ? `Stagger added: ${fmt(g.stagger_s, 1)} s.` : ""}`));
+        det.append(this._p("muted", [plannerText(g.resolution), g.stagger_s > 0 ? `Stagger added: ${fmt(g.stagger_s, 1)} s.` : ""]
+          .filter(Boolean).join(" ")));
       }
       if (!g.ok) {
         det.append(this._fixes(g));

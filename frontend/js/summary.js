@@ -11,6 +11,24 @@ export function fmt(v, digits = 2, unit = "") {
   return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
 }
 
+/** How the planner flew a transition (``TransitionInfo.resolution`` in sim.plan), in plain words. */
+const PLANNER_TEXT = {
+  none: "Every drone flies a straight line, all of them together.",
+  delays: "Straight lines; some drones leave later or fly slower so that every pair keeps its distance.",
+  layers: "The formations are spread apart, crossed and contracted again so that every pair keeps its distance.",
+  unresolved: "The planner could not make every pair keep its distance (see below).",
+};
+
+/**
+ * The check report's line on how the planner flew a transition ("Planner: none." read as if no planner ran).
+ * @param {string} resolution the report group's `resolution` ("" when the planner did not say)
+ * @returns {string} a sentence, or "" when there is nothing to say
+ */
+export function plannerText(resolution) {
+  if (!resolution) return "";
+  return Object.hasOwn(PLANNER_TEXT, resolution) ? PLANNER_TEXT[resolution] : `Planner: ${resolution}.`;
+}
+
 /**
  * A summary's heading (the ✓ or ✗ line) and its two-column table, as the check report and
  * the flight and Monte-Carlo summaries show them.
