@@ -157,3 +157,26 @@ def test_a_shape_lands_on_the_formation_it_was_made_for(ui):
     held[0].continue_()
     expect(page.locator('[data-error-for="shape"]')).to_contain_text("apply it again")
     assert ui.state("JSON.stringify(s.show.formations)") == shows
+
+
+def test_a_hold_the_show_file_refuses_is_refused_with_its_reason(ui):
+    """QA (a designer's session): typing 0 in a hold was put back silently, and 1e9 was taken, making the show a draft
+    that the check then refused ("hold s: Input should be less than or equal to 86400")."""
+    from formations._show import MAX_SHOW_TIME_S, MIN_DURATION_S
+
+    page = ui.page
+    show_id = _store(ui.base, show_doc("Holds"))
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("Holds")
+    hold = page.get_by_label("Hold time of formation 1, seconds")
+    toast = page.locator("#toast")
+    for typed, words in (("0", f"at least {MIN_DURATION_S:g} s"), ("1e9", f"at most {MAX_SHOW_TIME_S:g} s"),
+                         (str(MIN_DURATION_S / 2), "at least")):
+        hold.fill(typed)
+        hold.press("Enter")
+        expect(toast).to_contain_text(f'Hold of "square" must be {words}')
+        expect(hold).to_have_value("1")
+        assert ui.state("s.show.formations[0].hold_s") == 1
+    hold.fill(str(MAX_SHOW_TIME_S))
+    hold.press("Enter")
+    page.wait_for_function(f"() => window.swarmshow.state.show.formations[0].hold_s === {MAX_SHOW_TIME_S:g}")

@@ -25,7 +25,7 @@ import { ShowsDialog } from "./shows.js";
 import { SimulatePanel } from "./simulate.js";
 import { Sources } from "./sources.js";
 import { closePairs } from "./spacing.js";
-import { EditorState } from "./state.js";
+import { EditorState, durationProblem } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { TOOLS, Tools } from "./tools.js";
 import { keepUndoAcrossReloads } from "./undostore.js";
@@ -50,9 +50,10 @@ timeline.onTransition = async (k) => {
   );
   if (text === null) return;
   const v = Number(text);
+  const problem = durationProblem(v);
   if (text === "") timeline.setTransition(k, null);
-  else if (v > 0 && Number.isFinite(v)) timeline.setTransition(k, v);
-  else toast("The duration must be a positive number of seconds", { error: true });
+  else if (!problem) timeline.setTransition(k, v);
+  else toast(`The transition into "${f.name}" ${problem}`, { error: true });
 };
 
 function status(msg, error = false) {

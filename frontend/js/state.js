@@ -71,6 +71,22 @@ export function spliceDiff(before, after) {
   return { start, before: before.slice(start, endB), after: after.slice(start, endA) };
 }
 
+/** Shortest and longest hold or transition the show file takes, seconds (formations/_show.py: MIN_DURATION_S, 86,400). */
+export const MIN_DURATION_S = 0.01;
+export const MAX_DURATION_S = 86_400;
+
+/**
+ * What is wrong with a typed hold or transition duration, or "" when the show file takes it.
+ * @param {number} seconds
+ * @returns {string}
+ */
+export function durationProblem(seconds) {
+  if (!Number.isFinite(seconds)) return "must be a number of seconds";
+  if (seconds < MIN_DURATION_S) return `must be at least ${MIN_DURATION_S} s`;
+  if (seconds > MAX_DURATION_S) return `must be at most ${MAX_DURATION_S} s (24 hours)`;
+  return "";
+}
+
 /**
  * Where an open show is stored: its id and revision, whether it is a draft (and what is wrong), and whether it
  * has music (the music lane asks for the track only then: asking a show without music is a 404).

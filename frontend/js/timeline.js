@@ -2,8 +2,9 @@
 // The timeline: formations in order with hold times and names; add, duplicate, drag to reorder,
 // delete; the planned transition durations between them once the show has been checked.
 
+import { toast } from "./dialogs.js";
 import { flyingCount } from "./groups.js";
-import { formationColors } from "./state.js";
+import { durationProblem, formationColors } from "./state.js";
 
 /**
  * A valid starting formation: a near-square grid of `n` points facing the audience, spaced 1.5x
@@ -280,8 +281,14 @@ export class Timeline {
       hold.title = `The hold lasts until the departure pin at ${f.leave_at_s} s`;
     }
     hold.addEventListener("change", () => setTimeout(() => {
-      const v = Number(hold.value);
-      if (!(v > 0)) { hold.value = String(f.hold_s); return; }
+      const v = hold.value.trim() === "" ? NaN : Number(hold.value);
+      const problem = durationProblem(v);
+      if (problem) {
+        // Refused here, with the reason (it used to be put back silently, or saved as a draft above 24 hours).
+        hold.value = String(f.hold_s);
+        toast(`Hold of "${f.name}" ${problem}; kept ${f.hold_s} s`, { error: true });
+        return;
+      }
       st.edit("Change hold time", () => { st.show.formations[k].hold_s = v; });
     }));
     holdLabel.append(" ", hold, " s");

@@ -104,3 +104,13 @@ test("a rollback restores the checkpoint and a failed edit leaves no step", () =
   assert.equal(text(state), before);
   assert.equal(state.undoStack.length, 0);
 });
+
+test("a hold or transition duration the show file refuses is named before it is stored", async () => {
+  const { durationProblem, MIN_DURATION_S, MAX_DURATION_S } = await import("../../frontend/js/state.js");
+  for (const ok of [MIN_DURATION_S, 0.5, 5, MAX_DURATION_S]) assert.equal(durationProblem(ok), "", String(ok));
+  for (const bad of [0, -1, MIN_DURATION_S / 2, MAX_DURATION_S + 0.5, 1e9, NaN, Infinity]) {
+    assert.notEqual(durationProblem(bad), "", String(bad));
+  }
+  assert.match(durationProblem(1e9), /at most 86400 s/);
+  assert.match(durationProblem(0), /at least 0.01 s/);
+});
