@@ -865,6 +865,16 @@ def show_json_schema() -> dict[str, Any]:
 
 
 _AXES = {0: "x", 1: "y", 2: "z"}
+#: A field's unit suffix in plain words ('hold_s' -> 'hold (s)', not 'hold s').
+_UNITS = {"s": "s", "m": "m", "mps": "m/s", "mps2": "m/s²", "mps3": "m/s³", "deg": "°", "rad": "rad", "hz": "Hz"}
+
+
+def _plain_key(key: str) -> str:
+    """A field name in words, its unit suffix in brackets: 'max_accel_mps2' -> 'max accel (m/s²)'."""
+    stem, _, suffix = key.rpartition("_")
+    if stem and suffix in _UNITS:
+        return f"{stem.replace('_', ' ')} ({_UNITS[suffix]})"
+    return key.replace("_", " ")
 _NAMED_LISTS = {"formations": "formation", "points": "point", "colors": "colour", "lights": "light",
                 "home": "home position"}
 
@@ -886,7 +896,7 @@ def plain_path(path: str, show: Any = None) -> str:
             node = node.get(key) if isinstance(node, dict) else None
             pending = key.replace("_", " ") if key in _NAMED_LISTS else ""
             if key not in _NAMED_LISTS:
-                words.append(key.replace("_", " "))
+                words.append(_plain_key(key))
             continue
         pending = ""
         i = int(index)

@@ -99,7 +99,7 @@ def test_create_as_draft_and_what_a_draft_cannot_be(client):
     assert body["draft"] is True and body["name"] == "half" and body["drones"] == 4 and body["formations"] == 1
     assert {p["path"] for p in body["problems"]} == {e["path"] for e in _strict_problems(doc)}
     wheres = {p["where"] for p in body["problems"]}
-    assert 'formation 1 "square", hold s' in wheres and "home" in wheres
+    assert 'formation 1 "square", hold (s)' in wheres and "home" in wheres
     # Not a JSON object, or not JSON at all: nothing to keep, even as a draft.
     for content in (b"[1, 2]", b"{not json"):
         r = client.post("/api/shows", params={"draft": "true"}, content=content,
@@ -132,8 +132,10 @@ def test_a_large_draft_is_validated_in_a_worker_too(client):
 
 @pytest.mark.parametrize(("path", "words"), [
     ("formations[1].points[5][2]", 'formation 2 "B", point 6, z'),
-    ("formations[0].hold_s", 'formation 1 "A", hold s'),
-    ("settings.min_distance_m", "settings, min distance m"),
+    ("formations[0].hold_s", 'formation 1 "A", hold (s)'),
+    ("settings.min_distance_m", "settings, min distance (m)"),
+    ("settings.max_accel_mps2", "settings, max accel (m/s²)"),
+    ("settings.geo.heading_deg", "settings, geo, heading (°)"),
     ("home.grid.rows", "home, grid, rows"),
     ("formations[7].colors[3]", "formation 8, colour 4"),
     ("", "the show"),
