@@ -180,3 +180,28 @@ def test_a_hold_the_show_file_refuses_is_refused_with_its_reason(ui):
     hold.fill(str(MAX_SHOW_TIME_S))
     hold.press("Enter")
     page.wait_for_function(f"() => window.swarmshow.state.show.formations[0].hold_s === {MAX_SHOW_TIME_S:g}")
+
+
+def test_the_preview_opens_at_the_selected_formation(ui):
+    """QA (a designer's session): with the third formation selected (just drawn), "3D preview" opened at 0 s on the
+    ground; the timeline and the preview share one playhead, so it opens at that formation's hold (the first
+    formation: from the start, takeoff included)."""
+    from tests.test_viewer_editor_browser import _hold_starts
+    from tests.test_viewer_editor_browser import _store as store_three
+
+    page = ui.page
+    show_id = store_three(ui.base, "Three")
+    page.goto(f"{ui.base}/?show={show_id}")
+    expect(page.locator("#show-title")).to_have_text("Three")
+    page.get_by_label("Name of formation 3").click()
+    page.wait_for_function("() => window.swarmshow.state.current === 2")
+    page.locator("#btn-preview").click()
+    hold = _hold_starts(ui.base, show_id)[2]
+    state = "() => window.swarmshow.playhead.preview.viewerState()"
+    wait_until("the preview at formation 3's hold", lambda: (s := page.evaluate(state)) and abs(s["time_s"] - hold) < 0.06,
+               timeout_s=90)
+    # Reloading it keeps to the selected formation; closed and opened on the first formation, it starts at 0 s.
+    page.get_by_label("Name of formation 1").click()
+    page.locator("#btn-preview-close").click()
+    page.locator("#btn-preview").click()
+    wait_until("the preview from the start", lambda: (s := page.evaluate(state)) and s["time_s"] == 0, timeout_s=90)

@@ -54,6 +54,8 @@ export class Playhead {
     state.addEventListener("change", (/** @type {CustomEvent} */ e) => {
       if (e.detail.kind === "current") this._onCurrent();
     });
+    /** @type {string|null} the preview page last seen (a new one may have to start at the selected formation) */
+    this._page = null;
     this._timer = setInterval(() => this._poll(), POLL_MS);
   }
 
@@ -116,6 +118,12 @@ export class Playhead {
 
   _poll() {
     const vs = this.preview.viewerState();
+    if (vs && vs.token !== this._page) {
+      this._page = vs.token;
+      const k = this.preview.startFormation;
+      this.preview.startFormation = null;
+      if (k != null && k > 0) this.seek({ formation: k });
+    }
     this.readout.textContent = vs ? `3D ${vs.playing ? "▶" : "‖"} ${vs.time_s.toFixed(1)} s` : "";
     this._mark(vs);
   }

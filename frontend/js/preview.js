@@ -27,6 +27,8 @@ export class Preview {
       localStorage.setItem("swarmshow.previewOver", this.over.checked ? "1" : "0");
       this._layout();
     });
+    /** @type {number|null} the formation whose hold a new viewer page starts at (the playhead seeks it there) */
+    this.startFormation = null;
     document.getElementById("btn-preview-close").addEventListener("click", () => this.close());
     document.getElementById("btn-preview-reload").addEventListener("click", () => this.load());
   }
@@ -98,6 +100,9 @@ export class Preview {
   async load(run) {
     setError("preview", "");
     const st = this.state;
+    // The timeline and the preview share one playhead: a new page starts at the selected formation's hold
+    // (the first formation: from the start, takeoff included); a Monte-Carlo run plays from the start.
+    this.startFormation = run ? null : st.current;
     if (st.meta) {
       if (!(await this.persist.ensureSaved())) {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");
