@@ -198,9 +198,9 @@ def test_the_preview_opens_at_the_selected_formation(ui):
     page.locator("#btn-preview").click()
     hold = _hold_starts(ui.base, show_id)[2]
     state = "() => window.swarmshow.playhead.preview.viewerState()"
-    wait_until("the preview at formation 3's hold", lambda: (s := page.evaluate(state)) and abs(s["time_s"] - hold) < 0.06,
-               timeout_s=90)
-    # Reloading it keeps to the selected formation; closed and opened on the first formation, it starts at 0 s.
+    wait_until("the preview at formation 3's hold",
+               lambda: (s := page.evaluate(state)) and abs(s["time_s"] - hold) < 0.06, timeout_s=90)
+    # Closed and opened again on the first formation, it starts at 0 s.
     page.get_by_label("Name of formation 1").click()
     page.locator("#btn-preview-close").click()
     page.locator("#btn-preview").click()

@@ -250,6 +250,7 @@ def test_cli_and_api_share_the_origin_and_heading_rules(show, tmp_path, capsys, 
     # The API's query bound is the shared constant.
     schema = api.get("/api/openapi.json").json()["paths"]["/api/shows/{show_id}/export/{fmt}"]["get"]["parameters"]
     heading = next(p for p in schema if p["name"] == "heading_deg")["schema"]
+    heading = next(s for s in heading.get("anyOf", [heading]) if s.get("type") == "number")  # optional: or null
     assert heading["maximum"] == MAX_HEADING_DEG and heading["minimum"] == -MAX_HEADING_DEG
 
     def cli(origin: str, heading: str) -> tuple[int, bytes | None]:
@@ -278,3 +279,32 @@ def test_cli_and_api_share_the_origin_and_heading_rules(show, tmp_path, capsys, 
         assert code == 2 and data is None and status == 422, (origin, heading, code, status)
         field = "heading_deg" if heading not in ("0",) else "origin"
         assert json.loads(body)["detail"][0]["path"] == field, (origin, heading, body)
+
+
+def test_an_explicit_heading_turns_a_show_with_a_stored_place(show, tmp_path, capsys, api):
+    """QA: with ``settings.geo`` in the show, ``--heading 90`` (and the API's ``heading_deg=90``) without an origin
+    was silently replaced by the stored heading. Given, it turns the show about its stored origin; not given, the
+    stored heading holds."""
+    doc = json.loads(dump_show(show))
+    doc["settings"]["geo"] = {"origin_lat_deg": 47.1, "origin_lon_deg": 8.2, "origin_alt_m": 12.0, "heading_deg": 30.0}
+    src = tmp_path / "geo.json"
+    src.write_text(json.dumps(doc))
+    sid = api.post("/api/shows", json=doc).json()["id"]
+
+    def cli(*extra: str) -> bytes:
+        out = tmp_path / "geo.waypoints"
+        out.unlink(missing_ok=True)
+        assert main(["export", str(src), "-f", "qgc-wpl", "-o", str(out), *extra]) == 0
+        capsys.readouterr()
+        return out.read_bytes()
+
+    def http(**params: str) -> bytes:
+        r = api.get(f"/api/shows/{sid}/export/qgc-wpl", params=params)
+        assert r.status_code == 200, r.text
+        return r.content
+
+    stored = cli("--origin", "47.1,8.2,12", "--heading", "30")
+    turned = cli("--origin", "47.1,8.2,12", "--heading", "90")
+    assert stored != turned
+    assert cli() == stored == http()
+    assert cli("--heading", "90") == turned == http(heading_deg="90")

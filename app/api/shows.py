@@ -443,7 +443,9 @@ async def export_show(
     fps: float | None = Query(None, gt=0, le=1000, description="Sample rate of trajectory formats, Hz."),
     origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
     # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
-    heading_deg: float = Query(0.0, ge=-360, le=360, description="Direction of the show's +y axis, degrees."),
+    heading_deg: float | None = Query(None, ge=-360, le=360, description=(
+        "Direction of the show's +y axis, degrees clockwise from north (default: the show's settings.geo "
+        "heading, else 0; given, it turns the show about its stored origin).")),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
     scale: float = Query(1.0, gt=0, le=10, description="Scale factor for positions (crazyswarm, indoor shows)."),
     offset: str | None = Query(None, description="'x,y,z' metres added after scaling (crazyswarm)."),
@@ -472,7 +474,9 @@ async def export_show(
         return Response(text, media_type="application/json", headers={
             "Content-Disposition": f'attachment; filename="{_slug(record.name)}.json"',
             "ETag": f'"{record.revision}"'})
-    options: dict[str, Any] = {"heading_deg": heading_deg, "source": source}
+    options: dict[str, Any] = {"source": source}
+    if heading_deg is not None:
+        options["heading_deg"] = heading_deg
     if fps is not None:
         options["fps"] = fps
     if origin is not None:

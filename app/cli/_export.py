@@ -35,8 +35,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--origin", default=None, metavar="LAT,LON[,ALT]",
                    help="WGS84 latitude, longitude (degrees) and altitude (m, default 0) of the show origin "
                    "(qgc-plan, qgc-wpl, skyc)")
-    p.add_argument("--heading", type=float, default=0.0, metavar="DEG",
-                   help="bearing of the show's +y axis, degrees clockwise from true north, within +-360 (default 0)")
+    p.add_argument("--heading", type=float, default=None, metavar="DEG",
+                   help="bearing of the show's +y axis, degrees clockwise from true north, within +-360 (default: "
+                   "the show's settings.geo heading, else 0; without --origin it turns the show about its stored "
+                   "origin)")
     p.add_argument("--source", choices=("planned", "simulated"), default="planned",
                    help="planned trajectory (default) or the simulated flight (sampled formats)")
     p.add_argument("--audio", default=None, metavar="FILE",
@@ -107,7 +109,8 @@ def _export(args: argparse.Namespace) -> int:
     if args.format not in EXPORT_FORMATS:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
     origin = parse_origin(args.origin) if args.origin is not None else None
-    check_heading_arg(args.heading)
+    if args.heading is not None:
+        check_heading_arg(args.heading)
     target = _target_dir_check(args.output)
     show = load_show_arg(args.show)
     audio = load_audio_arg(args.audio) if args.audio is not None else None

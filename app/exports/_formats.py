@@ -50,7 +50,7 @@ def export_show(
     *,
     fps: float | None = None,
     origin: tuple[float, float, float] | None = None,
-    heading_deg: float = 0.0,
+    heading_deg: float | None = None,
     source: Source = "planned",
     plan: ShowPlan | None = None,
     flight: Any = None,
@@ -67,7 +67,9 @@ def export_show(
         fmt: format name, a key of :data:`EXPORT_FORMATS`.
         fps: sampling rate of sampled formats, frames per second (``None``: the format's default).
         origin: ``(latitude_deg, longitude_deg, altitude_m)`` of the local origin (QGroundControl formats).
-        heading_deg: bearing of the show's +y axis, degrees clockwise from true north.
+        heading_deg: bearing of the show's +y axis, degrees clockwise from true north (None: the show's
+            ``settings.geo.heading_deg``, else 0). Given without an ``origin``, it turns the show about its
+            stored origin (it used to be replaced by the stored heading).
         source: ``"planned"`` or ``"simulated"`` (sampled formats only).
         plan: the show's plan if already computed (else planned here).
         flight: the simulated flight if already computed (else flown here when needed).
@@ -83,7 +85,13 @@ def export_show(
     Raises:
         ExportError: unknown format, bad option, or a show that cannot be planned.
     """
-    options = ExportOptions(fps=fps, origin=origin, heading_deg=heading_deg, source=source, audio=audio,
+    geo = show.settings.geo
+    if origin is None and geo is not None:
+        # The show's stored place on Earth, with the heading the caller gave, if any.
+        origin = (geo.origin_lat_deg, geo.origin_lon_deg, geo.origin_alt_m)
+        heading_deg = geo.heading_deg if heading_deg is None else heading_deg
+    options = ExportOptions(fps=fps, origin=origin, heading_deg=0.0 if heading_deg is None else heading_deg,
+                            source=source, audio=audio,
                             scale=scale, offset_m=offset_m)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
