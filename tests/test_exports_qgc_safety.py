@@ -52,10 +52,25 @@ def _plan_items(doc: dict) -> list:
     return out
 
 
-def _replays(items_by_drone: list[list]):
+def read_limits(parm: bytes, tmp_path):
+    """The WPNAV limits of the export's ``wpnav.parm``, read by pymavlink's parameter-file reader."""
+    from pymavlink import mavparm
+
+    from tests.wpnav_replay import Limits
+
+    path = tmp_path / "wpnav.parm"
+    path.write_bytes(parm)
+    p = mavparm.MAVParmDict()
+    p.load(str(path))
+    return Limits(speed_mps=p["WPNAV_SPEED"] / 100, speed_up_mps=p["WPNAV_SPEED_UP"] / 100,
+                  speed_dn_mps=p["WPNAV_SPEED_DN"] / 100, accel_mps2=p["WPNAV_ACCEL"] / 100,
+                  accel_z_mps2=p["WPNAV_ACCEL_Z"] / 100, jerk_mps3=p["WPNAV_JERK"])
+
+
+def _replays(items_by_drone: list[list], lim):
     from tests.wpnav_replay import replay
 
-    return [replay(items[1:], items[0][3], sample_s=0.01) for items in items_by_drone]
+    return [replay(items[1:], items[0][3], lim, sample_s=0.01) for items in items_by_drone]
 
 
 def brute_force_lost_pairs(reps, plan, min_d: float) -> tuple[float, list[tuple[int, int, float, float]]]:
@@ -86,14 +101,16 @@ def brute_force_lost_pairs(reps, plan, min_d: float) -> tuple[float, list[tuple[
     return closest, sorted(((i, j, d, t) for (i, j), (d, t) in worst.items()), key=lambda x: x[2])
 
 
-def _check_show(show, tmp_path) -> dict:
-    plan = plan_show(show)
+def check_show(show, tmp_path, plan=None) -> dict:
+    """Export both formats, read them back, check they agree, replay and brute-force every pair."""
+    plan = plan or plan_show(show)
     min_d = show.settings.min_distance_m
     wpl = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
     with zipfile.ZipFile(io.BytesIO(wpl.content)) as z:
         names = sorted(n for n in z.namelist() if n.endswith(".waypoints"))
         by_wpl = [_wpl_items(z.read(n), tmp_path, n) for n in names]
         manifest = json.loads(z.read("manifest.json"))
+        lim = read_limits(z.read("wpnav.parm"), tmp_path)
     plan_zip = export_show(show, "qgc-plan", plan=plan, origin=ORIGIN, heading_deg=HEADING)
     with zipfile.ZipFile(io.BytesIO(plan_zip.content)) as z:
         by_plan = [_plan_items(json.loads(z.read(n[: -len(".waypoints")] + ".plan"))) for n in names]
@@ -103,14 +120,20 @@ def _check_show(show, tmp_path) -> dict:
         assert np.allclose([x[1:3] for x in a], [x[1:3] for x in b], atol=1e-3)
         nav = [k for k, x in enumerate(a) if x[0] in (16, 21, 22)]
         assert max(float(np.linalg.norm(a[k][3] - b[k][3])) for k in nav) <= 0.05
-    closest, lost = brute_force_lost_pairs(_replays(by_wpl), plan, min_d)
+    closest, lost = brute_force_lost_pairs(_replays(by_wpl, lim), plan, min_d)
     assert not lost, f"{len(lost)} pair(s) lost min_distance_m in the replay, closest {lost[:5]}"
     assert manifest["replay"]["close_pair_count"] == 0
     assert not any("closer than min_distance_m" in w for w in wpl.warnings + plan_zip.warnings)
-    return {"closest_m": closest, "manifest": manifest}
+    # The missions stay within what ArduPilot stores, and the limits within the show's.
+    assert manifest["replay"]["max_items"] == max(len(x) - 1 for x in by_wpl) <= 700
+    s = show.settings
+    assert lim.speed_mps <= s.max_speed_xy_mps and lim.speed_up_mps <= s.max_speed_z_mps
+    assert lim.accel_mps2 * 2**0.5 <= s.max_accel_mps2 + 0.01 and lim.accel_z_mps2 <= s.max_accel_mps2 + 0.01
+    assert lim.jerk_mps3 <= s.max_jerk_mps3
+    return {"closest_m": closest, "manifest": manifest, "items": by_wpl}
 
 
 @pytest.mark.parametrize("make", [load_demo_show, lambda: benchmark_show(36, formations=4)],
                          ids=["demo", "benchmark_show-36"])
 def test_missions_flown_as_exported_keep_min_distance(make, tmp_path):
-    _check_show(make(), tmp_path)
+    check_show(make(), tmp_path)
