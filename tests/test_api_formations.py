@@ -5,10 +5,13 @@ from __future__ import annotations
 import io
 import math
 import struct
+import unicodedata
 import zlib
 
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from app.server import create_app
 from app.settings import AppSettings
@@ -190,3 +193,16 @@ def test_text_and_shape_formations_are_named_after_what_they_show(client):
     assert r.status_code == 200 and name.startswith("A" * 30) and name.endswith("…") and len(name) <= 41
     r = client.post("/api/formations/shape", json={"kind": "heart", "n": 12, "size_m": 30})
     assert r.status_code == 200 and r.json()["name"] == "heart"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=300), st.sampled_from(["image", "svg", "mesh", "text", "shape"]))
+def test_source_names_are_short_clean_and_never_empty(raw, kind):
+    from formations import source_name
+
+    name = source_name(kind, filename=raw) if kind in ("image", "svg", "mesh") else source_name(kind, text=raw)
+    assert 1 <= len(name) <= 40 and name == name.strip()
+    assert not any(unicodedata.category(c).startswith("C") for c in name)
+    assert "  " not in name
+    if kind in ("image", "svg", "mesh"):
+        assert "/" not in name and "\\" not in name
