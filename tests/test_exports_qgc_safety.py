@@ -26,6 +26,9 @@ ORIGIN = (47.397742, 8.545594, 488.0)
 HEADING = 20.0
 #: Dense sampling of the brute-force pair check, seconds.
 DENSE_S = 0.02
+#: What the files' coordinates resolve (latitude / longitude to 1e-10 degree, about 11 µm; altitude to
+#: 0.1 mm): a pair read back that much under min_distance_m is rounding, not lost.
+FILE_PRECISION_M = 1e-4
 
 
 def _wpl_items(text: bytes, tmp_path, name: str) -> list:
@@ -93,7 +96,8 @@ def brute_force_lost_pairs(reps, plan, min_d: float) -> tuple[float, list[tuple[
         d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)[:, iu[0], iu[1]]
         dp = np.linalg.norm(ref[:, :, None] - ref[:, None], axis=-1)[:, iu[0], iu[1]]
         closest = min(closest, float(d.min()))
-        bad = (d < min_d) & (dp >= min_d)
+        # Closer by more than the files' rounding where the plan keeps the pair apart (to 1 µm).
+        bad = (d < min_d - FILE_PRECISION_M) & (dp >= min_d - 1e-6)
         for k, p in zip(*np.nonzero(bad), strict=True):
             key = (int(iu[0][p]), int(iu[1][p]))
             if key not in worst or d[k, p] < worst[key][0]:
@@ -137,3 +141,16 @@ def check_show(show, tmp_path, plan=None) -> dict:
                          ids=["demo", "benchmark_show-36"])
 def test_missions_flown_as_exported_keep_min_distance(make, tmp_path):
     check_show(make(), tmp_path)
+
+
+def test_parked_drones_exactly_min_distance_apart_are_no_lost_pair(tmp_path):
+    """Homes on a grid spaced exactly min_distance_m (the default layout): drones waiting there, before
+    and after the show, are as far apart as the plan has them, not a pair lost to rounding."""
+    from tests.conftest import fibonacci_sphere, make_show, ring
+
+    show = make_show([{"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
+                      {"name": "sphere", "hold_s": 2.0, "points": fibonacci_sphere(16, 9.0), "color": "#00ff00"}],
+                     drones=16, rows=4, cols=4, spacing_m=3.0)
+    assert show.settings.min_distance_m == 3.0
+    out = check_show(show, tmp_path)
+    assert out["closest_m"] == pytest.approx(3.0, abs=FILE_PRECISION_M)  # the parked grid itself
