@@ -76,8 +76,11 @@ MAX_LISTED_PAIRS = 1000
 LATE_WARN_S = 1.0
 #: Items per mission past which the export warns (ArduPilot boards keeping missions in FRAM hold ~700).
 MAX_ITEMS = 700
-#: How far a planned path may stray from its waypoint legs, as a share of min_distance_m.
-PATH_TOLERANCE_SHARE = 0.03
+#: How far a planned path may stray from its waypoint legs, as shares of min_distance_m, tried in turn
+#: while the replay loses pairs: a curved (blended) path cut finely is flown with a stop at every cut,
+#: which makes the drone late; cut coarsely it strays from the plan's path. The first is the common case
+#: (straight legs: no cut at all).
+PATH_TOLERANCE_SHARES = (0.03, 0.1, 0.33)
 
 _README = """\
 QGroundControl missions (one per drone) made by swarmshow: {kind}.
@@ -153,12 +156,33 @@ def _wpnav_of_parameters(p: dict[str, float]) -> Wpnav:
                  accel_z_mps2=p["WPNAV_ACCEL_Z"] / 100, jerk_mps3=p["WPNAV_JERK"])
 
 
-def timed_mission(ctx: ExportContext) -> Mission:
-    """Every drone's mission from its planned motion, timed at the show's WPNAV (:mod:`app.exports._wpnav`)."""
+@dataclass
+class Timed:
+    """The missions chosen, the replay's lost pairs ``(i, j, distance_m, time_s)``, its sampling step and
+    the path tolerance used (metres)."""
+
+    mission: Mission
+    pairs: list[tuple[int, int, float, float]]
+    dt_s: float
+    tol_m: float
+
+
+def timed_mission(ctx: ExportContext) -> Timed:
+    """Every drone's mission from its planned motion, timed at the show's WPNAV (:mod:`app.exports._wpnav`),
+    and replayed; with the next path tolerance while pairs are lost, keeping the one that loses fewest."""
     s = ctx.show.settings
     w = _wpnav_of_parameters(wpnav_parameters(show_wpnav(s)))
-    legs = plan_legs(ctx.plan, tol_m=PATH_TOLERANCE_SHARE * s.min_distance_m)
-    return time_mission(legs, w.speed_mps, w.speed_up_mps, w.speed_dn_mps, w)
+    best: Timed | None = None
+    for share in PATH_TOLERANCE_SHARES:
+        tol = share * s.min_distance_m
+        mission = time_mission(plan_legs(ctx.plan, tol_m=tol), w.speed_mps, w.speed_up_mps, w.speed_dn_mps, w)
+        pairs, dt = close_pairs(mission, ctx.plan, s.min_distance_m)
+        if best is None or len(pairs) < len(best.pairs):
+            best = Timed(mission, pairs, dt, tol)
+        if not pairs:
+            break
+    assert best is not None
+    return best
 
 
 @dataclass
@@ -230,11 +254,11 @@ def _geodetic_items(ctx: ExportContext, mission: Mission) -> tuple[tuple[float, 
     return origin, items
 
 
-def replay_report(ctx: ExportContext, mission: Mission, items: Items) -> dict:
-    """Replay the missions; warn (naming pairs) where they lose min_distance_m or the plan's timing."""
+def replay_report(ctx: ExportContext, timed: Timed, items: Items) -> dict:
+    """The replay's findings; warn (naming pairs) where the missions lose min_distance_m or the plan's timing."""
     s = ctx.show.settings
     names = ctx.drone_names
-    pairs, dt = close_pairs(mission, ctx.plan, s.min_distance_m)
+    mission, pairs, dt = timed.mission, timed.pairs, timed.dt_s
     legs = mission.legs
     late = (mission.arrive_s - legs.arrive_s)[1:-1][legs.real[1:-1]]
     worst = float(late.max(initial=0.0))
@@ -245,7 +269,7 @@ def replay_report(ctx: ExportContext, mission: Mission, items: Items) -> dict:
                  "wpnav.parm",
         "wpnav": wpnav_parameters(mission.wpnav),
         "sample_interval_s": dt,
-        "path_tolerance_m": round(PATH_TOLERANCE_SHARE * s.min_distance_m, 4),
+        "path_tolerance_m": round(timed.tol_m, 4),
         "path_deviation_m": round(legs.max_deviation_m, 4),
         "max_items": int(counts.max(initial=0)),
         "worst_arrival_late_s": round(worst, 3),
@@ -298,8 +322,8 @@ def export_qgc_plan(ctx: ExportContext) -> ExportResult:
     """Build the zip of QGroundControl ``.plan`` files (see the module docstring)."""
     require_planned(ctx)
     require_still_holds(ctx)
-    mission = timed_mission(ctx)
-    origin, it = _geodetic_items(ctx, mission)
+    timed = timed_mission(ctx)
+    origin, it = _geodetic_items(ctx, timed.mission)
     ctx.progress(0.15)
     fence = {"version": 2, "circles": [], "polygons": [{"inclusion": True, "polygon": _fence(ctx, origin),
                                                          "version": 1}]}
@@ -345,7 +369,7 @@ def export_qgc_plan(ctx: ExportContext) -> ExportResult:
         z.add(f"{names[i]}.plan", json.dumps(doc, indent=2, allow_nan=False) + "\n")
         if i % 256 == 255:
             ctx.progress(0.15 + 0.5 * (i + 1) / n)
-    _finish(ctx, z, "qgc-plan", origin, mission, it)
+    _finish(ctx, z, "qgc-plan", origin, timed, it)
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}-qgc-plan.zip", media_type="application/zip", content=z.finish(),
         warnings=list(ctx.warnings),
@@ -356,8 +380,8 @@ def export_qgc_wpl(ctx: ExportContext) -> ExportResult:
     """Build the zip of ``QGC WPL 110`` waypoint files (see the module docstring)."""
     require_planned(ctx)
     require_still_holds(ctx)
-    mission = timed_mission(ctx)
-    origin, it = _geodetic_items(ctx, mission)
+    timed = timed_mission(ctx)
+    origin, it = _geodetic_items(ctx, timed.mission)
     ctx.progress(0.15)
     names = ctx.drone_names
     n = ctx.show.drones
@@ -379,16 +403,16 @@ def export_qgc_wpl(ctx: ExportContext) -> ExportResult:
         z.add(f"{names[i]}.waypoints", "QGC WPL 110\n" + (row * w) % tuple(flat))
         if i % 256 == 255:
             ctx.progress(0.15 + 0.5 * (i + 1) / n)
-    _finish(ctx, z, "qgc-wpl", origin, mission, it)
+    _finish(ctx, z, "qgc-wpl", origin, timed, it)
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}-qgc-wpl.zip", media_type="application/zip", content=z.finish(),
         warnings=list(ctx.warnings),
     )
 
 
-def _finish(ctx: ExportContext, z: ZipBuilder, fmt: str, origin, mission: Mission, items: Items) -> None:
+def _finish(ctx: ExportContext, z: ZipBuilder, fmt: str, origin, timed: Timed, items: Items) -> None:
     kind = "QGroundControl .plan files" if fmt == "qgc-plan" else "QGC WPL 110 .waypoints files"
-    replay = replay_report(ctx, mission, items)
+    replay = replay_report(ctx, timed, items)
     ctx.progress(0.95)
     parameters = replay["wpnav"]
     z.add("wpnav.parm", "".join(f"{k},{v:g}\n" for k, v in parameters.items()))

@@ -506,7 +506,9 @@ def close_pairs(mission: Mission, plan, min_distance_m: float, *, max_samples: i
         ref = np.empty((n, 3))
         ref[used] = plan.evaluate(np.array([min(float(t), plan.duration_s)]), drones=used).positions_m[0]
         plan_dist = np.linalg.norm(ref[pairs[:, 0]] - ref[pairs[:, 1]], axis=1)
-        lost = plan_dist >= min_distance_m - 1e-6
+        # Closer by more than rounding (1 µm: parked drones on a grid spaced exactly min_distance_m) where the
+        # plan keeps the pair at least min_distance_m apart (to the same rounding).
+        lost = (dist < min_distance_m - 1e-6) & (plan_dist >= min_distance_m - 1e-6)
         keys.append(pairs[lost, 0].astype(np.int64) * n + pairs[lost, 1])
         dists.append(dist[lost])
         times.append(np.full(int(lost.sum()), float(t)))
