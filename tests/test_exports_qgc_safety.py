@@ -65,6 +65,8 @@ def read_limits(parm: bytes, tmp_path):
     path.write_bytes(parm)
     p = mavparm.MAVParmDict()
     p.load(str(path))
+    # NAV_LAND descends at WPNAV_SPEED_DN to the ground (the replay's landing) only with these.
+    assert p["LAND_SPEED_HIGH"] == 0 and p["LAND_SPEED"] == min(p["WPNAV_SPEED_DN"], 200)
     return Limits(speed_mps=p["WPNAV_SPEED"] / 100, speed_up_mps=p["WPNAV_SPEED_UP"] / 100,
                   speed_dn_mps=p["WPNAV_SPEED_DN"] / 100, accel_mps2=p["WPNAV_ACCEL"] / 100,
                   accel_z_mps2=p["WPNAV_ACCEL_Z"] / 100, jerk_mps3=p["WPNAV_JERK"])

@@ -41,7 +41,9 @@ pymavlink's ``MAVWPLoader``): line 0 is the home position, then the items above;
 tab-separated ``index current frame command p1 p2 p3 p4 lat lon alt autocontinue``.
 
 ``wpnav.parm`` (Mission Planner / MAVProxy parameter file, ``NAME,VALUE`` lines, read by
-pymavlink's ``mavparm``): WPNAV_SPEED, _SPEED_UP, _SPEED_DN, _ACCEL, _ACCEL_Z, _JERK.
+pymavlink's ``mavparm``): WPNAV_SPEED, _SPEED_UP, _SPEED_DN, _ACCEL, _ACCEL_Z, _JERK, and
+LAND_SPEED_HIGH 0 / LAND_SPEED so NAV_LAND descends at WPNAV_SPEED_DN to the ground (a descent
+limit over 2 m/s is flown at 2 m/s below LAND_ALT_LOW, slower than the replay).
 """
 
 from __future__ import annotations
@@ -147,6 +149,12 @@ def wpnav_parameters(w: Wpnav) -> dict[str, float]:
     return {"WPNAV_SPEED": round(w.speed_mps * 100, 1), "WPNAV_SPEED_UP": round(w.speed_up_mps * 100, 1),
             "WPNAV_SPEED_DN": round(w.speed_dn_mps * 100, 1), "WPNAV_ACCEL": round(w.accel_mps2 * 100, 1),
             "WPNAV_ACCEL_Z": round(w.accel_z_mps2 * 100, 1), "WPNAV_JERK": round(w.jerk_mps3, 2)}
+
+
+def landing_parameters(w: Wpnav) -> dict[str, float]:
+    """NAV_LAND's descent at WPNAV_SPEED_DN all the way down, as the replay flies it: LAND_SPEED_HIGH 0
+    (= WPNAV_SPEED_DN above LAND_ALT_LOW) and LAND_SPEED (below it; ArduCopter's range 30-200 cm/s)."""
+    return {"LAND_SPEED_HIGH": 0.0, "LAND_SPEED": float(np.clip(round(w.speed_dn_mps * 100, 1), 30.0, 200.0))}
 
 
 def _wpnav_of_parameters(p: dict[str, float]) -> Wpnav:
@@ -414,7 +422,7 @@ def _finish(ctx: ExportContext, z: ZipBuilder, fmt: str, origin, timed: Timed, i
     kind = "QGroundControl .plan files" if fmt == "qgc-plan" else "QGC WPL 110 .waypoints files"
     replay = replay_report(ctx, timed, items)
     ctx.progress(0.95)
-    parameters = replay["wpnav"]
+    parameters = {**replay["wpnav"], **landing_parameters(timed.mission.wpnav)}
     z.add("wpnav.parm", "".join(f"{k},{v:g}\n" for k, v in parameters.items()))
     pairs = replay["close_pairs"]
     if pairs:
