@@ -362,3 +362,20 @@ def test_scurve_closed_form_respects_its_limits(length, vmax, amax, jerk):
     numeric = (len(leg_profile(length, vmax, amax, jerk)) - 1) * STEP_S
     # The numeric profile rounds its phases to its 1 ms step: a few ms apart at most.
     assert numeric == pytest.approx(total, abs=0.005)
+
+
+def test_qgc_says_drones_landing_mid_show_cannot_fly_as_waypoints():
+    """A subset formation whose others land: their waypoints go down to the ground and back up, which
+    ArduCopter does not fly in AUTO (touching down idles the motors); the export says so."""
+    sub = make_show([{"name": "ring", "hold_s": 2.0, "points": ring(16, 12.0), "color": "#ff0000"},
+                     {"name": "small", "hold_s": 3.0, "points": fibonacci_sphere(8, 6.0), "color": "#00ff00",
+                      "drones": {"count": 8}, "others": "land"},
+                     {"name": "ring2", "hold_s": 2.0, "points": ring(16, 14.0), "color": "#0000ff"}],
+                    drones=16, rows=4, cols=4, spacing_m=4.5)
+    plan = plan_show(sub)
+    assert plan.grounded
+    result = export_show(sub, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    warning = next(w for w in result.warnings if "land mid-show" in w)
+    assert "'small'" in warning and ".skyc" in warning
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        assert warning in json.loads(z.read("manifest.json"))["warnings"]
