@@ -298,6 +298,13 @@ def replay_report(ctx: ExportContext, timed: Timed, items: Items) -> dict:
     if worst > LATE_WARN_S:
         ctx.warn(f"{ctx.fmt}: at the WPNAV limits of wpnav.parm some drones reach a waypoint up to {worst:.1f} s "
                  "after the plan (a leg too fast for the waypoint limits)")
+    landing = [f.name for f in ctx.show.formations if f.others == "land" and f.drones is not None]
+    if ctx.plan.grounded and landing:
+        count = len(np.unique(np.concatenate([d for _, _, d in ctx.plan.grounded])))
+        ctx.warn(f"{ctx.fmt}: {count} drones land mid-show (the others of formation(s) "
+                 f"{', '.join(repr(x) for x in landing)}): their waypoints go down to their homes and back up, "
+                 "which ArduCopter does not fly in AUTO (touching down idles the motors and no waypoint takes "
+                 "off again); fly this show with .skyc, or let the others hold or park")
     if counts.max(initial=0) > MAX_ITEMS:
         i = int(counts.argmax())
         ctx.warn(f"{ctx.fmt}: {names[i]}'s mission has {int(counts[i])} items, more than the {MAX_ITEMS} that "
