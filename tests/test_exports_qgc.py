@@ -379,3 +379,20 @@ def test_qgc_says_drones_landing_mid_show_cannot_fly_as_waypoints():
     assert "'small'" in warning and ".skyc" in warning
     with zipfile.ZipFile(io.BytesIO(result.content)) as z:
         assert warning in json.loads(z.read("manifest.json"))["warnings"]
+
+
+def test_qgc_warns_past_the_items_a_board_holds(show, plan, tmp_path, monkeypatch):
+    """Missions longer than ArduPilot's FRAM holds (MAX_ITEMS) are written with a warning naming the
+    longest, counted as pymavlink reads the file (home excluded)."""
+    from app.exports import _qgc
+
+    result = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING)
+    with zipfile.ZipFile(io.BytesIO(result.content)) as z:
+        names = sorted(n for n in z.namelist() if n.endswith(".waypoints"))
+        counts = [len(_load_wpl(z.read(n), tmp_path, n)) - 1 for n in names]
+        assert json.loads(z.read("manifest.json"))["replay"]["max_items"] == max(counts)
+    assert not any("items" in w for w in result.warnings)
+    monkeypatch.setattr(_qgc, "MAX_ITEMS", max(counts) - 1)
+    warned = export_show(show, "qgc-wpl", plan=plan, origin=ORIGIN, heading_deg=HEADING).warnings
+    longest = names[int(np.argmax(counts))][: -len(".waypoints")]
+    assert any(f"{longest}'s mission has {max(counts)} items" in w for w in warned)
