@@ -59,6 +59,9 @@ _STRAIGHT_SAMPLES = 64
 MAX_SUBLEGS = 16
 #: Moves sampled at once for the straightness check (memory: ~S·3·6 floats each).
 _MOVES_PER_CHUNK = 4096
+#: Speed under which a piece's end or start is at rest, m/s (a blended corner is flown far faster; the
+#: rest-to-rest profiles' ends are zero to rounding).
+_REST_MPS = 1e-4
 #: A leg shorter than this is no leg (rounding in the planner's pieces), metres.
 _MIN_LEG_M = 1e-3
 
@@ -239,8 +242,9 @@ def _piece_states(traj, rows: np.ndarray, times_s: np.ndarray) -> np.ndarray:
 def _moves(plan, t_from: float, t_to: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every rest-to-rest move of every drone inside [t_from, t_to]: (drone, start, end time), by drone then time.
 
-    A move starts at a piece that starts at rest (zero speed) and ends at the next piece that
-    ends at rest; zero-length pieces (profile phases that vanished) are skipped.
+    A move is a run of consecutive moving pieces (zero-length pieces, profile phases that
+    vanished, are skipped) cut wherever the drone comes to rest: a resting piece between two
+    moving ones, or a junction where one piece ends or the next starts at (near) zero speed.
     """
     traj = plan.motion
     b, c = traj.breaks_s, traj.coeffs_m
@@ -251,16 +255,19 @@ def _moves(plan, t_from: float, t_to: float) -> tuple[np.ndarray, np.ndarray, np
     # velocity at the end of each piece: Σ k·c_k·dur^(k-1)
     v_end = np.linalg.norm(np.einsum("npak,npk->npa", c[..., 1:] * powers,
                                      dur[..., None] ** (powers - 1)), axis=-1)
-    moving = (dur > 1e-9) & (np.abs(c[..., 1:]).max(axis=(2, 3)) > 1e-9)
+    positive = dur > 1e-9
+    moving = positive & (np.abs(c[..., 1:]).max(axis=(2, 3)) > 1e-9)
     inside = (b[:, :-1] >= t_from - 1e-9) & (b[:, 1:] <= t_to + 1e-9)
-    m = moving & inside
-    starts = m & (v_start < 1e-6)
-    ends = m & (v_end < 1e-6)
-    si, sp = np.nonzero(starts)
-    ei, ep = np.nonzero(ends)
-    if len(si) != len(ei) or np.any(si != ei):
-        raise ValueError("the plan's moves do not start and end at rest")
-    return si, b[si, sp], b[ei, ep + 1]
+    rests = np.cumsum(positive & ~moving, axis=1)  # resting pieces so far, per drone
+    d, p = np.nonzero(moving & inside)  # by drone, then piece
+    if not len(d):
+        return d, np.zeros(0), np.zeros(0)
+    # A new move at the first piece, on a new drone, after a resting piece, or at a junction at rest.
+    joined = ((d[1:] == d[:-1]) & (rests[d[1:], p[1:]] == rests[d[:-1], p[:-1]])
+              & (v_end[d[:-1], p[:-1]] >= _REST_MPS) & (v_start[d[1:], p[1:]] >= _REST_MPS))
+    first = np.r_[True, ~joined]
+    last = np.r_[~joined, True]
+    return d[first], b[d[first], p[first]], b[d[last], p[last] + 1]
 
 
 def _cuts(pts: np.ndarray, tol_m: float) -> tuple[np.ndarray, float]:
