@@ -37,6 +37,14 @@ of ArduCopter's waypoint navigation:
 
 The replay then samples every drone and reports the pairs that come closer than the
 show's ``min_distance_m`` where the plan keeps them apart (:func:`close_pairs`).
+
+What it cannot match (measured; the export then names the pairs and says to fly .skyc):
+ArduCopter flies a long, slow leg at a near-constant speed after a short jerk-limited ramp,
+while a drone the planner slowed by time-scaling its minimum-time profile (its "delays", the
+landing on its own home) speeds up and slows down over the whole leg: the two drift apart by
+up to about an eighth of the leg along its path. A blended (layered) path is flown with a stop
+at each cut, which makes the drone late. Synchronised straight transitions, the common case,
+are flown with the same near-constant profile by every drone, which keeps CAPT's separation.
 """
 
 from __future__ import annotations
