@@ -183,11 +183,13 @@ def timed_mission(ctx: ExportContext) -> Timed:
     best: Timed | None = None
     for share in PATH_TOLERANCE_SHARES:
         tol = share * s.min_distance_m
-        mission = time_mission(plan_legs(ctx.plan, tol_m=tol), w.speed_mps, w.speed_up_mps, w.speed_dn_mps, w)
+        legs = plan_legs(ctx.plan, tol_m=tol)
+        mission = time_mission(legs, w.speed_mps, w.speed_up_mps, w.speed_dn_mps, w)
         pairs, dt = close_pairs(mission, ctx.plan, s.min_distance_m)
         if best is None or len(pairs) < len(best.pairs):
             best = Timed(mission, pairs, dt, tol)
-        if not pairs:
+        # Safe, or no path was cut (straight legs: a coarser tolerance makes the same missions).
+        if not pairs or int(legs.split.max(initial=1)) == 1:
             break
     assert best is not None
     return best
