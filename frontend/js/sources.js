@@ -42,6 +42,41 @@ export function fingerprint(points) {
   return `${points.length}:${sum.map((v) => v.toFixed(2)).join(",")}`;
 }
 
+/**
+ * True when formation `f`'s name is not one the designer typed: the editor's default ("Formation 3")
+ * or the name its last import gave it (kept in `source.name`), so a new import may rename it.
+ * @param {{name: string, source?: any}} f
+ */
+export function autoNamed(f) {
+  return /^Formation \d+$/.test(f.name) || (f.source != null && f.source.name != null && f.source.name === f.name);
+}
+
+/**
+ * `base`, or `base 2`, `base 3`, ... : the first not taken by another formation of the show than `self`.
+ * @param {{formations: {name: string}[]}} show @param {string} base @param {object} self
+ */
+function freeName(show, base, self) {
+  const names = new Set(show.formations.filter((f) => f !== self).map((f) => f.name));
+  if (!names.has(base)) return base;
+  for (let k = 2; ; k++) if (!names.has(`${base} ${k}`)) return `${base} ${k}`;
+}
+
+/**
+ * Apply an import to the open formation inside an edit: its points and colours, its source, and the
+ * name the server suggests after the source (file stem, text, shape) unless the designer named it.
+ * @param {import("./state.js").EditorState} st @param {{points: number[][], colors: string[], name?: string}} res
+ * @param {any} made the source record (kind, params, file)
+ */
+function applyImport(st, res, made) {
+  const f = st.formation;
+  f.points = roundPoints(res.points);
+  f.colors = res.colors;
+  const named = res.name && autoNamed(f);
+  if (named) f.name = freeName(st.show, /** @type {string} */ (res.name), f);
+  f.source = { ...made, ...(named ? { name: f.name } : {}), fingerprint: fingerprint(f.points) };
+  st.selection = new Set();
+}
+
 /** Wires the source forms and the transform buttons to the open show. */
 export class Sources {
   /**
@@ -222,12 +257,7 @@ export class Sources {
           made.file = file.name;
           uploads.set(file.name, file);
         }
-        st.edit(label, () => {
-          st.formation.points = roundPoints(res.points);
-          st.formation.colors = res.colors;
-          st.formation.source = { ...made, fingerprint: fingerprint(st.formation.points) };
-          st.selection = new Set();
-        });
+        st.edit(label, () => applyImport(st, res, made));
         this.view.fit();
         toast(`${label}: ${res.points.length} points, nearest pair ${res.min_spacing_m != null ? res.min_spacing_m.toFixed(2) + " m" : "—"}`);
       } catch (err) {
@@ -278,13 +308,7 @@ export class Sources {
         const res = /** @type {any} */ (await api.buildFormation(/** @type {any} */ ("mesh"), body, file));
         uploads.set(file.name, file);
         const label = `From ${file.name}`;
-        st.edit(label, () => {
-          st.formation.points = roundPoints(res.points);
-          st.formation.colors = res.colors;
-          st.formation.source = { kind: "mesh", params: withoutCount(body), file: file.name,
-            fingerprint: fingerprint(st.formation.points) };
-          st.selection = new Set();
-        });
+        st.edit(label, () => applyImport(st, res, { kind: "mesh", params: withoutCount(body), file: file.name }));
         this.view.fit();
         toast(`${label}: ${res.points.length} points, ${res.size_m != null ? res.size_m.toFixed(1) + " m across" : ""}`);
       } catch (err) {
