@@ -28,6 +28,8 @@ import math
 import numba
 import numpy as np
 
+from sim.flight._threads import share_blocks
+
 __all__ = ["turbulence_sum", "turbulence_sum_and_jacobian"]
 
 _TWO_PI = 2.0 * math.pi
@@ -100,23 +102,24 @@ def turbulence_sum(
 
 
 @numba.njit(cache=True, nogil=True)
-def turbulence_sum_and_jacobian(
+def _sum_and_jacobian_blocks(
     out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
-    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
+    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, b0: int, b1: int,
 ) -> None:  # pragma: no cover - compiled
-    """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
+    """:func:`turbulence_sum_and_jacobian` over the point blocks ``b0 .. b1 - 1`` (``_BLOCK`` points each).
 
-    The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
-    so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
-    from the same argument as the value (one reduction for both).
-
-    Args:
-        out: ``(P, 3)`` wind (m/s), added to.
-        jac: ``(P, 9)`` Jacobian (1/s), added to.
-        x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
+    The block's inputs are sliced before the loop over its points: indexing the whole arrays
+    at ``b * _BLOCK + q`` with ``b`` from an argument (not from a range LLVM can bound) left
+    the wrap-around check of a possibly negative index in the loop, which then did not
+    vectorise (5x slower, measured). Two modes per pass over the block (a remainder mode
+    alone), each point's additions still in mode order: half the loads and stores of the
+    thirteen accumulators, 1.05-1.09x less CPU than one mode per pass (median of 7
+    alternating runs, 44,000 points, 127 modes); the block size did not matter (128 to 1,024
+    points within ±3 %: the loop is bound by its arithmetic, not by the L1 cache).
     """
     n = x.shape[0]
-    for b in range((n + _BLOCK - 1) // _BLOCK):
+    n_modes = k.shape[0]
+    for b in range(b0, b1):
         p0 = b * _BLOCK
         p1 = min(p0 + _BLOCK, n)
         o0 = out[p0:p1, 0].copy()
@@ -126,27 +129,81 @@ def turbulence_sum_and_jacobian(
         j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
         j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
         j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
-        for m in range(k.shape[0]):
+        xb, yb, zb, tb = x[p0:p1], y[p0:p1], z[p0:p1], t[p0:p1]
+        m = 0
+        while m < n_modes:
             kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
             a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
-            for q in range(p1 - p0):
-                p = p0 + q
-                c, s = _cos_sin(kx * x[p] + ky * y[p] + kz * z[p] + w * t[p] + ph)
-                o0[q] += a0 * c
-                o1[q] += a1 * c
-                o2[q] += a2 * c
-                s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
-                j0[q] += s0 * kx
-                j1[q] += s0 * ky
-                j2[q] += s0 * kz
-                j3[q] += s1 * kx
-                j4[q] += s1 * ky
-                j5[q] += s1 * kz
-                j6[q] += s2 * kx
-                j7[q] += s2 * ky
-                j8[q] += s2 * kz
+            if m + 1 < n_modes:
+                kx_, ky_, kz_, w_, ph_ = k[m + 1, 0], k[m + 1, 1], k[m + 1, 2], omega[m + 1], phase[m + 1]
+                a0_, a1_, a2_ = amp[m + 1, 0], amp[m + 1, 1], amp[m + 1, 2]
+                for q in range(p1 - p0):
+                    px, py, pz, pt = xb[q], yb[q], zb[q], tb[q]
+                    c, s = _cos_sin(kx * px + ky * py + kz * pz + w * pt + ph)
+                    c_, s_ = _cos_sin(kx_ * px + ky_ * py + kz_ * pz + w_ * pt + ph_)
+                    o0[q] = (o0[q] + a0 * c) + a0_ * c_
+                    o1[q] = (o1[q] + a1 * c) + a1_ * c_
+                    o2[q] = (o2[q] + a2 * c) + a2_ * c_
+                    s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                    r0, r1, r2 = -a0_ * s_, -a1_ * s_, -a2_ * s_
+                    j0[q] = (j0[q] + s0 * kx) + r0 * kx_
+                    j1[q] = (j1[q] + s0 * ky) + r0 * ky_
+                    j2[q] = (j2[q] + s0 * kz) + r0 * kz_
+                    j3[q] = (j3[q] + s1 * kx) + r1 * kx_
+                    j4[q] = (j4[q] + s1 * ky) + r1 * ky_
+                    j5[q] = (j5[q] + s1 * kz) + r1 * kz_
+                    j6[q] = (j6[q] + s2 * kx) + r2 * kx_
+                    j7[q] = (j7[q] + s2 * ky) + r2 * ky_
+                    j8[q] = (j8[q] + s2 * kz) + r2 * kz_
+                m += 2
+            else:
+                for q in range(p1 - p0):
+                    c, s = _cos_sin(kx * xb[q] + ky * yb[q] + kz * zb[q] + w * tb[q] + ph)
+                    o0[q] += a0 * c
+                    o1[q] += a1 * c
+                    o2[q] += a2 * c
+                    s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                    j0[q] += s0 * kx
+                    j1[q] += s0 * ky
+                    j2[q] += s0 * kz
+                    j3[q] += s1 * kx
+                    j4[q] += s1 * ky
+                    j5[q] += s1 * kz
+                    j6[q] += s2 * kx
+                    j7[q] += s2 * ky
+                    j8[q] += s2 * kz
+                m += 1
         out[p0:p1, 0] = o0
         out[p0:p1, 1] = o1
         out[p0:p1, 2] = o2
         for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
             jac[p0:p1, e] = col
+
+
+def turbulence_sum_and_jacobian(
+    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
+    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, *, threads: int = 1,
+) -> None:
+    """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
+
+    The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
+    so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
+    from the same argument as the value (one reduction for both).
+
+    Args:
+        out: ``(P, 3)`` wind (m/s), added to.
+        jac: ``(P, J)`` with ``J ≥ 9``: the Jacobian (1/s) is added to its first nine columns (the
+            others are left alone, so the caller's wider table can be passed as it is).
+        x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
+        threads: Threads to share the point blocks (module docstring); each point's sum is the
+            same arithmetic whichever thread does its block, so the same bits for any count.
+    """
+    n = x.shape[0]
+    if out.shape != (n, 3) or jac.ndim != 2 or jac.shape[0] != n or jac.shape[1] < 9:
+        raise ValueError(f"turbulence_sum_and_jacobian: out {out.shape}, jac {jac.shape} for {n} points")
+    blocks = (n + _BLOCK - 1) // _BLOCK
+    args = (out, jac, x, y, z, t, k, amp, omega, phase)
+    if threads <= 1 or blocks < 2:
+        _sum_and_jacobian_blocks(*args, 0, blocks)
+        return
+    share_blocks(blocks, lambda b: _sum_and_jacobian_blocks(*args, b, b + 1), threads=threads)

@@ -51,6 +51,7 @@ from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION, WindField
 from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import QuadrotorParams
 from sim.flight._random import STREAMS, hashed_normal, uniform_pairs_grid
+from sim.flight._threads import Beside, table_threads
 from sim.flight.engines._state import (
     D_CLOCK,
     D_DRAG,
@@ -79,6 +80,10 @@ SPREAD_CLIP_SIGMA = 4.0
 #: Bytes of Box-Muller inputs drawn at once for the GNSS tables (epochs × drones × 3 axes × 2
 #: streams × 8 bytes, in each of two buffers): about an L2 cache.
 _GNSS_BLOCK_BYTES = 1 << 18
+#: Smallest wind-table work (rows x drones x modes) for which the GNSS table is drawn on a
+#: thread of its own beside the wind's mode sum: a thread costs ~0.1 ms to start and join,
+#: ~1/50 of the GNSS draws of 1,000 drones' 1,000-step chunk (module docstring).
+_THREAD_MIN_POINT_MODES = 1 << 18
 
 
 @dataclass(frozen=True)
@@ -349,25 +354,67 @@ class ErrorTables:
                     gnss[on, :, 0:2] += self.step_xy_m[None, :, :]
         return gnss, first
 
-    def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
-        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order)."""
+    def chunk(
+        self, step0: int, count: int, reference: TrackingReference, *, threads: int | None = None,
+    ) -> ChunkTables:
+        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order).
+
+        Args:
+            step0: The chunk's first step.
+            count: Its steps.
+            reference: What the drones track (the wind is taken at its positions).
+            threads: Threads for the tables (default :func:`sim.flight._threads.table_threads`):
+                the GNSS table is drawn on a thread of its own while the wind's mode sum
+                shares its point blocks among the threads (module docstring); the same bits
+                for any count.
+        """
         n = self.ids.size
-        gnss, first = self._gnss_chunk(step0, count)
+        threads = table_threads() if threads is None else max(1, int(threads))
+        k0, k1 = self._wind_grid(step0, count)
+        wind_rows = k1 - k0 + 1 if self.use_drag else 0
+        beside: Beside[tuple[np.ndarray, int]] | None = None
+        if threads > 1 and self.use_gnss and wind_rows * n * self.wind_field_modes >= _THREAD_MIN_POINT_MODES:
+            beside = Beside(lambda: self._gnss_chunk(step0, count))
+            gnss, first = np.zeros((0, n, 3)), 0
+        else:
+            gnss, first = self._gnss_chunk(step0, count)
+        try:
+            wind, grad, k0, radius = self._wind_chunk(step0, count, reference, threads)
+        finally:
+            if beside is not None:
+                gnss, first = beside.result()
+        return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
+                           wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
+
+    @property
+    def wind_field_modes(self) -> int:
+        """Fourier modes of the turbulence (0 without a wind field)."""
+        return 0 if self.wind_field is None else int(self.wind_field.omega_rad_s.size)
+
+    def _wind_grid(self, step0: int, count: int) -> tuple[int, int]:
+        """The first and last wind grid index of a chunk's table (rows bracketing its steps' times)."""
+        t0 = step0 * self.dt_s
+        t1 = (step0 + count - 1) * self.dt_s
+        return int(math.floor(t0 / WIND_GRID_S)), int(math.floor(t1 / WIND_GRID_S)) + 1
+
+    def _wind_chunk(
+        self, step0: int, count: int, reference: TrackingReference, threads: int,
+    ) -> tuple[np.ndarray, np.ndarray, int, float]:
+        """``(wind (W, N, 3), grad (W, N, WIND_GRAD_SIZE), grid index of row 0, clamp radius)``: see ChunkTables."""
+        n = self.ids.size
         wind = np.zeros((0, n, 3))
         grad = np.zeros((0, n, WIND_GRAD_SIZE))
         radius = 0.0
         k0 = 0
         if self.use_drag:
-            t0 = step0 * self.dt_s
-            t1 = (step0 + count - 1) * self.dt_s
-            k0 = int(math.floor(t0 / WIND_GRID_S))
-            k1 = int(math.floor(t1 / WIND_GRID_S)) + 1
+            k0, k1 = self._wind_grid(step0, count)
             grid = np.arange(k0, k1 + 1) * WIND_GRID_S
-            grad = np.zeros((grid.size, n, WIND_GRAD_SIZE))
             if self.wind_field is None:
                 wind = np.zeros((grid.size, n, 3))
+                grad = np.zeros((grid.size, n, WIND_GRAD_SIZE))
             else:
                 wind = np.empty((grid.size, n, 3))
+                grad = np.empty((grid.size, n, WIND_GRAD_SIZE))
                 # Consecutive chunks share their boundary grid time (a 1,000-step chunk spans 11
                 # rows, the last of which opens the next chunk): that row is reused, not summed
                 # again (the same planned points at the same time: the same bits).
@@ -382,11 +429,11 @@ class ErrorTables:
                     if reference.offset is not None:
                         pts = pts + np.asarray(reference.offset(rows))[:, None, 0:3]
                     times = np.broadcast_to(rows[:, None], pts.shape[:2]).reshape(-1)
-                    vel, jac, shear = self.wind_field.velocity_and_gradients(pts.reshape(-1, 3), times)
-                    wind[r0:] = vel.reshape(rows.size, n, 3)
-                    grad[r0:, :, 0:9] = jac.reshape(rows.size, n, 9)
-                    grad[r0:, :, 9:11] = shear.reshape(rows.size, n, 2)
+                    # Straight into the tables' rows (C-contiguous: W' x N points of 3 and 11 columns).
+                    self.wind_field.velocity_and_gradients_into(
+                        pts.reshape(-1, 3), times, wind[r0:].reshape(-1, 3), grad[r0:].reshape(-1, WIND_GRAD_SIZE),
+                        threads=threads,
+                    )
                 self._wind_tail = (reference, k1, wind[-1].copy(), grad[-1].copy())
                 radius = self.wind_field.linear_radius_m
-        return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
-                           wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
+        return wind, grad, k0, radius
