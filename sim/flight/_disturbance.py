@@ -23,11 +23,15 @@ time (:class:`WindField`, below): the engines feel it at each drone's flown posi
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
 __all__ = ["Disturbance", "SinusoidBank", "make_disturbance"]
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -308,8 +312,8 @@ class WindField:
 
     def velocity_and_gradients_into(
         self, points_m: np.ndarray, times_s: np.ndarray, velocity_out: np.ndarray, gradients_out: np.ndarray, *,
-        threads: int = 1,
-    ) -> None:
+        threads: int = 1, alongside: Callable[[], T] | None = None,
+    ) -> T | None:
         """:meth:`velocity_and_gradients` written into the engines' table layout (the same bits).
 
         Args:
@@ -321,6 +325,12 @@ class WindField:
                 (:data:`sim.flight.engines._tables.WIND_GRAD_SIZE`), written in place instead of
                 assembled from three fresh arrays.
             threads: Threads for the mode sum (:func:`sim.flight._windsum.turbulence_sum_and_jacobian`).
+            alongside: A task run on a thread of its own while the mode sum runs, started once
+                the sum's inputs are ready (the tables' GNSS draws: their numpy glue and this
+                method's would otherwise take turns at the GIL).
+
+        Returns:
+            ``alongside()``, or None without it.
         """
         pts, t, x, y, z = self._advected(points_m, times_s)
         if velocity_out.shape != (pts.shape[0], 3) or gradients_out.shape != (pts.shape[0], 11):
@@ -328,10 +338,16 @@ class WindField:
                              f"for {pts.shape[0]} points")
         velocity_out[:] = self.mean_velocity(pts[:, 2])
         gradients_out[:, 0:9] = 0.0
+        gradients_out[:, 9:11] = self.mean_shear(pts[:, 2])
+        from sim.flight._threads import Beside
         from sim.flight._windsum import turbulence_sum_and_jacobian
 
-        turbulence_sum_and_jacobian(velocity_out, gradients_out, x, y, z, t, *self._modes(), threads=threads)
-        gradients_out[:, 9:11] = self.mean_shear(pts[:, 2])
+        beside = None if alongside is None else Beside(alongside)
+        try:
+            turbulence_sum_and_jacobian(velocity_out, gradients_out, x, y, z, t, *self._modes(), threads=threads)
+        finally:
+            value = None if beside is None else beside.result()
+        return value
 
     def jacobian(self, points_m: np.ndarray, times_s: np.ndarray) -> np.ndarray:
         """``(P, 3, 3)`` the full spatial Jacobian ``∂w_i/∂x_j`` (1/s) at points ``(P, 3)`` and times ``(P,)``."""

@@ -42,6 +42,7 @@ Both engines read the same tables, so they agree with the error models on.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -51,7 +52,7 @@ from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION, WindField
 from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import QuadrotorParams
 from sim.flight._random import STREAMS, hashed_normal, uniform_pairs_grid
-from sim.flight._threads import Beside, table_threads
+from sim.flight._threads import table_threads
 from sim.flight.engines._state import (
     D_CLOCK,
     D_DRAG,
@@ -372,17 +373,16 @@ class ErrorTables:
         threads = table_threads() if threads is None else max(1, int(threads))
         k0, k1 = self._wind_grid(step0, count)
         wind_rows = k1 - k0 + 1 if self.use_drag else 0
-        beside: Beside[tuple[np.ndarray, int]] | None = None
         if threads > 1 and self.use_gnss and wind_rows * n * self.wind_field_modes >= _THREAD_MIN_POINT_MODES:
-            beside = Beside(lambda: self._gnss_chunk(step0, count))
-            gnss, first = np.zeros((0, n, 3)), 0
+            # The GNSS draws on a thread of their own, started once the wind's inputs are ready
+            # (their numpy glue and the draws' would otherwise take turns at the GIL).
+            drawn: list[tuple[np.ndarray, int]] = []
+            wind, grad, k0, radius = self._wind_chunk(
+                step0, count, reference, threads, lambda: drawn.append(self._gnss_chunk(step0, count)))
+            gnss, first = drawn[0] if drawn else self._gnss_chunk(step0, count)
         else:
             gnss, first = self._gnss_chunk(step0, count)
-        try:
             wind, grad, k0, radius = self._wind_chunk(step0, count, reference, threads)
-        finally:
-            if beside is not None:
-                gnss, first = beside.result()
         return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
                            wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
 
@@ -399,8 +399,13 @@ class ErrorTables:
 
     def _wind_chunk(
         self, step0: int, count: int, reference: TrackingReference, threads: int,
+        alongside: Callable[[], None] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, int, float]:
-        """``(wind (W, N, 3), grad (W, N, WIND_GRAD_SIZE), grid index of row 0, clamp radius)``: see ChunkTables."""
+        """``(wind (W, N, 3), grad (W, N, WIND_GRAD_SIZE), grid index of row 0, clamp radius)``.
+
+        See :class:`ChunkTables`; ``alongside`` runs on a thread of its own while the mode sum
+        runs (not at all when there is no sum to do).
+        """
         n = self.ids.size
         wind = np.zeros((0, n, 3))
         grad = np.zeros((0, n, WIND_GRAD_SIZE))
@@ -432,7 +437,7 @@ class ErrorTables:
                     # Straight into the tables' rows (C-contiguous: W' x N points of 3 and 11 columns).
                     self.wind_field.velocity_and_gradients_into(
                         pts.reshape(-1, 3), times, wind[r0:].reshape(-1, 3), grad[r0:].reshape(-1, WIND_GRAD_SIZE),
-                        threads=threads,
+                        threads=threads, alongside=alongside,
                     )
                 self._wind_tail = (reference, k1, wind[-1].copy(), grad[-1].copy())
                 radius = self.wind_field.linear_radius_m
