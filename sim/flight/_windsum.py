@@ -6,12 +6,32 @@ time of the wind alone) at every drone's planned position on a 10 Hz grid, evalu
 (the field is seeded per run): for a 1,000-drone, 10-minute show that is 6e6 points times
 M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here
 the modes are summed in a loop over points that LLVM vectorises (a polynomial cosine instead
-of a libm call, which would keep the loop scalar), in blocks of points that stay in the L1
-cache. One thread: on this 2-core machine, shared with the kernel's threads, a parallel
-region cost ~50 ms per call to start (55 ms for 1,050 points against 1.2 ms in one thread,
-measured at a load of 16), and a ``prange`` over the blocks of the Jacobian sum (each block the
-same arithmetic, so the same bits) measured 3.5x *slower* than this loop on an idle machine
-(44,000 points, 128 modes: numba's parfor body is not vectorised like the plain loop).
+of a libm call, which would keep the loop scalar), in blocks of 1,024 points.
+
+Threads (issue 20: on one thread the tables were ~30 % of a 1-s, 4,000-drone flight's wall
+time). The Jacobian sum's blocks are shared by plain Python threads
+(:func:`sim.flight._threads.share_blocks`; the compiled block loop releases the GIL), each
+block the same arithmetic whichever thread does it, so the same bits. Tried and measured
+(44,000 points, 127-128 modes, alternating in one process, medians of 7-9 runs):
+
+* a ``prange`` over the blocks with the sum inline: 3.5x *slower* than one thread on an idle
+  machine (numba's parfor body was not vectorised like the plain loop), and a parallel region
+  cost ~50 ms to start at a load of 16 (55 ms for 1,050 points against 1.2 ms in one thread);
+* a ``prange`` over the blocks, or over exactly ``numba.get_num_threads()`` halves, whose body
+  calls a separately compiled block function: vectorised again (CPU 1.1-1.25x the one-thread
+  loop's), but it is numba's parallel machinery, a second user of the kernel's OpenMP pool, and
+  it cannot run the GNSS draws beside it; plain threads do both, at the same CPU;
+* the block function with the block range as arguments, indexing the whole arrays at
+  ``b * 1024 + q``: 5-6x slower (the wrap-around check of a possibly negative index stayed in
+  the loop, which then did not vectorise); slicing the block's inputs first fixed it;
+* two modes per pass over a block (each point's additions still in mode order): 1.05-1.09x
+  less CPU (half the loads and stores of the thirteen accumulators); kept. All modes, or four,
+  inside the loop over points with register accumulators: 6-7x slower (not vectorised);
+* blocks of 128-1,024 points: within ±3 % (the loop is bound by its arithmetic, not by the L1
+  cache, at ~280 M point-modes/s per core).
+
+On the loaded shared machine (load 3-8 on 2 cores) the second thread rarely finds a core free,
+so the wall-clock gain there is mostly the CPU cut; the split pays when a core is idle.
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
@@ -108,14 +128,10 @@ def _sum_and_jacobian_blocks(
 ) -> None:  # pragma: no cover - compiled
     """:func:`turbulence_sum_and_jacobian` over the point blocks ``b0 .. b1 - 1`` (``_BLOCK`` points each).
 
-    The block's inputs are sliced before the loop over its points: indexing the whole arrays
-    at ``b * _BLOCK + q`` with ``b`` from an argument (not from a range LLVM can bound) left
-    the wrap-around check of a possibly negative index in the loop, which then did not
-    vectorise (5x slower, measured). Two modes per pass over the block (a remainder mode
-    alone), each point's additions still in mode order: half the loads and stores of the
-    thirteen accumulators, 1.05-1.09x less CPU than one mode per pass (median of 7
-    alternating runs, 44,000 points, 127 modes); the block size did not matter (128 to 1,024
-    points within ±3 %: the loop is bound by its arithmetic, not by the L1 cache).
+    The block's inputs are sliced before the loop over its points (indexing the whole arrays
+    at ``b * _BLOCK + q`` did not vectorise: module docstring). Two modes per pass over the
+    block (a last odd mode alone), each point's additions still in mode order, so the bits of
+    one mode per pass.
     """
     n = x.shape[0]
     n_modes = k.shape[0]

@@ -36,6 +36,18 @@ interpolation in time errs by 4.6 % of that term whatever the displacement; the 
 scales with the displacement, so it is below the interpolation's at under ~0.4 m. The tables'
 mode sum (value and Jacobian) costs 2-2.7x the value alone.
 
+Speed (issue 20): on one thread the tables were ~30 % of a 1-s, 4,000-drone "gusty-rtk"
+flight's wall time (of 40 ms, the wind's mode sum 24, the GNSS draws 8). Now the mode sum's
+point blocks are shared by the table threads (:mod:`sim.flight._windsum`) while the GNSS
+draws run on a thread of their own, started once the wind's inputs are ready (their numpy
+glue would otherwise take turns at the GIL with the wind's); the wind and its derivatives are
+written straight into the tables' rows (no separate Jacobian and shear arrays to copy). The
+same bits on any thread count (``tests/test_flight_table_threads.py``). Not done, measured:
+Box-Muller's logarithm and cosine compiled (numpy's cosine is 2.3 ms of the draws for 264,000
+normals, its log 0.3 ms) would not be numpy's bits on every CPU (:mod:`sim.flight._random`);
+drawing the next chunk's tables during this chunk's kernel would only fill cores the kernel's
+two threads leave idle, which on this shared machine there are none of.
+
 Both engines read the same tables, so they agree with the error models on.
 """
 
