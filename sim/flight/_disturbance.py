@@ -33,6 +33,10 @@ __all__ = ["Disturbance", "SinusoidBank", "make_disturbance"]
 
 T = TypeVar("T")
 
+#: Columns of a wind-derivative row (:meth:`WindField.velocity_and_gradients_into`): the
+#: turbulence's Jacobian, row-major (9), then the mean shear (2); the engines' table layout.
+WIND_GRADIENT_COLUMNS = 11
+
 
 @dataclass(frozen=True)
 class SinusoidBank:
@@ -306,7 +310,7 @@ class WindField:
             (:meth:`mean_shear`). The full Jacobian is their sum (:meth:`jacobian`).
         """
         n = np.asarray(points_m).reshape(-1, 3).shape[0]
-        vel, grad = np.empty((n, 3)), np.empty((n, 11))
+        vel, grad = np.empty((n, 3)), np.empty((n, WIND_GRADIENT_COLUMNS))
         self.velocity_and_gradients_into(points_m, times_s, vel, grad)
         return vel, np.ascontiguousarray(grad[:, 0:9]).reshape(-1, 3, 3), np.ascontiguousarray(grad[:, 9:11])
 
@@ -320,10 +324,9 @@ class WindField:
             points_m: ``(P, 3)`` points (m).
             times_s: ``(P,)`` times (s).
             velocity_out: ``(P, 3)`` overwritten with the wind (m/s).
-            gradients_out: ``(P, 11)`` overwritten with the turbulence's Jacobian, row-major
-                (columns 0-8), then the mean shear (9-10), 1/s: a row of the wind tables
-                (:data:`sim.flight.engines._tables.WIND_GRAD_SIZE`), written in place instead of
-                assembled from three fresh arrays.
+            gradients_out: ``(P, WIND_GRADIENT_COLUMNS)`` overwritten with the turbulence's
+                Jacobian, row-major (columns 0-8), then the mean shear (9-10), 1/s: the wind
+                tables' rows, written in place instead of assembled from three fresh arrays.
             threads: Threads for the mode sum (:func:`sim.flight._windsum.turbulence_sum_and_jacobian`).
             alongside: A task run on a thread of its own while the mode sum runs, started once
                 the sum's inputs are ready (the tables' GNSS draws: their numpy glue and this
@@ -333,7 +336,7 @@ class WindField:
             ``alongside()``, or None without it.
         """
         pts, t, x, y, z = self._advected(points_m, times_s)
-        if velocity_out.shape != (pts.shape[0], 3) or gradients_out.shape != (pts.shape[0], 11):
+        if velocity_out.shape != (pts.shape[0], 3) or gradients_out.shape != (pts.shape[0], WIND_GRADIENT_COLUMNS):
             raise ValueError(f"velocity_and_gradients_into: {velocity_out.shape}, {gradients_out.shape} "
                              f"for {pts.shape[0]} points")
         velocity_out[:] = self.mean_velocity(pts[:, 2])
