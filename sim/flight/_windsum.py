@@ -27,8 +27,9 @@ block the same arithmetic whichever thread does it, so the same bits. Tried and 
 * two modes per pass over a block (each point's additions still in mode order): 1.05-1.09x
   less CPU (half the loads and stores of the thirteen accumulators); kept. All modes, or four,
   inside the loop over points with register accumulators: 6-7x slower (not vectorised);
-* blocks of 128-1,024 points: within ±3 % (the loop is bound by its arithmetic, not by the L1
-  cache, at ~280 M point-modes/s per core).
+* blocks of 128-1,024 points: within ±3 % (the L1 cache is not what limits the loop; its
+  ~95 flops per point and mode, with the polynomials' dependent chains, run at ~280 M
+  point-modes/s per core).
 
 On the loaded shared machine (load 3-8 on 2 cores) the second thread rarely finds a core free,
 so the wall-clock gain there is mostly the CPU cut; the split pays when a core is idle.
