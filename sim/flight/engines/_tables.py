@@ -42,7 +42,14 @@ point blocks are shared by the table threads (:mod:`sim.flight._windsum`) while 
 draws run on a thread of their own, started once the wind's inputs are ready (their numpy
 glue would otherwise take turns at the GIL with the wind's); the wind and its derivatives are
 written straight into the tables' rows (no separate Jacobian and shear arrays to copy). The
-same bits on any thread count (``tests/test_flight_table_threads.py``). Not done, measured:
+same bits on any thread count (``tests/test_flight_table_threads.py``). Measured against the
+one-thread tables (old and new tree in alternating processes, load 5-8 on the 2 shared cores,
+medians [ranges]): a chunk's tables 1.12x less CPU [1.07, 1.18] (4 pairs); a whole 1-s
+simulate 1.07x less CPU [0.99, 1.20] and 1.06x less wall [0.75, 1.77] (8 pairs), the kernel's
+share of its wall 0.75 -> 0.80; a 500-drone, 357-s ``fly_show`` 1.02x less CPU [0.97, 1.08].
+At that load the second thread rarely finds a core free (``benchmarks/bench_tables.py``:
+one thread against two in one process, 1.04x wall for the tables); on an idle core the mode
+sum and the draws halve. Not done, measured:
 Box-Muller's logarithm and cosine compiled (numpy's cosine is 2.3 ms of the draws for 264,000
 normals, its log 0.3 ms) would not be numpy's bits on every CPU (:mod:`sim.flight._random`);
 drawing the next chunk's tables during this chunk's kernel would only fill cores the kernel's
