@@ -48,8 +48,8 @@ medians [ranges]): a chunk's tables 1.12x less CPU [1.07, 1.18] (4 pairs); a who
 simulate 1.07x less CPU [0.99, 1.20] and 1.06x less wall [0.75, 1.77] (8 pairs), the kernel's
 share of its wall 0.75 -> 0.80; a 500-drone, 357-s ``fly_show`` 1.02x less CPU [0.97, 1.08].
 At that load the second thread rarely finds a core free (``benchmarks/bench_tables.py``:
-one thread against two in one process, 1.04x wall for the tables); on an idle core the mode
-sum and the draws halve. Not done, measured:
+one thread against two in one process, 1.04x wall for the tables); with a core idle the two
+threads should near halve the tables' wall, which this machine could not show. Not done, measured:
 Box-Muller's logarithm and cosine compiled (numpy's cosine is 2.3 ms of the draws for 264,000
 normals, its log 0.3 ms) would not be numpy's bits on every CPU (:mod:`sim.flight._random`);
 drawing the next chunk's tables during this chunk's kernel would only fill cores the kernel's
