@@ -25,8 +25,10 @@ block the same arithmetic whichever thread does it, so the same bits. Tried and 
   ``b * 1024 + q``: 5-6x slower (the wrap-around check of a possibly negative index stayed in
   the loop, which then did not vectorise); slicing the block's inputs first fixed it;
 * two modes per pass over a block (each point's additions still in mode order): 1.05-1.09x
-  less CPU (half the loads and stores of the thirteen accumulators); kept. All modes, or four,
-  inside the loop over points with register accumulators: 6-7x slower (not vectorised);
+  less CPU (half the loads and stores of the thirteen accumulators); kept. Three to eight modes
+  per pass: another 1.03-1.09x (11 alternating runs, ranges 0.86-1.21), not kept (a longer loop
+  for under 1 % of a flight). All modes, or four, in an inner loop over modes inside the loop
+  over points with register accumulators: 6-7x slower (not vectorised);
 * blocks of 128-1,024 points: within ±3 % (the L1 cache is not what limits the loop; its
   ~95 flops per point and mode, with the polynomials' dependent chains, run at ~280 M
   point-modes/s per core).
