@@ -46,7 +46,9 @@ same bits on any thread count (``tests/test_flight_table_threads.py``). Measured
 one-thread tables (old and new tree in alternating processes, load 5-8 on the 2 shared cores,
 medians [ranges]): a chunk's tables 1.12x less CPU [1.07, 1.18] (4 pairs); a whole 1-s
 simulate 1.07x less CPU [0.99, 1.20] and 1.06x less wall [0.75, 1.77] (8 pairs), the kernel's
-share of its wall 0.75 -> 0.80; a 500-drone, 357-s ``fly_show`` 1.02x less CPU [0.97, 1.08].
+share of its wall 0.75 -> 0.80; 1,000 drones for 30 s (30 chunks: a thread start per chunk
+costs nothing visible) 1.01x less CPU [0.89, 1.05], 1.04x less wall [1.00, 1.67] (4 pairs); a
+500-drone, 357-s ``fly_show`` 1.02x less CPU [0.97, 1.08] (4 pairs).
 At that load the second thread rarely finds a core free (``benchmarks/bench_tables.py``:
 one thread against two in one process, 1.04x wall for the tables); with a core idle the two
 threads should near halve the tables' wall, which this machine could not show. Not done, measured:
