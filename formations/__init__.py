@@ -24,6 +24,7 @@ from formations._launch import home_points_from_csv as home_points_from_csv
 from formations._launch import home_points_to_csv as home_points_to_csv
 from formations._motion import Motion as Motion
 from formations._motion import MotionKey as MotionKey
+from formations._naming import source_name as source_name
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
 from formations._show import SHOW_FORMAT as SHOW_FORMAT

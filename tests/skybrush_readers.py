@@ -231,3 +231,22 @@ def studio_csv_import(content: bytes, fps: int = 24) -> dict[str, tuple[np.ndarr
                 pixels[-1] = color
             result[name] = (target - t0, pos, np.array(pixels))
     return result
+
+
+# ---------------------------------------------------------------- cues (Skybrush Live's cue list)
+
+
+def show_cues(doc: dict) -> list[tuple[str, float]]:
+    """The cue list of a show.json as Skybrush reads it: ``settings.cues`` version 1, ``items`` of
+    ``{"name", "time"}`` (seconds), the layout Skybrush Studio for Blender writes from its timeline
+    markers and Skybrush Server passes on to Live; a missing block is an empty list."""
+    cues = doc.get("settings", {}).get("cues")
+    if cues is None:
+        return []
+    assert cues["version"] == 1, cues
+    out = []
+    for item in cues["items"]:
+        assert set(item) == {"name", "time"}, item
+        assert isinstance(item["name"], str) and isinstance(item["time"], int | float)
+        out.append((item["name"], float(item["time"])))
+    return out

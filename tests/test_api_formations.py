@@ -5,10 +5,13 @@ from __future__ import annotations
 import io
 import math
 import struct
+import unicodedata
 import zlib
 
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from app.server import create_app
 from app.settings import AppSettings
@@ -159,3 +162,47 @@ def test_source_refusals_name_the_field(client):
         assert r.status_code == 422, (source, r.text)
         problem = r.json()["detail"][0]
         assert problem["path"] == field and problem["loc"] == ["body", field], (source, kwargs.get("json"), problem)
+
+
+XYZ = "\n".join(f"{x} {y} {z}" for x in range(0, 12, 4) for y in range(0, 12, 4) for z in (0, 4)).encode()
+
+
+@pytest.mark.parametrize(("source", "upload", "extra", "want"), [
+    ("svg", ("Company Logo v2.svg", SVG, "image/svg+xml"), {"n": "8"}, "Company Logo v2"),
+    ("svg", ("C:\\Users\\ann\\Desktop\\star.final.svg", SVG, "image/svg+xml"), {"n": "8"}, "star.final"),
+    ("image", ("sunset.PNG", None, "image/png"), {"n": "8"}, "sunset"),
+    ("mesh", ("drone cloud.xyz", XYZ, "text/plain"), {"n": "8", "min_spacing_m": "2"}, "drone cloud"),
+    ("mesh", ("/tmp/x/.hidden", XYZ, "text/plain"), {"n": "8", "min_spacing_m": "2", "format": "xyz"}, ".hidden"),
+])
+def test_uploaded_formations_are_named_after_their_file(client, source, upload, extra, want):
+    """A formation made from a file is named after the file's stem (no folders, no extension)."""
+    name, data, mime = upload
+    r = client.post(f"/api/formations/{source}", files={"file": (name, data if data is not None else _png(64, 48),
+                                                                  mime)}, data=extra)
+    assert r.status_code == 200, r.text
+    assert r.json()["name"] == want
+
+
+def test_text_and_shape_formations_are_named_after_what_they_show(client):
+    r = client.post("/api/formations/text", json={"text": "  Happy\n  New   Year ", "n": 40, "height_m": 20})
+    assert r.status_code == 200, r.text
+    assert r.json()["name"] == "Happy New Year"
+    long = "A" * 30 + " " + "B" * 30
+    r = client.post("/api/formations/text", json={"text": long, "n": 60, "height_m": 20, "min_spacing_m": 0.5})
+    name = r.json()["name"]
+    assert r.status_code == 200 and name.startswith("A" * 30) and name.endswith("…") and len(name) <= 41
+    r = client.post("/api/formations/shape", json={"kind": "heart", "n": 12, "size_m": 30})
+    assert r.status_code == 200 and r.json()["name"] == "heart"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=300), st.sampled_from(["image", "svg", "mesh", "text", "shape"]))
+def test_source_names_are_short_clean_and_never_empty(raw, kind):
+    from formations import source_name
+
+    name = source_name(kind, filename=raw) if kind in ("image", "svg", "mesh") else source_name(kind, text=raw)
+    assert 1 <= len(name) <= 40 and name == name.strip()
+    assert not any(unicodedata.category(c).startswith("C") for c in name)
+    assert "  " not in name
+    if kind in ("image", "svg", "mesh"):
+        assert "/" not in name and "\\" not in name

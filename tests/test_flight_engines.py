@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -192,6 +193,31 @@ def test_a_process_that_compiles_the_kernel_matches_one_that_loads_it(tmp_path):
         subprocess.run([sys.executable, "-c", _FLY_AND_SAVE, str(out)], env=env, check=True, timeout=1200)
         outs.append(np.load(out))
     assert np.array_equal(outs[0], outs[1])
+
+
+_COMPILE_IN_CHILD = """
+import sim.flight.engines._numba as K
+K._cached_machine_code(K._sig_scale, (1.0, 2.0, 3.0, 0.5))
+"""
+
+
+def test_the_compiling_child_imports_the_parents_code_not_the_working_directorys(tmp_path):
+    # _cached_machine_code compiles a cache miss in a child process that must import the same
+    # code as the parent. ``python -c`` puts the working directory first on sys.path, so a
+    # ``sim`` package there (another checkout) was imported instead: the child then failed,
+    # this process compiled the kernel itself, and its bits differed from the cached code's.
+    work = tmp_path / "elsewhere"
+    (work / "sim").mkdir(parents=True)
+    marker = work / "decoy-imported"
+    (work / "sim" / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    script = tmp_path / "probe.py"
+    script.write_text(_COMPILE_IN_CHILD)
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               PYTHONPATH=os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]))
+    subprocess.run([sys.executable, str(script)], cwd=work, env=env, check=True, timeout=600)
+    assert any((tmp_path / "cache").rglob("*.nbi")), "nothing was compiled into the fresh cache"
+    assert not marker.exists(), "the compiling child imported the working directory's sim package"
 
 
 def test_the_lane_scratch_starts_on_a_cache_line():

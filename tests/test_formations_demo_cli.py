@@ -141,6 +141,18 @@ def test_cli_text_image_svg(capsys, tmp_path):
     assert code == 2 and "DOCTYPE" in err
 
 
+def test_cli_sources_name_their_formation(capsys, tmp_path):
+    """The JSON carries the name a designer expects: the file's stem, the text, the shape's kind."""
+    svg = tmp_path / "Company Logo.final.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg"><path d="M 0 0 L 100 0" stroke="#0000ff"/></svg>')
+    code, out, _ = run(capsys, "formation", "svg", str(svg), "-n", "8", "--width-m", "40")
+    assert code == 0 and json.loads(out)["name"] == "Company Logo.final"
+    code, out, _ = run(capsys, "formation", "text", "HI\\nYOU", "-n", "30", "--height-m", "30")
+    assert code == 0 and json.loads(out)["name"] == "HI YOU"
+    code, out, _ = run(capsys, "formation", "shape", "heart", "-n", "12", "--size-m", "30")
+    assert code == 0 and json.loads(out)["name"] == "heart"
+
+
 def test_cli_repair(capsys, tmp_path):
     src = tmp_path / "in.json"
     pts = [[0.0, 0.0, 30.0], [0.5, 0.0, 30.0], [10.0, 0.0, 30.0]]

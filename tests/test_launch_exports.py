@@ -17,7 +17,6 @@ from tests.skybrush_readers import LibskybrushPlayer, server_binary_trajectory, 
 
 # The export tests themselves, collected again in this module with its `show` and `plan` fixtures.
 from tests.test_exports_qgc import (
-    test_formation_holds_match_the_show,  # noqa: F401
     test_plan_json_structure,  # noqa: F401
     test_wpl_loads_in_pymavlink_with_the_right_count_and_coordinates,  # noqa: F401
     test_wpl_replay_keeps_min_distance_or_names_the_pairs,  # noqa: F401
@@ -46,6 +45,21 @@ def plan(show):
     p = plan_show(show)
     assert p.launch is not None and p.launch.takeoff is not None and p.launch.takeoff.count == 8
     return p
+
+
+def test_qgc_missions_take_off_and_land_in_waves_and_keep_min_distance(show, plan, tmp_path):
+    """Each wave's missions wait (NAV_DELAY before NAV_TAKEOFF) until the plan's takeoff of that wave;
+    flown by the independent replay, no pair comes closer than the plan keeps it (brute force)."""
+    from tests.test_exports_qgc_safety import check_show
+
+    out = check_show(show, tmp_path, plan=plan)
+    first = np.array([items[1][1] if items[1][0] == 93 else 0.0 for items in out["items"]])
+    # the plan's own takeoff departures (the first time each drone moves)
+    t = np.arange(0.0, plan.segments[0].end_s, 0.01)
+    z = plan.evaluate(t).positions_m[..., 2]
+    leaves = t[np.argmax(z > z[0] + 1e-6, axis=0) - 1]
+    assert len(np.unique(np.round(leaves, 1))) > 1  # waves
+    assert np.abs(first - leaves).max() <= 0.02
 
 
 def test_skyc_through_skybrush_readers_keeps_the_waves(show, plan):

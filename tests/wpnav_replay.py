@@ -1,11 +1,15 @@
-"""A kinematic replay of waypoint missions at ArduCopter's WPNAV defaults, for the QGC export tests.
+"""A kinematic replay of waypoint missions at ArduCopter's WPNAV parameters, for the QGC export tests.
 
 Independent of app/exports/_wpnav.py: the S-curve of each leg is built by integrating
 a jerk sequence numerically (1 ms steps) and the peak speed found by bisection on that
 integral, where the exporter uses closed forms. The mission is read from the files by
 pymavlink's loader; ArduPilot's handling is applied as it flies: holds truncated to
-whole seconds, DO_CHANGE_SPEED changing the horizontal speed of the legs after it,
-along-track limits from the horizontal and vertical ones, rest at every waypoint.
+whole seconds, NAV_DELAY waiting its (fractional) seconds where the drone is (a delay of 0
+or less would wait for a UTC time: refused here), DO_CHANGE_SPEED setting the ground (speed
+type 0 or 1), climb (2) or descent (3) speed of the legs after it, along-track limits from the
+horizontal and vertical ones, rest at every waypoint (each is followed by a NAV_DELAY, the
+land or nothing in the missions replayed). NAV_TAKEOFF climbs at the parameter
+WPNAV_SPEED_UP, NAV_LAND descends at WPNAV_SPEED_DN (the commanded speeds do not apply).
 """
 
 from __future__ import annotations
@@ -64,7 +68,8 @@ def leg_profile(length: float, vmax: float, amax: float, jerk: float) -> np.ndar
     return np.r_[rise, mid, fall[1:]]
 
 
-def along_track(delta: np.ndarray, speed_xy: float, lim: Limits) -> tuple[float, float, float]:
+def along_track(delta: np.ndarray, speed_xy: float, lim: Limits, speed_up: float | None = None,
+                speed_dn: float | None = None) -> tuple[float, float, float]:
     length = float(np.linalg.norm(delta))
     if length == 0:
         return 0.0, 1.0, 1.0
@@ -74,9 +79,9 @@ def along_track(delta: np.ndarray, speed_xy: float, lim: Limits) -> tuple[float,
         caps_v.append(speed_xy / h)
         caps_a.append(lim.accel_mps2 / h)
     if vz > 1e-9:
-        caps_v.append(lim.speed_up_mps / vz)
+        caps_v.append((lim.speed_up_mps if speed_up is None else speed_up) / vz)
     if vz < -1e-9:
-        caps_v.append(lim.speed_dn_mps / -vz)
+        caps_v.append((lim.speed_dn_mps if speed_dn is None else speed_dn) / -vz)
     if abs(vz) > 1e-9:
         caps_a.append(lim.accel_z_mps2 / abs(vz))
     return length, min(caps_v), min(caps_a)
@@ -94,14 +99,24 @@ def replay(items: list[tuple[int, float, float, np.ndarray]], home: np.ndarray, 
            use_speed_commands: bool = True, sample_s: float = 0.05) -> Replay:
     """Fly ``items`` [(command, param1, param2, local point)] from ``home`` (local metres)."""
     t, pos = 0.0, home.astype(float)
-    speed = lim.speed_mps
+    speed, up, dn = lim.speed_mps, lim.speed_up_mps, lim.speed_dn_mps
     times, points = [0.0], [pos.copy()]
     arrivals, departures = [], []
     hold_after = 0.0
     for cmd, p1, p2, target in items:
-        if cmd == 178:  # DO_CHANGE_SPEED: param2 m/s
-            if use_speed_commands:
-                speed = p2
+        if cmd == 178:  # DO_CHANGE_SPEED: param1 speed type, param2 m/s
+            if use_speed_commands and p2 > 0:
+                if int(p1) in (0, 1):
+                    speed = p2
+                elif int(p1) == 2:
+                    up = p2
+                elif int(p1) == 3:
+                    dn = p2
+            continue
+        if cmd == 93:  # NAV_DELAY: wait param1 seconds where the drone is
+            assert p1 > 0, "NAV_DELAY of 0 s or less waits for a UTC time of day"
+            t += hold_after + p1
+            hold_after = 0.0
             continue
         if cmd not in (16, 21, 22):
             continue
@@ -110,7 +125,10 @@ def replay(items: list[tuple[int, float, float, np.ndarray]], home: np.ndarray, 
         points.append(pos.copy())
         departures.append(t)
         delta = target - pos
-        length, vmax, amax = along_track(delta, speed, lim)
+        if cmd == 16:
+            length, vmax, amax = along_track(delta, speed, lim, up, dn)
+        else:  # takeoff and landing at the parameters' vertical speeds
+            length, vmax, amax = along_track(delta, speed, lim)
         s = leg_profile(length, vmax, amax, lim.jerk_mps3)
         k = np.arange(0, len(s), max(1, round(sample_s / STEP_S)))
         for kk in k[1:]:

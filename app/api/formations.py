@@ -14,7 +14,7 @@ from app.api import deps
 from app.api.errors import ApiError
 from app.api.models import FormationPoints, HomePoints, Plane, ShapeRequest, TextRequest, error_responses
 from app.web import BodyTooLarge
-from formations import MAX_HOME_CSV_BYTES, HomeCsvError, home_points_from_csv
+from formations import MAX_HOME_CSV_BYTES, HomeCsvError, home_points_from_csv, source_name
 from formations.sources import nearest_pair_distance
 
 router = APIRouter(prefix="/formations", tags=["formations"])
@@ -29,13 +29,15 @@ async def shape(request: Request, body: ShapeRequest) -> dict[str, Any]:
     """``n`` points of a grid, circle, polygon, star, heart, sphere, helix or cube, at least
     ``min_spacing_m`` apart. If they do not fit, 422 says how many do (``max_n``)."""
     params = body.model_dump()
-    return await deps.run(request, tasks.formation_task, "shape", params, None)
+    out = await deps.run(request, tasks.formation_task, "shape", params, None)
+    return {**out, "name": source_name("shape", text=body.kind)}
 
 
 @router.post("/text", response_model=FormationPoints, summary="Points spelling a text", responses=_ERRORS)
 async def text(request: Request, body: TextRequest) -> dict[str, Any]:
     """``n`` points spread over the letters of ``text``."""
-    return await deps.run(request, tasks.formation_task, "text", body.model_dump(), None)
+    out = await deps.run(request, tasks.formation_task, "text", body.model_dump(), None)
+    return {**out, "name": source_name("text", text=body.text)}
 
 
 def _center(value: str) -> list[float]:
@@ -74,7 +76,8 @@ async def image(
     data = await _read(file, limit=limit, what="an image")
     params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
               "min_spacing_m": min_spacing_m, "mode": mode}
-    return await deps.run(request, tasks.formation_task, "image", params, data)
+    out = await deps.run(request, tasks.formation_task, "image", params, data)
+    return {**out, "name": source_name("image", filename=file.filename or "")}
 
 
 @router.post("/svg", response_model=FormationPoints, summary="Points from an SVG drawing", responses=_UPLOAD_ERRORS)
@@ -94,7 +97,8 @@ async def svg(
     data = await _read(file, limit=limit, what="an SVG file")
     params = {"n": n, "width_m": width_m, "center_m": _center(center_m), "plane": plane,
               "min_spacing_m": min_spacing_m, "color": color}
-    return await deps.run(request, tasks.formation_task, "svg", params, data)
+    out = await deps.run(request, tasks.formation_task, "svg", params, data)
+    return {**out, "name": source_name("svg", filename=file.filename or "")}
 
 
 _MESH_TYPES = ("obj", "ply", "stl", "glb", "gltf", "csv", "xyz")
@@ -139,7 +143,8 @@ async def mesh(
     data = await _read(file, limit=limit, what="a mesh or point file")
     params = {"n": n, "file_type": file_type, "mode": mode, "size_m": size_m, "center_m": _center(center_m),
               "min_spacing_m": min_spacing_m, "up": up, "color": color}
-    return await deps.run(request, tasks.formation_task, "mesh", params, data)
+    out = await deps.run(request, tasks.formation_task, "mesh", params, data)
+    return {**out, "name": source_name("mesh", filename=file.filename or "")}
 
 
 @router.post("/home-csv", response_model=HomePoints, summary="Home positions from a CSV file",

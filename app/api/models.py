@@ -310,5 +310,7 @@ class FormationPoints(BaseModel):
     colors: list[str]
     min_spacing_m: float | None = Field(description="Nearest-pair distance, m (null for one point).")
     count: int
+    name: str = Field(description="A name after the source, for a formation that has none of the designer's: "
+                      "the file's stem (image, SVG, mesh / point file), the text spelled, the shape's kind.")
     size_m: float | None = Field(None, description="Mesh / point-file sources: the size used (largest side "
                                  "of the bounding box), m.")

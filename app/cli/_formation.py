@@ -1,7 +1,8 @@
 """``swarmshow formation shape|text|image|svg|mesh|repair ...``: formation points as JSON.
 
 The output is ``PointSet.to_json()``: ``{"points": [[x, y, z], ...], "colors": [...],
-"min_spacing_m": float}`` (metres), written to ``-o FILE`` or stdout (``-o -`` or no ``-o``).
+"min_spacing_m": float}`` (metres) plus ``"name"`` after the source (the file's stem, the text, the
+shape's kind; :func:`formations.source_name`), written to ``-o FILE`` or stdout (``-o -`` or no ``-o``).
 A formation that cannot keep the spacing exits 2 with the largest N that fits.
 """
 
@@ -135,15 +136,19 @@ def _write(obj: dict[str, Any], output: str) -> None:
     print(f"wrote {n} points{spacing} to {output}", file=sys.stderr)
 
 
-def _run(build, args: argparse.Namespace) -> int:
-    """Call a source; FormationError (with the largest N that fits) becomes a CliError."""
+def _run(build, args: argparse.Namespace, name: str | None = None) -> int:
+    """Call a source; FormationError (with the largest N that fits) becomes a CliError. ``name``: the
+    formation's name after its source (:func:`formations.source_name`), added to the JSON."""
     from formations.sources import FormationError
 
     try:
         points = build()
     except FormationError as exc:
         raise CliError(str(exc)) from None
-    _write(points.to_json(), args.output)
+    doc = points.to_json()
+    if name is not None:
+        doc["name"] = name
+    _write(doc, args.output)
     return EXIT_OK
 
 
@@ -152,37 +157,45 @@ def _place(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _shape(args: argparse.Namespace) -> int:
+    from formations import source_name
     from formations.sources import generate_shape
 
     params = dict(args.param)
     color = args.color or "#ffffff"
     return _run(lambda: generate_shape(args.kind, args.n, size_m=args.size_m, color=color, **_place(args), **params),
-                args)
+                args, source_name("shape", text=args.kind))
 
 
 def _text(args: argparse.Namespace) -> int:
+    from formations import source_name
     from formations.sources import text_points
 
     text = args.text.replace("\\n", "\n")
     color = args.color or "#ffffff"
-    return _run(lambda: text_points(text, args.n, height_m=args.height_m, color=color, **_place(args)), args)
+    return _run(lambda: text_points(text, args.n, height_m=args.height_m, color=color, **_place(args)), args,
+                source_name("text", text=text))
 
 
 def _image(args: argparse.Namespace) -> int:
+    from formations import source_name
     from formations.sources import MAX_IMAGE_BYTES, image_points
 
     data = _read(args.file, MAX_IMAGE_BYTES)
-    return _run(lambda: image_points(data, args.n, width_m=args.width_m, mode=args.mode, **_place(args)), args)
+    return _run(lambda: image_points(data, args.n, width_m=args.width_m, mode=args.mode, **_place(args)), args,
+                source_name("image", filename=args.file))
 
 
 def _svg(args: argparse.Namespace) -> int:
+    from formations import source_name
     from formations.sources import MAX_SVG_BYTES, svg_points
 
     data = _read(args.file, MAX_SVG_BYTES)
-    return _run(lambda: svg_points(data, args.n, width_m=args.width_m, color=args.color, **_place(args)), args)
+    return _run(lambda: svg_points(data, args.n, width_m=args.width_m, color=args.color, **_place(args)), args,
+                source_name("svg", filename=args.file))
 
 
 def _mesh(args: argparse.Namespace) -> int:
+    from formations import source_name
     from formations.sources import MAX_MESH_BYTES, mesh_points
 
     ext = (args.format or Path(args.file).suffix.lstrip(".")).lower()
@@ -192,7 +205,7 @@ def _mesh(args: argparse.Namespace) -> int:
     data = _read(args.file, MAX_MESH_BYTES)
     return _run(lambda: mesh_points(data, args.n, file_type=ext, mode=args.mode, size_m=args.size_m,
                                     center_m=args.center, min_spacing_m=args.min_spacing_m, up=args.up,
-                                    color=args.color)[0], args)
+                                    color=args.color)[0], args, source_name("mesh", filename=args.file))
 
 
 def _repair(args: argparse.Namespace) -> int:

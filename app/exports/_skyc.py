@@ -3,7 +3,7 @@
 ``show.json``::
 
     {"version": 1,
-     "settings": {"cues": {"version": 1, "items": []},
+     "settings": {"cues": {"version": 1, "items": [{"name", "time"}, ...]},
                   "validation": {"maxAltitude", "maxVelocityXY", "maxVelocityZ", ["maxVelocityZUp"],
                                  "maxAccelerationXY", "maxAccelerationZ", "minDistance",
                                  "minNavAltitude", "maxYawRate"}},
@@ -60,6 +60,7 @@ import functools
 import gc
 import json
 import math
+from typing import Any
 
 import numpy as np
 
@@ -270,6 +271,28 @@ def _segments_meta(plan) -> dict[str, list[float]]:
     }
 
 
+def cue_list(ctx: ExportContext) -> dict[str, Any]:
+    """``settings.cues``: the show's cues as Skybrush Live lists them (version 1, ``items`` of
+    ``{"name", "time"}`` in seconds, the layout Skybrush Studio for Blender writes from its
+    timeline markers, ``TimeMarkers.as_dict``).
+
+    One cue per formation when the drones reach it (the start of its hold), named after the
+    formation, and one named "<formation> ends" when a formation's departure is pinned
+    (``leave_at_s``); a pinned time (``arrive_at_s`` / ``leave_at_s``, on the music) is
+    written as the designer set it. Sorted by time, whole milliseconds (the trajectories'
+    clock).
+    """
+    holds = [s for s in ctx.plan.segments if s.kind == "hold"]
+    items: list[tuple[float, int, str]] = []
+    for k, (f, seg) in enumerate(zip(ctx.show.formations, holds, strict=True)):
+        start = f.arrive_at_s if f.arrive_at_s is not None else seg.start_s
+        items.append((round(float(start), 3), 2 * k, f.name))
+        if f.leave_at_s is not None:
+            items.append((round(float(f.leave_at_s), 3), 2 * k + 1, f"{f.name} ends"))
+    items.sort()
+    return {"version": 1, "items": [{"name": name, "time": t} for t, _, name in items]}
+
+
 def validation_settings(ctx: ExportContext) -> dict[str, float]:
     """The safety limits under the keys Skybrush Studio writes (``SafetyCheckParams.as_dict``).
 
@@ -354,7 +377,7 @@ def build_show_json(ctx: ExportContext) -> dict:
     return {
         "version": 1,
         "settings": {
-            "cues": {"version": 1, "items": []},
+            "cues": cue_list(ctx),
             "validation": validation_settings(ctx),
         },
         "swarm": {"drones": drones},

@@ -278,7 +278,8 @@ export function jobEventsUrl(jobId) {
  * @param {"shape"|"text"|"image"|"svg"} source
  * @param {object} params JSON parameters (n, plane, center_m, ...)
  * @param {File|Blob} [file] the upload for image and svg
- * @returns {Promise<{points: number[][], colors: string[], min_spacing_m: number|null}>}
+ * @returns {Promise<{points: number[][], colors: string[], min_spacing_m: number|null, name: string}>}
+ *   (`name`: after the source, the file's stem, the text or the shape's kind)
  */
 export function buildFormation(source, params, file) {
   if (file) {

@@ -42,6 +42,42 @@ export function fingerprint(points) {
   return `${points.length}:${sum.map((v) => v.toFixed(2)).join(",")}`;
 }
 
+/**
+ * True when formation `f`'s name is not one the designer typed: the editor's default ("Formation 3")
+ * or the name its last import gave it (kept in `source.name`), so a new import may rename it.
+ * @param {{name: string, source?: any}} f
+ */
+export function autoNamed(f) {
+  return /^Formation \d+$/.test(f.name) || (f.source != null && f.source.name != null && f.source.name === f.name);
+}
+
+/**
+ * `base`, or `base 2`, `base 3`, ... : the first not taken by another formation of the show than `self`.
+ * @param {{formations: {name: string}[]}} show @param {string} base @param {object} self
+ */
+function freeName(show, base, self) {
+  const names = new Set(show.formations.filter((f) => f !== self).map((f) => f.name));
+  if (!names.has(base)) return base;
+  for (let k = 2; ; k++) if (!names.has(`${base} ${k}`)) return `${base} ${k}`;
+}
+
+/**
+ * Apply an import to formation `k` inside an edit: its points and colours, its source, and the
+ * name the server suggests after the source (file stem, text, shape) unless the designer named it.
+ * @param {import("./state.js").EditorState} st @param {number} k
+ * @param {{points: number[][], colors: string[], name?: string}} res
+ * @param {any} made the source record (kind, params, file)
+ */
+function applyImport(st, k, res, made) {
+  const f = st.show.formations[k];
+  f.points = roundPoints(res.points);
+  f.colors = res.colors;
+  const named = res.name && autoNamed(f);
+  if (named) f.name = freeName(st.show, /** @type {string} */ (res.name), f);
+  f.source = { ...made, ...(named ? { name: f.name } : {}), fingerprint: fingerprint(f.points) };
+  if (k === st.current) st.selection = new Set();
+}
+
 /** Wires the source forms and the transform buttons to the open show. */
 export class Sources {
   /**
@@ -250,7 +286,7 @@ export class Sources {
    * @param {string} key the form's error slot
    * @param {string} label the undo step's name
    * @param {any} target the formation object the request was made for
-   * @param {{points: number[][], colors: string[]}} res the server's formation
+   * @param {{points: number[][], colors: string[], name?: string}} res the server's formation
    * @param {any} made the formation's `source` (without its fingerprint)
    * @returns {string|null} "" when it was the current formation, ` → "name"` for another one, null when gone
    */
@@ -262,14 +298,8 @@ export class Sources {
         + "or another show opened); apply it again.");
       return null;
     }
-    st.edit(label, () => {
-      const f = st.show.formations[k];
-      f.points = roundPoints(res.points);
-      f.colors = res.colors;
-      f.source = { ...made, fingerprint: fingerprint(f.points) };
-      if (k === st.current) st.selection = new Set();
-    });
-    if (k !== st.current) return ` → "${target.name}"`;
+    st.edit(label, () => applyImport(st, k, res, made));
+    if (k !== st.current) return ` → "${st.show.formations[k].name}"`;
     this.view.fit();
     return "";
   }

@@ -23,11 +23,19 @@ time (:class:`WindField`, below): the engines feel it at each drone's flown posi
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
 __all__ = ["Disturbance", "SinusoidBank", "make_disturbance"]
+
+T = TypeVar("T")
+
+#: Columns of a wind-derivative row (:meth:`WindField.velocity_and_gradients_into`): the
+#: turbulence's Jacobian, row-major (9), then the mean shear (2); the engines' table layout.
+WIND_GRADIENT_COLUMNS = 11
 
 
 @dataclass(frozen=True)
@@ -301,13 +309,48 @@ class WindField:
             differentiates to ``-amp k_j sin``) and the mean profile's shear ``(P, 2)``
             (:meth:`mean_shear`). The full Jacobian is their sum (:meth:`jacobian`).
         """
+        n = np.asarray(points_m).reshape(-1, 3).shape[0]
+        vel, grad = np.empty((n, 3)), np.empty((n, WIND_GRADIENT_COLUMNS))
+        self.velocity_and_gradients_into(points_m, times_s, vel, grad)
+        return vel, np.ascontiguousarray(grad[:, 0:9]).reshape(-1, 3, 3), np.ascontiguousarray(grad[:, 9:11])
+
+    def velocity_and_gradients_into(
+        self, points_m: np.ndarray, times_s: np.ndarray, velocity_out: np.ndarray, gradients_out: np.ndarray, *,
+        threads: int = 1, alongside: Callable[[], T] | None = None,
+    ) -> T | None:
+        """:meth:`velocity_and_gradients` written into the engines' table layout (the same bits).
+
+        Args:
+            points_m: ``(P, 3)`` points (m).
+            times_s: ``(P,)`` times (s).
+            velocity_out: ``(P, 3)`` overwritten with the wind (m/s).
+            gradients_out: ``(P, WIND_GRADIENT_COLUMNS)`` overwritten with the turbulence's
+                Jacobian, row-major (columns 0-8), then the mean shear (9-10), 1/s: the wind
+                tables' rows, written in place instead of assembled from three fresh arrays.
+            threads: Threads for the mode sum (:func:`sim.flight._windsum.turbulence_sum_and_jacobian`).
+            alongside: A task run on a thread of its own while the mode sum runs, started once
+                the sum's inputs are ready (the tables' GNSS draws: their numpy glue and this
+                method's would otherwise take turns at the GIL).
+
+        Returns:
+            ``alongside()``, or None without it.
+        """
         pts, t, x, y, z = self._advected(points_m, times_s)
-        out = self.mean_velocity(pts[:, 2])
-        jac = np.zeros((pts.shape[0], 9))
+        if velocity_out.shape != (pts.shape[0], 3) or gradients_out.shape != (pts.shape[0], WIND_GRADIENT_COLUMNS):
+            raise ValueError(f"velocity_and_gradients_into: {velocity_out.shape}, {gradients_out.shape} "
+                             f"for {pts.shape[0]} points")
+        velocity_out[:] = self.mean_velocity(pts[:, 2])
+        gradients_out[:, 0:9] = 0.0
+        gradients_out[:, 9:11] = self.mean_shear(pts[:, 2])
+        from sim.flight._threads import Beside
         from sim.flight._windsum import turbulence_sum_and_jacobian
 
-        turbulence_sum_and_jacobian(out, jac, x, y, z, t, *self._modes())
-        return out, jac.reshape(-1, 3, 3), self.mean_shear(pts[:, 2])
+        beside = None if alongside is None else Beside(alongside)
+        try:
+            turbulence_sum_and_jacobian(velocity_out, gradients_out, x, y, z, t, *self._modes(), threads=threads)
+        finally:
+            value = None if beside is None else beside.result()
+        return value
 
     def jacobian(self, points_m: np.ndarray, times_s: np.ndarray) -> np.ndarray:
         """``(P, 3, 3)`` the full spatial Jacobian ``∂w_i/∂x_j`` (1/s) at points ``(P, 3)`` and times ``(P,)``."""

@@ -6,12 +6,35 @@ time of the wind alone) at every drone's planned position on a 10 Hz grid, evalu
 (the field is seeded per run): for a 1,000-drone, 10-minute show that is 6e6 points times
 M = 128 modes, 7.7e8 cosines per run, 11 % of a Monte-Carlo run with numpy (issue 20). Here
 the modes are summed in a loop over points that LLVM vectorises (a polynomial cosine instead
-of a libm call, which would keep the loop scalar), in blocks of points that stay in the L1
-cache. One thread: on this 2-core machine, shared with the kernel's threads, a parallel
-region cost ~50 ms per call to start (55 ms for 1,050 points against 1.2 ms in one thread,
-measured at a load of 16), and a ``prange`` over the blocks of the Jacobian sum (each block the
-same arithmetic, so the same bits) measured 3.5x *slower* than this loop on an idle machine
-(44,000 points, 128 modes: numba's parfor body is not vectorised like the plain loop).
+of a libm call, which would keep the loop scalar), in blocks of 1,024 points.
+
+Threads (issue 20: on one thread the tables were ~30 % of a 1-s, 4,000-drone flight's wall
+time). The Jacobian sum's blocks are shared by plain Python threads
+(:func:`sim.flight._threads.share_blocks`; the compiled block loop releases the GIL), each
+block the same arithmetic whichever thread does it, so the same bits. Tried and measured
+(44,000 points, 127-128 modes, alternating in one process, medians of 7-9 runs):
+
+* a ``prange`` over the blocks with the sum inline: 3.5x *slower* than one thread on an idle
+  machine (numba's parfor body was not vectorised like the plain loop), and a parallel region
+  cost ~50 ms to start at a load of 16 (55 ms for 1,050 points against 1.2 ms in one thread);
+* a ``prange`` over the blocks, or over exactly ``numba.get_num_threads()`` halves, whose body
+  calls a separately compiled block function: vectorised again (CPU 1.1-1.25x the one-thread
+  loop's), but it is numba's parallel machinery, a second user of the kernel's OpenMP pool, and
+  it cannot run the GNSS draws beside it; plain threads do both, at the same CPU;
+* the block function with the block range as arguments, indexing the whole arrays at
+  ``b * 1024 + q``: 5-6x slower (the wrap-around check of a possibly negative index stayed in
+  the loop, which then did not vectorise); slicing the block's inputs first fixed it;
+* two modes per pass over a block (each point's additions still in mode order): 1.05-1.09x
+  less CPU (half the loads and stores of the thirteen accumulators); kept. Three to eight modes
+  per pass: another 1.03-1.09x (11 alternating runs, ranges 0.86-1.21), not kept (a longer loop
+  for under 1 % of a flight). All modes, or four, in an inner loop over modes inside the loop
+  over points with register accumulators: 6-7x slower (not vectorised);
+* blocks of 128-1,024 points: within ±3 % (the L1 cache is not what limits the loop; its
+  ~95 flops per point and mode, with the polynomials' dependent chains, run at ~280 M
+  point-modes/s per core).
+
+On the loaded shared machine (load 3-8 on 2 cores) the second thread rarely finds a core free,
+so the wall-clock gain there is mostly the CPU cut; the split pays when a core is idle.
 
 Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
 series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
@@ -27,6 +50,8 @@ import math
 
 import numba
 import numpy as np
+
+from sim.flight._threads import share_blocks
 
 __all__ = ["turbulence_sum", "turbulence_sum_and_jacobian"]
 
@@ -100,23 +125,20 @@ def turbulence_sum(
 
 
 @numba.njit(cache=True, nogil=True)
-def turbulence_sum_and_jacobian(
+def _sum_and_jacobian_blocks(
     out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
-    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
+    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, b0: int, b1: int,
 ) -> None:  # pragma: no cover - compiled
-    """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
+    """:func:`turbulence_sum_and_jacobian` over the point blocks ``b0 .. b1 - 1`` (``_BLOCK`` points each).
 
-    The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
-    so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
-    from the same argument as the value (one reduction for both).
-
-    Args:
-        out: ``(P, 3)`` wind (m/s), added to.
-        jac: ``(P, 9)`` Jacobian (1/s), added to.
-        x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
+    The block's inputs are sliced before the loop over its points (indexing the whole arrays
+    at ``b * _BLOCK + q`` did not vectorise: module docstring). Two modes per pass over the
+    block (a last odd mode alone), each point's additions still in mode order, so the bits of
+    one mode per pass.
     """
     n = x.shape[0]
-    for b in range((n + _BLOCK - 1) // _BLOCK):
+    n_modes = k.shape[0]
+    for b in range(b0, b1):
         p0 = b * _BLOCK
         p1 = min(p0 + _BLOCK, n)
         o0 = out[p0:p1, 0].copy()
@@ -126,27 +148,81 @@ def turbulence_sum_and_jacobian(
         j0, j1, j2 = jac[p0:p1, 0].copy(), jac[p0:p1, 1].copy(), jac[p0:p1, 2].copy()
         j3, j4, j5 = jac[p0:p1, 3].copy(), jac[p0:p1, 4].copy(), jac[p0:p1, 5].copy()
         j6, j7, j8 = jac[p0:p1, 6].copy(), jac[p0:p1, 7].copy(), jac[p0:p1, 8].copy()
-        for m in range(k.shape[0]):
+        xb, yb, zb, tb = x[p0:p1], y[p0:p1], z[p0:p1], t[p0:p1]
+        m = 0
+        while m < n_modes:
             kx, ky, kz, w, ph = k[m, 0], k[m, 1], k[m, 2], omega[m], phase[m]
             a0, a1, a2 = amp[m, 0], amp[m, 1], amp[m, 2]
-            for q in range(p1 - p0):
-                p = p0 + q
-                c, s = _cos_sin(kx * x[p] + ky * y[p] + kz * z[p] + w * t[p] + ph)
-                o0[q] += a0 * c
-                o1[q] += a1 * c
-                o2[q] += a2 * c
-                s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
-                j0[q] += s0 * kx
-                j1[q] += s0 * ky
-                j2[q] += s0 * kz
-                j3[q] += s1 * kx
-                j4[q] += s1 * ky
-                j5[q] += s1 * kz
-                j6[q] += s2 * kx
-                j7[q] += s2 * ky
-                j8[q] += s2 * kz
+            if m + 1 < n_modes:
+                kx_, ky_, kz_, w_, ph_ = k[m + 1, 0], k[m + 1, 1], k[m + 1, 2], omega[m + 1], phase[m + 1]
+                a0_, a1_, a2_ = amp[m + 1, 0], amp[m + 1, 1], amp[m + 1, 2]
+                for q in range(p1 - p0):
+                    px, py, pz, pt = xb[q], yb[q], zb[q], tb[q]
+                    c, s = _cos_sin(kx * px + ky * py + kz * pz + w * pt + ph)
+                    c_, s_ = _cos_sin(kx_ * px + ky_ * py + kz_ * pz + w_ * pt + ph_)
+                    o0[q] = (o0[q] + a0 * c) + a0_ * c_
+                    o1[q] = (o1[q] + a1 * c) + a1_ * c_
+                    o2[q] = (o2[q] + a2 * c) + a2_ * c_
+                    s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                    r0, r1, r2 = -a0_ * s_, -a1_ * s_, -a2_ * s_
+                    j0[q] = (j0[q] + s0 * kx) + r0 * kx_
+                    j1[q] = (j1[q] + s0 * ky) + r0 * ky_
+                    j2[q] = (j2[q] + s0 * kz) + r0 * kz_
+                    j3[q] = (j3[q] + s1 * kx) + r1 * kx_
+                    j4[q] = (j4[q] + s1 * ky) + r1 * ky_
+                    j5[q] = (j5[q] + s1 * kz) + r1 * kz_
+                    j6[q] = (j6[q] + s2 * kx) + r2 * kx_
+                    j7[q] = (j7[q] + s2 * ky) + r2 * ky_
+                    j8[q] = (j8[q] + s2 * kz) + r2 * kz_
+                m += 2
+            else:
+                for q in range(p1 - p0):
+                    c, s = _cos_sin(kx * xb[q] + ky * yb[q] + kz * zb[q] + w * tb[q] + ph)
+                    o0[q] += a0 * c
+                    o1[q] += a1 * c
+                    o2[q] += a2 * c
+                    s0, s1, s2 = -a0 * s, -a1 * s, -a2 * s
+                    j0[q] += s0 * kx
+                    j1[q] += s0 * ky
+                    j2[q] += s0 * kz
+                    j3[q] += s1 * kx
+                    j4[q] += s1 * ky
+                    j5[q] += s1 * kz
+                    j6[q] += s2 * kx
+                    j7[q] += s2 * ky
+                    j8[q] += s2 * kz
+                m += 1
         out[p0:p1, 0] = o0
         out[p0:p1, 1] = o1
         out[p0:p1, 2] = o2
         for e, col in enumerate((j0, j1, j2, j3, j4, j5, j6, j7, j8)):
             jac[p0:p1, e] = col
+
+
+def turbulence_sum_and_jacobian(
+    out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
+    k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, *, threads: int = 1,
+) -> None:
+    """:func:`turbulence_sum` (the same bits in ``out``) plus the field's spatial Jacobian, in place.
+
+    The derivative of a mode is closed-form: ``∂/∂x_j amp_i cos(k·x + ...) = -amp_i k_j sin(k·x + ...)``,
+    so ``jac[p, 3 i + j] += Σ_m -amp[m, i] k[m, j] sin(arg_m(p))`` (row-major ``∂u_i/∂x_j``, 1/s),
+    from the same argument as the value (one reduction for both).
+
+    Args:
+        out: ``(P, 3)`` wind (m/s), added to.
+        jac: ``(P, J)`` with ``J ≥ 9``: the Jacobian (1/s) is added to its first nine columns (the
+            others are left alone, so the caller's wider table can be passed as it is).
+        x, y, z, t, k, amp, omega, phase: as :func:`turbulence_sum`.
+        threads: Threads to share the point blocks (module docstring); each point's sum is the
+            same arithmetic whichever thread does its block, so the same bits for any count.
+    """
+    n = x.shape[0]
+    if out.shape != (n, 3) or jac.ndim != 2 or jac.shape[0] != n or jac.shape[1] < 9:
+        raise ValueError(f"turbulence_sum_and_jacobian: out {out.shape}, jac {jac.shape} for {n} points")
+    blocks = (n + _BLOCK - 1) // _BLOCK
+    args = (out, jac, x, y, z, t, k, amp, omega, phase)
+    if threads <= 1 or blocks < 2:
+        _sum_and_jacobian_blocks(*args, 0, blocks)
+        return
+    share_blocks(blocks, lambda b: _sum_and_jacobian_blocks(*args, b, b + 1), threads=threads)

@@ -5,6 +5,12 @@ It allocates the state, controller and statistics arrays (layout in
 disturbance one chunk at a time, and hands each chunk to the numpy step
 (:mod:`sim.flight.engines._numpy`) or the fused numba kernel
 (:mod:`sim.flight.engines._numba`).
+
+Outside the kernel a chunk's time is the error models' tables (:mod:`sim.flight.engines._tables`,
+on the table threads); the driver's own per-chunk work, the shared reference and disturbance
+rows, measured ~0.1 ms for a 1,001-step chunk of 4,000 drones (against ~130 ms of kernel), and
+its set-up ~1 ms (two evaluations of the reference at t = 0, 0.46 ms each): nothing there worth
+hoisting out of the loop.
 """
 
 from __future__ import annotations

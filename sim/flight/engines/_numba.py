@@ -1033,8 +1033,11 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
             code = ("import pickle, sys, importlib; "
                     f"f = getattr(importlib.import_module({func.__module__!r}), {func.__qualname__!r}); "
                     "f.compile(pickle.loads(sys.stdin.buffer.read()))")
-            env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
-            subprocess.run([sys.executable, "-c", code], input=pickle.dumps(sig), env=env,
+            # The child imports this process's code: its sys.path as PYTHONPATH ('' is the working
+            # directory), and ``-P`` so that the child's own working directory does not come first
+            # (another checkout's ``sim`` there was imported instead, and this process compiled).
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(p or os.getcwd() for p in sys.path))
+            subprocess.run([sys.executable, "-P", "-c", code], input=pickle.dumps(sig), env=env,
                            capture_output=True, timeout=1800, check=False)
     except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
         return

@@ -36,21 +36,44 @@ interpolation in time errs by 4.6 % of that term whatever the displacement; the 
 scales with the displacement, so it is below the interpolation's at under ~0.4 m. The tables'
 mode sum (value and Jacobian) costs 2-2.7x the value alone.
 
+Speed (issue 20): on one thread the tables were ~30 % of a 1-s, 4,000-drone "gusty-rtk"
+flight's wall time (of 40 ms, the wind's mode sum 24, the GNSS draws 8). Now the mode sum's
+point blocks are shared by the table threads (:mod:`sim.flight._windsum`) while the GNSS
+draws run on a thread of their own, started once the wind's inputs are ready (their numpy
+glue would otherwise take turns at the GIL with the wind's); the wind and its derivatives are
+written straight into the tables' rows (no separate Jacobian and shear arrays to copy). The
+same bits on any thread count (``tests/test_flight_table_threads.py``). Measured against the
+one-thread tables (old and new tree in alternating processes, load 5-8 on the 2 shared cores,
+medians [ranges]): a chunk's tables 1.12x less CPU [1.07, 1.18] (4 pairs); a whole 1-s
+simulate 1.07x less CPU [0.99, 1.20] and 1.06x less wall [0.75, 1.77] (8 pairs), the kernel's
+share of its wall 0.75 -> 0.80; 1,000 drones for 30 s (30 chunks: a thread start per chunk
+costs nothing visible) 1.01x less CPU [0.89, 1.05], 1.04x less wall [1.00, 1.67] (4 pairs); a
+500-drone, 357-s ``fly_show`` 1.02x less CPU [0.97, 1.08] (4 pairs).
+At that load the second thread rarely finds a core free (``benchmarks/bench_tables.py``:
+one thread against two in one process, 1.04x wall for the tables); with a core idle the two
+threads should near halve the tables' wall, which this machine could not show. Not done, measured:
+Box-Muller's logarithm and cosine compiled (numpy's cosine is 2.3 ms of the draws for 264,000
+normals, its log 0.3 ms) would not be numpy's bits on every CPU (:mod:`sim.flight._random`);
+drawing the next chunk's tables during this chunk's kernel would only fill cores the kernel's
+two threads leave idle, which on this shared machine there are none of.
+
 Both engines read the same tables, so they agree with the error models on.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION, WindField
+from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION, WIND_GRADIENT_COLUMNS, WindField
 from sim.flight._errors import ErrorModel
 from sim.flight._quadrotor import QuadrotorParams
 from sim.flight._random import STREAMS, hashed_normal, uniform_pairs_grid
+from sim.flight._threads import table_threads
 from sim.flight.engines._state import (
     D_CLOCK,
     D_DRAG,
@@ -72,13 +95,17 @@ __all__ = ["WIND_GRID_S", "WIND_GRAD_SIZE", "ChunkTables", "ErrorTables", "flown
 WIND_GRID_S = 0.1
 #: Entries of a wind-derivative row: the turbulence's ``∂u_i/∂x_j`` (row-major, 9) then the
 #: mean profile's ``∂U_x/∂z, ∂U_y/∂z`` (2), all 1/s.
-WIND_GRAD_SIZE = 11
+WIND_GRAD_SIZE = WIND_GRADIENT_COLUMNS
 #: Relative parameter errors are clipped to this many σ (a normal has no bounds; a
 #: negative mass has no meaning).
 SPREAD_CLIP_SIGMA = 4.0
 #: Bytes of Box-Muller inputs drawn at once for the GNSS tables (epochs × drones × 3 axes × 2
 #: streams × 8 bytes, in each of two buffers): about an L2 cache.
 _GNSS_BLOCK_BYTES = 1 << 18
+#: Smallest wind-table work (rows x drones x modes) for which the GNSS table is drawn on a
+#: thread of its own beside the wind's mode sum: ~1 ms of the sum on one core (~280 M
+#: point-modes/s), against ~0.1 ms to start and join a thread.
+_THREAD_MIN_POINT_MODES = 1 << 18
 
 
 @dataclass(frozen=True)
@@ -349,25 +376,71 @@ class ErrorTables:
                     gnss[on, :, 0:2] += self.step_xy_m[None, :, :]
         return gnss, first
 
-    def chunk(self, step0: int, count: int, reference: TrackingReference) -> ChunkTables:
-        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order)."""
+    def chunk(
+        self, step0: int, count: int, reference: TrackingReference, *, threads: int | None = None,
+    ) -> ChunkTables:
+        """The tables for steps ``step0 .. step0 + count - 1`` (chunks must come in order).
+
+        Args:
+            step0: The chunk's first step.
+            count: Its steps.
+            reference: What the drones track (the wind is taken at its positions).
+            threads: Threads for the tables (default :func:`sim.flight._threads.table_threads`):
+                the GNSS table is drawn on a thread of its own while the wind's mode sum
+                shares its point blocks among the threads (module docstring); the same bits
+                for any count.
+        """
         n = self.ids.size
-        gnss, first = self._gnss_chunk(step0, count)
+        threads = table_threads() if threads is None else max(1, int(threads))
+        k0, k1 = self._wind_grid(step0, count)
+        wind_rows = k1 - k0 + 1 if self.use_drag else 0
+        if threads > 1 and self.use_gnss and wind_rows * n * self.wind_field_modes >= _THREAD_MIN_POINT_MODES:
+            # The GNSS draws on a thread of their own, started once the wind's inputs are ready
+            # (their numpy glue and the draws' would otherwise take turns at the GIL).
+            drawn: list[tuple[np.ndarray, int]] = []
+            wind, grad, k0, radius = self._wind_chunk(
+                step0, count, reference, threads, lambda: drawn.append(self._gnss_chunk(step0, count)))
+            gnss, first = drawn[0] if drawn else self._gnss_chunk(step0, count)
+        else:
+            gnss, first = self._gnss_chunk(step0, count)
+            wind, grad, k0, radius = self._wind_chunk(step0, count, reference, threads)
+        return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
+                           wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
+
+    @property
+    def wind_field_modes(self) -> int:
+        """Fourier modes of the turbulence (0 without a wind field)."""
+        return 0 if self.wind_field is None else int(self.wind_field.omega_rad_s.size)
+
+    def _wind_grid(self, step0: int, count: int) -> tuple[int, int]:
+        """The first and last wind grid index of a chunk's table (rows bracketing its steps' times)."""
+        t0 = step0 * self.dt_s
+        t1 = (step0 + count - 1) * self.dt_s
+        return int(math.floor(t0 / WIND_GRID_S)), int(math.floor(t1 / WIND_GRID_S)) + 1
+
+    def _wind_chunk(
+        self, step0: int, count: int, reference: TrackingReference, threads: int,
+        alongside: Callable[[], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, int, float]:
+        """``(wind (W, N, 3), grad (W, N, WIND_GRAD_SIZE), grid index of row 0, clamp radius)``.
+
+        See :class:`ChunkTables`; ``alongside`` runs on a thread of its own while the mode sum
+        runs (not at all when there is no sum to do).
+        """
+        n = self.ids.size
         wind = np.zeros((0, n, 3))
         grad = np.zeros((0, n, WIND_GRAD_SIZE))
         radius = 0.0
         k0 = 0
         if self.use_drag:
-            t0 = step0 * self.dt_s
-            t1 = (step0 + count - 1) * self.dt_s
-            k0 = int(math.floor(t0 / WIND_GRID_S))
-            k1 = int(math.floor(t1 / WIND_GRID_S)) + 1
+            k0, k1 = self._wind_grid(step0, count)
             grid = np.arange(k0, k1 + 1) * WIND_GRID_S
-            grad = np.zeros((grid.size, n, WIND_GRAD_SIZE))
             if self.wind_field is None:
                 wind = np.zeros((grid.size, n, 3))
+                grad = np.zeros((grid.size, n, WIND_GRAD_SIZE))
             else:
                 wind = np.empty((grid.size, n, 3))
+                grad = np.empty((grid.size, n, WIND_GRAD_SIZE))
                 # Consecutive chunks share their boundary grid time (a 1,000-step chunk spans 11
                 # rows, the last of which opens the next chunk): that row is reused, not summed
                 # again (the same planned points at the same time: the same bits).
@@ -382,11 +455,11 @@ class ErrorTables:
                     if reference.offset is not None:
                         pts = pts + np.asarray(reference.offset(rows))[:, None, 0:3]
                     times = np.broadcast_to(rows[:, None], pts.shape[:2]).reshape(-1)
-                    vel, jac, shear = self.wind_field.velocity_and_gradients(pts.reshape(-1, 3), times)
-                    wind[r0:] = vel.reshape(rows.size, n, 3)
-                    grad[r0:, :, 0:9] = jac.reshape(rows.size, n, 9)
-                    grad[r0:, :, 9:11] = shear.reshape(rows.size, n, 2)
+                    # Straight into the tables' rows (C-contiguous: W' x N points of 3 and 11 columns).
+                    self.wind_field.velocity_and_gradients_into(
+                        pts.reshape(-1, 3), times, wind[r0:].reshape(-1, 3), grad[r0:].reshape(-1, WIND_GRAD_SIZE),
+                        threads=threads, alongside=alongside,
+                    )
                 self._wind_tail = (reference, k1, wind[-1].copy(), grad[-1].copy())
                 radius = self.wind_field.linear_radius_m
-        return ChunkTables(gnss=gnss, gnss_every=self.gnss_every, gnss_first=first, wind=wind,
-                           wind_k0=k0, wind_dt_s=WIND_GRID_S, wind_grad=grad, wind_radius_m=radius)
+        return wind, grad, k0, radius

@@ -1,0 +1,86 @@
+"""The error models' per-chunk tables on one thread and on the table threads (issue 20 item 6).
+
+``pytest -m slow benchmarks/bench_tables.py``. 4,000 drones on circles with "gusty-rtk" (the
+setup of ``bench_sim.test_bench_kernel_against_numpy_with_error_models``): the GNSS and wind
+tables of a 1,001-step chunk (one second), and whole 1-s ``simulate`` runs, each with the
+tables on one thread and on :func:`sim.flight._threads.table_threads` threads, alternating
+in one process (the machine is shared: ratios of neighbouring runs, medians and ranges, and
+the load average). The two must give the same bits (checked here as well as in
+``tests/test_flight_table_threads.py``).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow
+
+DRONES = 4000
+PAIRS = 9
+
+
+def _timed(fn) -> tuple[float, float]:
+    wall, cpu = time.perf_counter(), time.process_time()
+    fn()
+    return time.perf_counter() - wall, time.process_time() - cpu
+
+
+def test_bench_error_tables_on_threads(record_result, monkeypatch) -> None:
+    import sim.flight.engines._tables as tables_mod
+    from sim.flight import QuadrotorParams, TrackingReference, error_preset, simulate
+    from sim.flight._threads import table_threads
+
+    rng = np.random.default_rng(0)
+    centers = rng.uniform(-200.0, 200.0, (DRONES, 3)) + [0.0, 0.0, 60.0]
+    ref = TrackingReference.circle(centers, radius_m=3.0, omega_rad_s=0.5)
+    errors = error_preset("gusty-rtk")
+    threads = table_threads()
+
+    def tables():
+        return tables_mod.ErrorTables(errors, seed=0, drone_ids=np.arange(DRONES), plant=QuadrotorParams(),
+                                      dt_s=1e-3, duration_s=1.0)
+
+    one, many = tables().chunk(0, 1001, ref, threads=1), tables().chunk(0, 1001, ref, threads=threads)
+    for name in ("gnss", "wind", "wind_grad"):
+        assert getattr(one, name).tobytes() == getattr(many, name).tobytes(), name
+
+    load = os.getloadavg()[0]
+    chunk: dict[int, list[tuple[float, float]]] = {1: [], threads: []}
+    for p in range(PAIRS):
+        for th in ((1, threads) if p % 2 == 0 else (threads, 1)):
+            t = tables()
+            chunk[th].append(_timed(lambda t=t, th=th: t.chunk(0, 1001, ref, threads=th)))
+
+    def fly() -> None:
+        simulate(ref, duration_s=1.0, engine="numba", output_every=40, errors=errors)
+
+    fly()  # compile and warm
+    flights: dict[int, list[tuple[float, float]]] = {1: [], threads: []}
+    for p in range(PAIRS):
+        for th in ((1, threads) if p % 2 == 0 else (threads, 1)):
+            monkeypatch.setattr(tables_mod, "table_threads", lambda th=th: th)
+            flights[th].append(_timed(fly))
+    load = max(load, os.getloadavg()[0])
+
+    def ratios(runs: dict[int, list[tuple[float, float]]], k: int) -> list[float]:
+        a, b = np.array(runs[1])[:, k], np.array(runs[threads])[:, k]
+        r = a / b
+        return [float(np.median(r)), float(r.min()), float(r.max())]
+
+    fig = {
+        "drones": DRONES, "preset": "gusty-rtk", "table_threads": threads, "load_average_max": load,
+        "chunk_wall_s_one_thread_median": float(np.median(np.array(chunk[1])[:, 0])),
+        "chunk_cpu_s_one_thread_median": float(np.median(np.array(chunk[1])[:, 1])),
+        "chunk_wall_speedup_median_min_max": ratios(chunk, 0),
+        "chunk_cpu_ratio_median_min_max": ratios(chunk, 1),
+        "simulate_wall_speedup_median_min_max": ratios(flights, 0),
+        "simulate_cpu_ratio_median_min_max": ratios(flights, 1),
+        "table_share_of_simulate_wall_one_thread": float(
+            np.median(np.array(chunk[1])[:, 0]) / np.median(np.array(flights[1])[:, 0])),
+    }
+    record_result(fig)
+    assert fig["chunk_cpu_ratio_median_min_max"][0] > 0.5  # the threads add no large CPU cost
