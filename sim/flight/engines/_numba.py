@@ -160,6 +160,7 @@ from sim.flight.engines._state import (
     D_SAG_RATE,
     D_SIZE,
     D_THRUST,
+    DIVERGED_GROUND,
     DIVERGED_NONFINITE,
     DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
@@ -393,6 +394,7 @@ def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
     wind_dt, wgrad, wrad, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
+    ground_z,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -534,6 +536,9 @@ def _kernel(
                 qx, qy, qz = px - prx, py - pry, pz - prz
                 err = math.sqrt(qx * qx + qy * qy + qz * qz)
                 err_ok = err <= limit  # false for NaN (a non-finite reference) or a runaway drone
+                # Through the show's ground (-inf: none); false for NaN, which is caught as non-finite.
+                below = pz < ground_z
+                err_ok = err_ok & (pz >= ground_z)
                 if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
                     prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(
                         sc, F_REFC, lane, t + sc[(F_DRONE + D_CLOCK) * L + lane], tf, tl)
@@ -845,6 +850,7 @@ def _kernel(
                 sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
                 far = DIVERGED_OVERPOWERED if lf_old > LIMITED_FRACTION else DIVERGED_RUNAWAY
                 why = far if (not err_ok) and err > limit else DIVERGED_NONFINITE
+                why = DIVERGED_GROUND if below else why
                 sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
 
                 # Statistics and the commit, for the drones that flew this step.
@@ -959,7 +965,8 @@ def run_chunk_numba(
         frames: ``(F, N, 3)`` output positions (m), written at frame steps.
         tel: ``(F, N, TEL_SIZE)`` telemetry or None.
         opts: ``params``, ``plant``, ``gains``, ``disturbance``, ``dt_s``,
-            ``divergence_limit_m``, optionally ``drone`` and ``switches``, as in the numpy engine.
+            ``divergence_limit_m``, optionally ``drone``, ``switches`` and ``ground_strike_z_m``,
+            as in the numpy engine.
         tables: The chunk's GNSS and wind tables (None: ideal).
     """
     sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
@@ -992,6 +999,7 @@ def run_chunk_numba(
         float(tables.wind_radius_m),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
+        float(opts.get("ground_strike_z_m", -math.inf)),
     )
     _cached_machine_code(_kernel, args)
     _kernel(*args)

@@ -19,9 +19,10 @@ scenario both meet the paper scenario's thresholds (docs/method.md §7) (``run_p
 integrator="rk4")``).
 
 Divergence: before a step, a drone whose position error exceeds ``divergence_limit_m``
-is frozen; a step that would make any state or input non-finite is not committed and
-the drone is frozen. Frozen drones keep their last finite state and are reported with
-the time and the reason; the others fly on.
+is frozen, and so is one whose true height is below ``ground_strike_z_m`` (a flown
+show's ground less ``GROUND_STRIKE_M``; reason "ground"); a step that would make any
+state or input non-finite is not committed and the drone is frozen. Frozen drones keep
+their last finite state and are reported with the time and the reason; the others fly on.
 
 The controller state of each drone is a flat row of ``CTRL_SIZE`` floats; the layout,
 the reference type and the result live in :mod:`sim.flight.engines._state` so the
@@ -78,6 +79,7 @@ from sim.flight.engines._state import (
     D_MOTOR,
     D_SAG_RATE,
     D_THRUST,
+    DIVERGED_GROUND,
     DIVERGED_NONFINITE,
     DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
@@ -343,10 +345,12 @@ def run_chunk_numpy(
 ) -> None:
     """Advance ``len(times)`` steps in place (the numpy engine's chunk).
 
-    ``opts`` may carry ``drone`` (``(N, D_SIZE)`` constants) and ``switches``
-    (:class:`ErrorSwitches`); ``tables`` the chunk's GNSS and wind tables (default: ideal).
+    ``opts`` may carry ``drone`` (``(N, D_SIZE)`` constants), ``switches``
+    (:class:`ErrorSwitches`) and ``ground_strike_z_m`` (height below which a drone stops, "ground";
+    default -inf: no ground); ``tables`` the chunk's GNSS and wind tables (default: ideal).
     """
     limit = opts["divergence_limit_m"]
+    ground_z = float(opts.get("ground_strike_z_m", -np.inf))
     sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
     drone = opts.get("drone")
     if drone is None:
@@ -366,10 +370,12 @@ def run_chunk_numpy(
                 wind = flown_wind(w_plan, w_grad, state[:, 0:3] - pr, pr[:, 2], tables.wind_radius_m)
         with np.errstate(all="ignore"):
             err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
-        runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
+        below = state[:, 2] < ground_z  # through the show's ground (never for NaN: caught as non-finite)
+        runaway = alive & (~(err <= limit) | below)  # NaN (a non-finite reference) or a runaway drone
         dstep[runaway] = k
         far = np.where(ctrl[runaway, C_LIMITED] > LIMITED_FRACTION, DIVERGED_OVERPOWERED, DIVERGED_RUNAWAY)
-        dreason[runaway] = np.where(err[runaway] > limit, far, DIVERGED_NONFINITE)
+        why = np.where(err[runaway] > limit, far, DIVERGED_NONFINITE)
+        dreason[runaway] = np.where(below[runaway], DIVERGED_GROUND, why)
         alive &= ~runaway
         with np.errstate(all="ignore"):  # a diverging row may overflow; it is caught below
             ns, nc, trow = numpy_step(

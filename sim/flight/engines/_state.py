@@ -21,11 +21,13 @@ from sim.plan._trajectory import DEGREE, Trajectories
 __all__ = [
     "CTRL_SIZE",
     "D_SIZE",
+    "DIVERGED_GROUND",
     "DIVERGED_NONFINITE",
     "DIVERGED_OVERPOWERED",
     "DIVERGED_REASONS",
     "ErrorSwitches",
     "DIVERGED_RUNAWAY",
+    "GROUND_STRIKE_M",
     "STATS_SIZE",
     "TELEMETRY_FIELDS",
     "TEL_SIZE",
@@ -84,12 +86,21 @@ STATS_SIZE = 4
 #   clipped) pointing back toward the reference with the attitude following it (thrust axis
 #   within 0.2 rad of the command): it lacked the authority, e.g. wind beyond its airspeed
 #   limit;
-# * "non-finite": a state or input became NaN or inf (or the reference did).
+# * "non-finite": a state or input became NaN or inf (or the reference did);
+# * "ground": its true position sank more than GROUND_STRIKE_M below the ground of the show it
+#   flies (a crash: the model has no ground contact). Only a flown show has a ground
+#   (``simulate(ground_m=...)``, set by ``sim.flight._runner.fly_local``); the free-space
+#   references of the tests and the paper scenario (p_ref z = sin t dips to -1 m) have none.
+#   Checked before the error limit: a drone that falls is "ground" even if it also fell far.
 DIVERGED_RUNAWAY = 1
 DIVERGED_NONFINITE = 2
 DIVERGED_OVERPOWERED = 3
+DIVERGED_GROUND = 4
 DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite",
-                    DIVERGED_OVERPOWERED: "overpowered"}
+                    DIVERGED_OVERPOWERED: "overpowered", DIVERGED_GROUND: "ground"}
+#: Depth below the show's ground (its lowest home, at most z = 0) at which a flown drone has crashed
+#: into it (m): a landing sinks a few centimetres under its home while the controller settles.
+GROUND_STRIKE_M = 0.5
 
 # Telemetry row recorded at output frames (when requested).
 TELEMETRY_FIELDS = (
