@@ -394,7 +394,7 @@ def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
     wind_dt, wgrad, wrad, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
-    ground_z,
+    ground_z, batt_end,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -517,6 +517,7 @@ def _kernel(
             dw0, dw1, dw2 = dist[j, 3], dist[j, 4], dist[j, 5]
             d2x, d2y, d2z = dist[j, 6], dist[j, 7], dist[j, 8]
             kf_step = float(k)
+            t_batt = min(t, batt_end)  # the battery sag grows until the pack's endurance, then is held
 
             # ---- the vector part: one control + integration step of every lane. (The trip
             # count is read from the scratch's size, not the constant LANES: LLVM fully
@@ -739,7 +740,7 @@ def _kernel(
                     o3 = ro3 + mot * (o3 - ro3)
                     o4 = ro4 + mot * (o4 - ro4)
                 # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
-                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t)
+                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t_batt)
                 thrust = kf * (o1 + o2 + o3 + o4) * rg
                 tqx = arm * kf * (o2 - o4) * rg
                 tqy = arm * kf * (o3 - o1) * rg
@@ -999,7 +1000,7 @@ def run_chunk_numba(
         float(tables.wind_radius_m),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
-        float(opts.get("ground_strike_z_m", -math.inf)),
+        float(opts.get("ground_strike_z_m", -math.inf)), float(sw.battery_end_s),
     )
     _cached_machine_code(_kernel, args)
     _kernel(*args)

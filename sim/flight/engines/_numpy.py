@@ -266,7 +266,7 @@ def numpy_step(
         omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
     nc[:, C_ROTOR:C_ROTOR + 4] = omega_sq
     thrust, torque = unmix(omega_sq, plant)
-    gain = d[:, D_THRUST] * (1.0 - d[:, D_SAG_RATE] * t_s)
+    gain = d[:, D_THRUST] * (1.0 - d[:, D_SAG_RATE] * min(t_s, sw.battery_end_s))  # held past the endurance
     thrust = thrust * gain
     torque = torque * gain[:, None]
 

@@ -68,7 +68,7 @@ LIMITED_ALIGN_COS = math.cos(0.2)
 # Per-drone constants of the error models (rows of ``drone``, built by engines._tables).
 D_MASS, D_IX, D_IY, D_IZ = 0, 1, 2, 3  # the true plant's mass (kg) and inertia (kg·m²)
 D_THRUST = 4  # rotor thrust-gain factor at t = 0 (dimensionless)
-D_SAG_RATE = 5  # thrust-gain loss per second of flight (1/s)
+D_SAG_RATE = 5  # thrust-gain loss per second of flight (1/s), until ErrorSwitches.battery_end_s
 D_CLOCK = 6  # show-clock offset δ (s): the drone flies the reference at t + δ
 D_MOTOR = 7  # motor-lag blend 1 - exp(-dt/τ) per step (1: no lag)
 D_DRAG = 8  # quadratic drag over mass c / m (1/m)
@@ -128,6 +128,8 @@ class ErrorSwitches:
         gate_v_m: Innovation gate vertically (m).
         gate_epochs: Consecutive rejected epochs after which p̂ is reset to the fix.
         reset_mps: Speed (m/s, per axis) at which a reset is passed on to what the controller sees.
+        battery_end_s: The pack's endurance (s): the battery sag (``D_SAG_RATE`` t) grows until
+            then and is held after it (``sim.flight._errors``).
     """
 
     gnss: bool = False
@@ -140,6 +142,7 @@ class ErrorSwitches:
     gate_v_m: float = math.inf
     gate_epochs: float = 0.0
     reset_mps: float = math.inf
+    battery_end_s: float = math.inf
 
     @property
     def ideal(self) -> bool:
