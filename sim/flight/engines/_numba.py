@@ -129,6 +129,7 @@ import numba as nb
 import numpy as np
 
 from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
+from sim.flight._quadrotor import YAW_HEADROOM
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
@@ -275,6 +276,65 @@ def _ismc_law(
 
 
 @nb.njit(inline="always", cache=True)
+def _k(a: float, d: float, top: float) -> float:
+    """A rotor's un-saturating multiple of a desaturation direction whose entry for it is d = ±1 (0 in range)."""
+    return (top - a) * d if a > top else ((0.0 - a) * d if a < 0.0 else 0.0)
+
+
+@nb.njit(inline="always", cache=True)
+def _gain4(k1: float, k2: float, k3: float, k4: float) -> float:
+    """The same over four rotors."""
+    return min(min(min(k1, k2), min(k3, k4)), 0.0) + max(max(max(k1, k2), max(k3, k4)), 0.0)
+
+
+@nb.njit(inline="always", cache=True)
+def _allocate(base: float, roll: float, pitch: float, yw: float, top: float, top_yaw: float,
+              on: bool) -> tuple[float, float, float, float, bool, bool]:
+    """:func:`sim.flight._quadrotor.allocate` for one drone, as selects.
+
+    Returns ``(ω1², ω2², ω3², ω4², thrust short, torque short)``.
+
+    The same operations in the same order as the numpy version (PX4's sequential desaturation,
+    airmode for roll and pitch; ``on`` False: the plain clip). The directions' entries are ±1,
+    so the multiples are products, no divisions.
+    """
+    a1, a2, a3, a4 = base - pitch, base + roll, base + pitch, base - roll
+    # The collective, either way (airmode for roll and pitch).
+    g = _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    g = g if on else 0.0
+    a1, a2, a3, a4 = a1 + g, a2 + g, a3 + g, a4 + g
+    g2 = 0.5 * _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    g2 = g2 if on else 0.0
+    a1, a2, a3, a4 = a1 + g2, a2 + g2, a3 + g2, a4 + g2
+    t1 = (g != 0.0) | (g2 != 0.0)
+    # Yaw (+1, -1, +1, -1), with room above the top.
+    a1, a2, a3, a4 = a1 + yw, a2 - yw, a3 + yw, a4 - yw
+    g = _gain4(_k(a1, 1.0, top_yaw), _k(a2, -1.0, top_yaw), _k(a3, 1.0, top_yaw), _k(a4, -1.0, top_yaw))
+    g = g if on else 0.0
+    a1, a2, a3, a4 = a1 + g, a2 - g, a3 + g, a4 - g
+    g2 = 0.5 * _gain4(_k(a1, 1.0, top_yaw), _k(a2, -1.0, top_yaw), _k(a3, 1.0, top_yaw), _k(a4, -1.0, top_yaw))
+    g2 = g2 if on else 0.0
+    a1, a2, a3, a4 = a1 + g2, a2 - g2, a3 + g2, a4 - g2
+    y = (g != 0.0) | (g2 != 0.0)
+    # The collective again, lowered only.
+    g = _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    use = (g <= 0.0) & on
+    g = g if use else 0.0
+    a1, a2, a3, a4 = a1 + g, a2 + g, a3 + g, a4 + g
+    g2 = 0.5 * _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    g2 = g2 if use else 0.0
+    a1, a2, a3, a4 = a1 + g2, a2 + g2, a3 + g2, a4 + g2
+    t2 = (g != 0.0) | (g2 != 0.0)
+    cut = (((a1 < 0.0) | (a1 > top)) | ((a2 < 0.0) | (a2 > top))) | (((a3 < 0.0) | (a3 > top)) | (
+        (a4 < 0.0) | (a4 > top)))
+    o1 = min(max(a1, 0.0), top)
+    o2 = min(max(a2, 0.0), top)
+    o3 = min(max(a3, 0.0), top)
+    o4 = min(max(a4, 0.0), top)
+    return o1, o2, o3, o4, (t1 | t2) | cut, y | cut
+
+
+@nb.njit(inline="always", cache=True)
 def _axis_at(sc: np.ndarray, o: int, u: float, inside: bool) -> tuple[float, float, float]:
     """Position, velocity, acceleration of one axis of a cached piece (13 fields from ``o``) at u."""
     c0, c1, c2, c3 = sc[o], sc[o + LANES], sc[o + 2 * LANES], sc[o + 3 * LANES]
@@ -412,6 +472,8 @@ def _kernel(
     wn, zeta = gn[10], gn[11]
     eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17], gn[18]
     uz_min, tan_tilt = gn[19], gn[20]
+    desat = gn[21] > 0.5  # PX4's sequential desaturation (else the paper's per-rotor clip)
+    wmax2_yaw = (1.0 + YAW_HEADROOM) * wmax2
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
     inv_2akf, inv_4km = 1.0 / (2.0 * arm * kf), 1.0 / (4.0 * km)
@@ -704,7 +766,7 @@ def _kernel(
                 tcy = iy * (cph * uay + sph * cth * uaz)
                 tcz = iz * (-sph * uay + cph * cth * uaz)
 
-                # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
+                # ---- rotors ("+" mixer of sim.flight._quadrotor), allocation, what acts
                 # The thrust share is divided, as in the reference mixer: that rounding is what
                 # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
                 # The torque shares (0 in hover) multiply by hoisted reciprocals.
@@ -712,23 +774,16 @@ def _kernel(
                 roll = tcx * inv_2akf
                 pitch = tcy * inv_2akf
                 yw = tcz * inv_4km
-                o1 = base - pitch + yw
-                o2 = base + roll - yw
-                o3 = base + pitch + yw
-                o4 = base - roll - yw
-                clipped = (((o1 < 0.0) | (o1 > wmax2)) | ((o2 < 0.0) | (o2 > wmax2))) | (
-                    ((o3 < 0.0) | (o3 > wmax2)) | ((o4 < 0.0) | (o4 > wmax2)))
-                sat = limited | clipped
+                o1, o2, o3, o4, thrust_short, clipped = _allocate(base, roll, pitch, yw, wmax2, wmax2_yaw, desat)
+                # Anti-windup flags (as the numpy step): the position loop freezes when the command
+                # is limited or not delivered, the attitude loop when its torque is not (``clipped``).
+                sat = (limited | thrust_short) | clipped
                 # At the authority limit and pushing back (as the numpy step): "overpowered" vs "runaway".
                 lf_old = sc[(F_CTRL + C_LIMITED) * L + lane]
                 push = (ux * e1x + uy * e1y + uz * e1z) - g * e1z < 0.0
                 follows = ux * zbx + uy * zby + uz * zbz > LIMITED_ALIGN_COS * un
                 held = 1.0 if sat & push & follows else 0.0
                 lf_new = lf_old + (dt / LIMITED_TAU_S) * (held - lf_old)
-                o1 = min(max(o1, 0.0), wmax2)
-                o2 = min(max(o2, 0.0), wmax2)
-                o3 = min(max(o3, 0.0), wmax2)
-                o4 = min(max(o4, 0.0), wmax2)
                 if use_motor:  # first-order lag of the squared rotor speeds toward the command
                     mot = sc[(F_DRONE + D_MOTOR) * L + lane]
                     ro1 = sc[(F_CTRL + C_ROTOR) * L + lane]
@@ -805,8 +860,8 @@ def _kernel(
                 ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
                 ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
                 # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
-                # while the command is limited or a rotor clips, the attitude u_d only while a
-                # rotor clips.
+                # while the command is limited or not delivered, the attitude u_d only while its
+                # torque is not.
                 nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
                 nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
                 nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2

@@ -6,7 +6,8 @@ One control step at ``t_k = k dt`` (dt = 1 ms, the paper's), for every drone at 
 2. position ISMC -> desired thrust acceleration ``u``; thrust ``τ_f = m u·(R e_z)``;
 3. attitude resolution (eq. 51) -> raw Θ_ref -> command filter -> ``(Θ_c, Θ̇_c, Θ̈_c)``;
 4. attitude ISMC -> ``u_a``; torque ``τ = I W⁻¹ u_a``;
-5. mixer -> ω² -> saturation (anti-windup flag) -> the thrust and torque that act;
+5. allocation (PX4's desaturation, or the paper's per-rotor clip) -> ω² (anti-windup flags:
+   thrust or torque not delivered) -> the thrust and torque that act;
 6. integrators advance; the plant advances one step with the inputs held.
 
 Integrator: **semi-implicit (symplectic) Euler** at the control step
@@ -39,11 +40,10 @@ import numpy as np
 from sim.flight._disturbance import Disturbance
 from sim.flight._quadrotor import (
     QuadrotorParams,
+    allocate,
     euler_rate_matrix,
     euler_rate_matrix_inverse,
-    mix,
     quadrotor_derivative,
-    saturate,
     thrust_axis,
     unmix,
     w_dot_omega,
@@ -242,16 +242,18 @@ def numpy_step(
     u_a = u_na + c[:, C_UDA:C_UDA + 3]
     torque_cmd = inertia * np.einsum("nij,nj->ni", euler_rate_matrix_inverse(euler), u_a)
 
-    # --- rotors: mix, saturate (the command; anti-windup flag), the motors' lag, and what
-    # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
-    # are the nominal ones)
-    omega_sq, rotor_clipped = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
+    # --- rotors: allocate (within [0, ω_max²]; the anti-windup flags), the motors' lag, and
+    # what acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M,
+    # d are the nominal ones)
+    omega_sq, thrust_short, torque_short = allocate(thrust_cmd, torque_cmd, plant, mixer=gains.mixer)
     # Anti-windup (docs/method.md §4.1): the position loop's u_d and PID integral freeze while
-    # its command is limited or a rotor clips; the attitude loop's u_d only while a rotor
-    # clips. (The thrust/tilt limiter is the position loop's own: freezing the attitude u_d
-    # with it left the attitude loop unable to follow its reference for as long as a strong
-    # wind held the tilt at the limit; its s wound up and it ran away after; issue 20.)
-    saturated = rotor_clipped | limited
+    # its command is limited or the allocation cannot deliver the thrust or the torque; the
+    # attitude loop's u_d only while it cannot deliver the torque (a drone whose collective is
+    # cut to keep roll and pitch gets its torque: its attitude loop keeps learning). (The
+    # thrust/tilt limiter is the position loop's own: freezing the attitude u_d with it left
+    # the attitude loop unable to follow its reference for as long as a strong wind held the
+    # tilt at the limit; its s wound up and it ran away after; issue 20.)
+    saturated = thrust_short | torque_short | limited
     # "At its authority limit, pushing back": the command is limited (or a rotor clips), its
     # part beyond hover points against the error the controller sees and the body's thrust
     # axis follows it (a tumbling drone's command sits at the limit too). A decaying average of it
@@ -275,7 +277,7 @@ def numpy_step(
     nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
-    nc[:, C_UDA:C_UDA + 3] += np.where(rotor_clipped[:, None], 0.0, dt_s * w_att)
+    nc[:, C_UDA:C_UDA + 3] += np.where(torque_short[:, None], 0.0, dt_s * w_att)
     nc[:, C_SAPREV:C_SAPREV + 3] = s_a
     nc[:, C_THC_DOT:C_THC_DOT + 3] = th_c_dot + dt_s * th_c_ddot
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]

@@ -108,7 +108,7 @@ TELEMETRY_FIELDS = (
     "e3_phi", "e3_theta", "e3_psi",  # Θ - Θ_c, error to the tracked (filtered) reference (rad)
     "er_phi", "er_theta", "er_psi",  # Θ - Θ_ref, error to the unfiltered eq. 51 reference (rad)
     "thrust", "tau_x", "tau_y", "tau_z",  # inputs acting on the body (N, N·m)
-    "saturated",  # 1 when a rotor was clipped
+    "saturated",  # 1 when the command was limited or the allocation could not deliver it
 )
 TEL_SIZE = len(TELEMETRY_FIELDS)
 
