@@ -276,15 +276,20 @@ def _ismc_law(
 
 
 @nb.njit(inline="always", cache=True)
-def _k(a: float, d: float, top: float) -> float:
-    """A rotor's un-saturating multiple of a desaturation direction whose entry for it is d = ±1 (0 in range)."""
-    return (top - a) * d if a > top else ((0.0 - a) * d if a < 0.0 else 0.0)
+def _shift(hi_p: float, lo_p: float, hi_m: float, lo_m: float, top: float) -> float:
+    """PX4's desaturation gain for a direction with entries ±1, from the extremes of the rotors it moves.
 
-
-@nb.njit(inline="always", cache=True)
-def _gain4(k1: float, k2: float, k3: float, k4: float) -> float:
-    """The same over four rotors."""
-    return min(min(min(k1, k2), min(k3, k4)), 0.0) + max(max(max(k1, k2), max(k3, k4)), 0.0)
+    ``hi_p``/``lo_p``: the largest and smallest rotor of those with entry +1, ``hi_m``/``lo_m`` of
+    those with -1 (pass ``hi = -inf, lo = +inf`` where there are none). The generic form (the
+    most negative plus the most positive of each out-of-range rotor's multiple,
+    ``sim.flight._quadrotor._desaturation_gain``) reduces to these, exactly: an over-range +1
+    rotor's multiple ``top - a`` is most negative at the largest, an under-range -1 rotor's ``a``
+    at the smallest, and so on; in-range rotors' multiples (0) change nothing. Two levels of
+    min/max instead of a select and a four-way tree per rotor (the step is latency-bound).
+    """
+    k_min = min(min(top - hi_p, lo_m), 0.0)
+    k_max = max(max(0.0 - lo_p, hi_m - top), 0.0)
+    return k_min + k_max
 
 
 @nb.njit(inline="always", cache=True)
@@ -292,41 +297,46 @@ def _allocate(base: float, roll: float, pitch: float, yw: float, top: float, top
               on: bool) -> tuple[float, float, float, float, bool, bool]:
     """:func:`sim.flight._quadrotor.allocate` for one drone, as selects.
 
-    Returns ``(ω1², ω2², ω3², ω4², thrust short, torque short)``.
-
-    The same operations in the same order as the numpy version (PX4's sequential desaturation,
-    airmode for roll and pitch; ``on`` False: the plain clip). The directions' entries are ±1,
-    so the multiples are products, no divisions.
+    Returns ``(ω1², ω2², ω3², ω4², thrust short, torque short)``. PX4's sequential
+    desaturation (airmode for roll and pitch; ``on`` False: the plain clip) from the rotors'
+    extremes (``_shift``): a shift along a ±1 direction moves each extreme by exactly the
+    shift (rounding is monotonic), so the second, half pass needs no new extremes. Equal to the
+    numpy version's results (tested).
     """
     a1, a2, a3, a4 = base - pitch, base + roll, base + pitch, base - roll
+    ninf, pinf = -math.inf, math.inf
     # The collective, either way (airmode for roll and pitch).
-    g = _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    hi = max(max(a1, a2), max(a3, a4))
+    lo = min(min(a1, a2), min(a3, a4))
+    g = _shift(hi, lo, ninf, pinf, top)
     g = g if on else 0.0
-    a1, a2, a3, a4 = a1 + g, a2 + g, a3 + g, a4 + g
-    g2 = 0.5 * _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    g2 = 0.5 * _shift(hi + g, lo + g, ninf, pinf, top)
     g2 = g2 if on else 0.0
-    a1, a2, a3, a4 = a1 + g2, a2 + g2, a3 + g2, a4 + g2
     t1 = (g != 0.0) | (g2 != 0.0)
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 + g) + g2, (a3 + g) + g2, (a4 + g) + g2
     # Yaw (+1, -1, +1, -1), with room above the top.
     a1, a2, a3, a4 = a1 + yw, a2 - yw, a3 + yw, a4 - yw
-    g = _gain4(_k(a1, 1.0, top_yaw), _k(a2, -1.0, top_yaw), _k(a3, 1.0, top_yaw), _k(a4, -1.0, top_yaw))
+    hp, lp = max(a1, a3), min(a1, a3)
+    hm, lm = max(a2, a4), min(a2, a4)
+    g = _shift(hp, lp, hm, lm, top_yaw)
     g = g if on else 0.0
-    a1, a2, a3, a4 = a1 + g, a2 - g, a3 + g, a4 - g
-    g2 = 0.5 * _gain4(_k(a1, 1.0, top_yaw), _k(a2, -1.0, top_yaw), _k(a3, 1.0, top_yaw), _k(a4, -1.0, top_yaw))
+    g2 = 0.5 * _shift(hp + g, lp + g, hm - g, lm - g, top_yaw)
     g2 = g2 if on else 0.0
-    a1, a2, a3, a4 = a1 + g2, a2 - g2, a3 + g2, a4 - g2
     y = (g != 0.0) | (g2 != 0.0)
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 - g) - g2, (a3 + g) + g2, (a4 - g) - g2
     # The collective again, lowered only.
-    g = _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    hi = max(max(a1, a2), max(a3, a4))
+    lo = min(min(a1, a2), min(a3, a4))
+    g = _shift(hi, lo, ninf, pinf, top)
     use = (g <= 0.0) & on
     g = g if use else 0.0
-    a1, a2, a3, a4 = a1 + g, a2 + g, a3 + g, a4 + g
-    g2 = 0.5 * _gain4(_k(a1, 1.0, top), _k(a2, 1.0, top), _k(a3, 1.0, top), _k(a4, 1.0, top))
+    g2 = 0.5 * _shift(hi + g, lo + g, ninf, pinf, top)
     g2 = g2 if use else 0.0
-    a1, a2, a3, a4 = a1 + g2, a2 + g2, a3 + g2, a4 + g2
     t2 = (g != 0.0) | (g2 != 0.0)
-    cut = (((a1 < 0.0) | (a1 > top)) | ((a2 < 0.0) | (a2 > top))) | (((a3 < 0.0) | (a3 > top)) | (
-        (a4 < 0.0) | (a4 > top)))
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 + g) + g2, (a3 + g) + g2, (a4 + g) + g2
+    hi = (hi + g) + g2
+    lo = (lo + g) + g2
+    cut = (lo < 0.0) | (hi > top)
     o1 = min(max(a1, 0.0), top)
     o2 = min(max(a2, 0.0), top)
     o3 = min(max(a3, 0.0), top)
