@@ -182,8 +182,8 @@ def test_per_drone_draws_and_battery_sag():
     d = res.extra["drone"]
     mass = d[:, D_MASS] / QuadrotorParams().mass_kg - 1.0
     assert mass.std() == pytest.approx(model.mass_spread, rel=0.2)
-    sag_at_end = d[:, D_SAG_RATE] * 2.0  # the flight's duration is the battery horizon by default
-    assert sag_at_end.mean() == pytest.approx(model.battery_sag, abs=0.02)
+    sag_at_endurance = d[:, D_SAG_RATE] * model.battery_duration_s  # reached at the pack's endurance
+    assert sag_at_endurance.mean() == pytest.approx(model.battery_sag, abs=0.02)
     assert res.diverged() == []
 
 
@@ -298,3 +298,55 @@ def test_a_gnss_drone_flies_with_its_gnss_error_and_nothing_more(preset, toleran
     gnss_mean = chunk.gnss[epoch_t >= 10.0].mean(axis=0)
     flown_mean = res.telemetry[res.frame_times_s >= 10.0, :, 0:3].mean(axis=0)
     assert np.abs(flown_mean + gnss_mean).max() < tolerance_m
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_battery_sag_follows_the_pack_not_the_show(engine):
+    """The sag is the battery's (issue 20 QA): linear in time, ``sag_i`` at the pack's endurance, then held.
+
+    A 95-s show on a 600-s pack sags by 95/600 of ``sag_i``, not by all of it (the old horizon was the
+    flight). Measured in each engine from one step at each time t from hover: the thrust that acts over
+    the thrust its rotor speeds make (telemetry thrust / (k_F Σω²)), against the closed form
+    ``g_i(t) = k_i (1 - sag_i min(t, T) / T)`` with ``sag_i`` drawn here from its own stream.
+    """
+    from sim.flight import make_disturbance
+    from sim.flight._random import STREAMS, hashed_normal
+    from sim.flight.engines._numba import run_chunk_numba
+    from sim.flight.engines._numpy import init_controller, run_chunk_numpy
+    from sim.flight.engines._state import C_ROTOR, D_THRUST, STATS_SIZE, TELEMETRY_FIELDS
+    from sim.flight.engines._tables import ErrorTables
+
+    n, seed, endurance = 16, 4, 600.0
+    model = ErrorModel(name="sag", battery_sag=0.3, battery_sag_spread=0.1, thrust_spread=0.03,
+                       battery_duration_s=endurance)
+    params = QuadrotorParams()
+    ids = np.arange(n)
+    tables = ErrorTables(model, seed=seed, drone_ids=ids, plant=params, dt_s=1e-3, duration_s=95.0)
+    sag = np.clip(0.3 + 0.1 * hashed_normal(seed, ids, STREAMS["sag"], 0), 0.0, 0.9)
+    assert sag.min() < sag.max()  # the draws differ per drone
+    pts = np.zeros((n, 3))
+    pts[:, 0] = ids * 4.0
+    pts[:, 2] = 10.0
+    ref = TrackingReference.hover(pts)
+    runner = run_chunk_numba if engine == "numba" else run_chunk_numpy
+    opts = {"params": params, "plant": params, "gains": IsmcGains(), "disturbance": make_disturbance("none"),
+            "dt_s": 1e-3, "integrator": "euler", "divergence_limit_m": 100.0, "drone": tables.drone,
+            "switches": tables.switches}
+    for t in (0.0, 95.0, 300.0, 600.0, 900.0):
+        step = int(round(t / 1e-3))
+        times = np.array([t])
+        chunk = ref.chunk(times)
+        state = hover_state(pts)
+        ctrl = init_controller(state, ref, chunk, params=params, gains=IsmcGains())
+        every = max(step, 1)  # the step is frame 1 (frame 0 at t = 0): two-frame buffers
+        tel = np.zeros((2, n, len(TELEMETRY_FIELDS)))
+        runner(state, ctrl, np.zeros((n, STATS_SIZE)), np.full(n, -1), np.zeros(n, dtype=np.int64), ref=ref,
+               chunk=chunk, dist=np.zeros((1, 9)), step0=step, times=times, every=every,
+               frames=np.zeros((2, n, 3)), tel=tel, opts=opts)
+        acting = tel[step // every, :, TELEMETRY_FIELDS.index("thrust")]
+        rotor = params.k_f * ctrl[:, C_ROTOR:C_ROTOR + 4].sum(axis=1)
+        expected = tables.drone[:, D_THRUST] * (1.0 - sag * min(t, endurance) / endurance)
+        np.testing.assert_allclose(acting / rotor, expected, rtol=1e-12, err_msg=f"t = {t} s")
+    # The presets carry a show drone's endurance (not the show's length).
+    for name in ("calm-rtk", "gusty-rtk", "gps-only"):
+        assert error_preset(name).battery_duration_s == pytest.approx(1200.0)

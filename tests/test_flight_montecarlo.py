@@ -231,28 +231,50 @@ def test_dask_gives_identical_numbers(plan12) -> None:
 def test_a_drone_that_flies_into_the_ground_counts_as_diverged(plan12) -> None:
     """QA: a calm-RTK Monte-Carlo run of a 9-drone show had drone 4 lose height control in the landing and fly to
     z = -24 m, 'below the ground', with 'diverged 0' in the safety report (its tracking error stayed under the
-    25 m runaway limit). The model has no ground, so the reduction calls it what it is: a crash ("ground") at the
-    first frame more than GROUND_STRIKE_M below z = 0, after which the drone no longer counts in the separation.
-    A landing's few centimetres below zero is not one."""
+    25 m runaway limit). The flight itself stops such a drone ("ground", engines._state); the reduction takes the
+    flight's reasons as they are (no second rule of its own) and counts the crashed drone in the separation
+    before the frame of its crash, not from it on (as a runaway)."""
     from dataclasses import replace
 
-    from sim.flight._montecarlo import GROUND_STRIKE_M
+    from sim.flight.engines._state import GROUND_STRIKE_M
 
     flight = fly_show(plan12, FlightOptions())
     assert flight.diverged == []
     pos = flight.positions_m.copy()
     t = flight.times_s
     n_frames = t.size
-    pos[-5:, 1, 2] = -0.2  # a landing that sinks a little: not a crash
     dive = np.arange(n_frames) >= n_frames // 2
     pos[dive, 3, 2] = -np.linspace(0.1, 30.0, dive.sum())  # drone 3 dives through the ground
     first = int(np.flatnonzero(pos[:, 3, 2] < -GROUND_STRIKE_M)[0])
     pos[first + 1:, 3] = pos[first + 1:, 5]  # ... and, being gone, may sit on drone 5 without counting
-    crashed = replace(flight, positions_m=pos)
+    crashed = replace(flight, positions_m=pos, diverged=[(3, float(t[first]), "ground")])
     stats = reduce_flight(plan12, crashed)
     assert stats.diverged == [(3, pytest.approx(float(t[first])), "ground")]
     others = np.delete(np.arange(pos.shape[1]), 3)
-    # The crashed drone counts before the frame of its crash, not from it on (as a runaway does).
     brute = np.array([pdist(p[others if f >= first else slice(None)].astype(np.float64)).min()
                       for f, p in enumerate(pos)])
     assert stats.min_distance_m == pytest.approx(brute.min(), rel=1e-9) and stats.min_distance_m > 0
+    # The reduction has no ground rule of its own: positions the flight did not stop are not re-judged.
+    assert reduce_flight(plan12, replace(flight, positions_m=pos)).diverged == []
+
+
+def test_drones_that_lose_their_thrust_stop_at_the_ground_in_the_flight(plan12) -> None:
+    """A flown show has a ground: with the battery sagging to 10 % of the thrust (thrust-to-weight 2 -> 0.2)
+    every drone falls, and the flight itself (not only the Monte-Carlo reduction) stops each one "ground",
+    after its thrust-to-weight fell below 1, at a frame where it is below -GROUND_STRIKE_M. (The runaway
+    limit is moved out of the way: the show flies at 20-30 m, so a falling drone is 25 m off first.)"""
+    from sim.flight import ErrorModel
+    from sim.flight.engines._state import GROUND_STRIKE_M
+
+    half = plan12.duration_s / 2
+    sag = ErrorModel(name="flat", battery_sag=0.9, battery_duration_s=half)
+    flight = fly_show(plan12, FlightOptions(errors=sag, output_hz=1000.0, divergence_limit_m=1000.0))
+    assert sorted(d for d, _, _ in flight.diverged) == list(range(plan12.drone_count))
+    lift_lost_s = half * (1.0 - 1.0 / 2.0) / 0.9  # 2 (1 - 0.9 t / half) = 1
+    for d, t_s, why in flight.diverged:
+        assert why == "ground" and t_s > lift_lost_s
+        f = int(round(t_s * 1000.0))
+        # Frame f is the state step f starts from: the first one below the strike depth.
+        assert flight.positions_m[f, d, 2] < -GROUND_STRIKE_M + 1e-6
+        assert flight.positions_m[f - 1, d, 2] >= -GROUND_STRIKE_M - 1e-6
+    assert reduce_flight(plan12, flight).diverged == flight.diverged

@@ -183,7 +183,7 @@ REASON_TEXT = {
     "overpowered": "overpowered: held at its tilt/thrust limit, blown off (wind beyond its authority)",
     "runaway": "runaway: unstable control or a tumble",
     "non-finite": "non-finite: the state broke down",
-    "ground": "ground: flew into the ground (below z = 0)",
+    "ground": "ground: crashed: sank 0.5 m below the show's ground",
 }
 
 

@@ -11,7 +11,7 @@ const REASONS = {
   overpowered: "overpowered: held at its tilt/thrust limit and blown off (wind beyond its authority)",
   runaway: "runaway: unstable control or a tumble",
   "non-finite": "non-finite: the state broke down",
-  ground: "ground: flew into the ground (below z = 0)",
+  ground: "ground: crashed: sank 0.5 m below the show's ground",
 };
 
 /** "2 overpowered, 1 runaway" from a `{reason: count}` map. @param {Record<string, number>|undefined} byReason */

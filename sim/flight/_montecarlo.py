@@ -51,6 +51,7 @@ from sim.flight._errors import ERROR_PRESETS, error_preset
 from sim.flight._options import FlightOptions
 from sim.flight._result import FLOWN_DISTANCE_TOLERANCE_M, FlightResult
 from sim.flight._runner import fly_local
+from sim.flight.engines._state import GROUND_STRIKE_M as GROUND_STRIKE_M  # moved to the engines; old path kept
 from sim.geometry import _FORWARD, _cells_closest
 from sim.plan._plan import ShowPlan
 
@@ -73,9 +74,6 @@ PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
 DEFAULT_COLLISION_DISTANCE_M = 1.0
 #: Most time bins of the separation band and the speed curves (a 10-minute show: one per second).
 MAX_TIME_BINS = 600
-#: Depth below the ground (z = 0, where homes are) at which a flown drone has crashed into it (m): the model has
-#: no ground, and a landing sinks a few centimetres under zero while the controller settles.
-GROUND_STRIKE_M = 0.5
 #: Edges of the deviation histogram (m): log-spaced from 0.1 mm to 100 m.
 DEVIATION_EDGES_M = np.geomspace(1e-4, 1e2, 61)
 #: Quantiles of the flown minimum separation over the runs that the report lists.
@@ -217,8 +215,8 @@ class RunStats:
         bin_speed_xy_mps: ``(B,)`` largest horizontal speed of any drone per time bin (m/s, from frames).
         bin_speed_z_mps: ``(B,)`` largest vertical speed of any drone per time bin (m/s).
         deviation_max_m: ``(N,)`` each drone's largest distance from its planned position (m).
-        diverged: ``[(drone, time_s, reason)]``: the flight's, and ``"ground"`` for a drone that sank
-            more than :data:`GROUND_STRIKE_M` below z = 0 (a crash the model does not stop).
+        diverged: ``[(drone, time_s, reason)]``: the flight's (``"ground"`` for a drone the flight
+            stopped more than :data:`~sim.flight.engines._state.GROUND_STRIKE_M` below the show's ground).
         wall_time_s: Wall-clock time of the flight and its reduction (s).
         flight_wall_time_s: Of that, the engine's loop alone (``FlightResult.wall_time_s``: the
             kernel and the per-chunk tables); the rest is setup and reduction (s).
@@ -302,14 +300,6 @@ def reduce_flight(
     diverged = list(result.diverged)
     for drone, t, _reason in diverged:
         dstep[where[drone]] = int(round(t / result.dt_s))
-    # The model has no ground: a drone that sinks more than GROUND_STRIKE_M below z = 0 has crashed there
-    # (seen: a calm-RTK landing that lost height control and "flew" to z = -24 m, under the runaway limit).
-    below = pos[:, :, 2] < -GROUND_STRIKE_M  # (T, N)
-    struck = np.flatnonzero(below.any(axis=0) & (dstep < 0))
-    for k in struck.tolist():
-        f = int(np.argmax(below[:, k]))
-        dstep[k] = f * every
-        diverged.append((int(ids[k]), float(times[f]), "ground"))
     d, ii, jj = frame_min_distances(pos, dstep, every)
     vxy, vz = _frame_speeds(pos, frame_dt)
     starts = time_bin_starts(n_frames, max_bins)
@@ -530,7 +520,7 @@ class MonteCarloResult:
             "diverged_count": len(self.diverged),
             # By physical reason (engines._state): "overpowered" = blown off, lacking the authority
             # (wind beyond the drone's limits); "runaway" = unstable control or a tumble;
-            # "non-finite" = the numbers broke down; "ground" = flew into the ground (reduce_flight).
+            # "non-finite" = the numbers broke down; "ground" = flew into the ground (the flight stops it).
             "diverged_by_reason": {r: sum(1 for *_, why in self.diverged if why == r)
                                    for r in sorted({why for *_, why in self.diverged})},
             "run_list": self.runs,

@@ -42,8 +42,9 @@ class FlightResult:
         flown_min_distance_time_s: When it happened (s).
         min_distance_limit_m: The show's minimum distance setting (m).
         diverged: ``[(drone, time_s, reason)]``, reason ``"runaway"`` (unstable control, a tumble),
-            ``"overpowered"`` (held at its limits and blown off: wind beyond its authority) or
-            ``"non-finite"`` (see ``sim.flight.engines._state``).
+            ``"overpowered"`` (held at its limits and blown off: wind beyond its authority),
+            ``"non-finite"`` or ``"ground"`` (sank ``GROUND_STRIKE_M`` below the show's ground: a crash)
+            (see ``sim.flight.engines._state``).
         engine: Engine used.
         controller: Controller used.
         disturbance: Disturbance used.

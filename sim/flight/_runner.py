@@ -16,9 +16,10 @@ is the output itself, ``positions_m`` in float32 (and the colours), 12 bytes per
 per frame each: a 10,000-drone, 10-minute show at 25 Hz is 1.8 GB of positions, so
 pass a lower ``output_hz`` or a ``drones`` subset for very large shows.
 
-A diverged drone (non-finite state, or farther than ``divergence_limit_m`` from its
-reference) is stopped where it was, reported with the time and the reason, and left
-out of the flown-distance computation from then on; the others fly on.
+A diverged drone (non-finite state, farther than ``divergence_limit_m`` from its
+reference, or sunk more than ``GROUND_STRIKE_M`` below the show's ground) is stopped
+where it was, reported with the time and the reason, and left out of the
+flown-distance computation from then on; the others fly on.
 """
 
 from __future__ import annotations
@@ -111,13 +112,16 @@ def fly_local(
                              dstep=dstep, every=every)
         done_frames[0] = ready
 
+    # The show's ground, as the verifier takes it (sim.verify._check): z = 0, or the lowest home if
+    # one is lower. A drone that sinks GROUND_STRIKE_M below it has crashed (engines._state, "ground").
+    ground_m = min(0.0, float(plan.knot_positions_m[0][:, 2].min()))
     start = time.perf_counter()
     sim = simulate(
         ref, duration_s=duration, initial_state=initial, params=params, mismatch=mismatch,
         gains=gains, disturbance=dist, seed=seed, dt_s=dt_s, output_every=every, engine=engine,
         divergence_limit_m=divergence_limit_m, chunk_steps=max(int(round(chunk_s / dt_s)), 1),
         progress=progress, frames_out=positions, on_chunk=on_chunk if flown_distance else None,
-        errors=options.errors, drone_ids=ids,
+        errors=options.errors, drone_ids=ids, ground_m=ground_m,
     )
     wall = time.perf_counter() - start
 

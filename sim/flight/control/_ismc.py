@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.flight._quadrotor import MIXERS
 from sim.flight.control._attitude import CommandFilter
 
 __all__ = [
@@ -148,6 +149,12 @@ class IsmcGains:
         kind: Label (``"ismc"`` or ``"baseline"``).
         switching: ``"boundary"`` (continuous, the default) or ``"sign"`` (the paper's
             law, eq. 35 as written; :meth:`paper` selects it).
+        mixer: How rotor commands beyond ``[0, ω_max²]`` are brought back
+            (:func:`sim.flight._quadrotor.allocate`): ``"desaturate"`` (PX4's sequential
+            desaturation, airmode for roll and pitch: the collective shifted and yaw given up to keep
+            roll and pitch; the default) or
+            ``"clip"`` (each rotor on its own; :meth:`paper` selects it: the paper models no
+            allocation).
     """
 
     position: PositionGains = PositionGains()
@@ -155,8 +162,11 @@ class IsmcGains:
     filter: CommandFilter = CommandFilter()
     kind: str = "ismc"
     switching: str = "boundary"
+    mixer: str = "desaturate"
 
     def __post_init__(self) -> None:
+        if self.mixer not in MIXERS:
+            raise ValueError(f"unknown mixer {self.mixer!r} (expected one of {', '.join(MIXERS)})")
         if self.switching not in SWITCHING_LAWS:
             raise ValueError(
                 f"unknown switching law {self.switching!r} (expected one of {', '.join(SWITCHING_LAWS)})"
@@ -168,8 +178,10 @@ class IsmcGains:
 
     @classmethod
     def paper(cls, *, switching: str = "sign") -> IsmcGains:
-        """The paper's controller exactly: its gains, the discontinuous switching law, no thrust or tilt limits."""
-        return cls(position=PositionGains(min_thrust_accel_mps2=-np.inf, max_tilt_rad=np.pi / 2), switching=switching)
+        """The paper's controller exactly: its gains, the discontinuous switching law, no thrust or tilt limits,
+        each rotor clipped on its own."""
+        return cls(position=PositionGains(min_thrust_accel_mps2=-np.inf, max_tilt_rad=np.pi / 2), switching=switching,
+                   mixer="clip")
 
     def switch_eps(self, dt_s: float) -> tuple[float, float, float, float]:
         """Boundary layers of the switching directions: ``(s, s - s_prev)`` of position, then attitude.
@@ -190,13 +202,14 @@ class IsmcGains:
     def as_vector(self, dt_s: float = 1e-3) -> np.ndarray:
         """Pack for the fused kernel (``dt_s`` scales the layers on ``s - s_prev``).
 
-        Layout: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ, φp_s,φp_q,φa_s,φa_q, k_i,i_lim,i_zone, u_z_min,tan_tilt_max]``.
+        Layout: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ, φp_s,φp_q,φa_s,φa_q, k_i,i_lim,i_zone, u_z_min,tan_tilt_max,
+        desaturate]`` (the last 1.0 for ``mixer="desaturate"``, 0.0 for ``"clip"``).
         """
         p, a, f = self.position, self.attitude, self.filter
         return np.array(
             [p.k1, p.k2, p.r1, p.r2, p.alpha, a.k3, a.k4, a.r3, a.r4, a.beta,
              f.omega_n_rad_s, f.zeta, *self.switch_eps(dt_s), p.ki, p.integral_limit, p.integral_zone,
-             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad))],
+             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad)), 1.0 if self.mixer == "desaturate" else 0.0],
             dtype=np.float64,
         )
 

@@ -15,6 +15,7 @@ hoisting out of the loop.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -28,6 +29,7 @@ from sim.flight.control._ismc import IsmcGains
 from sim.flight.engines._numpy import init_controller, run_chunk_numpy
 from sim.flight.engines._state import (
     C_PHAT,
+    GROUND_STRIKE_M,
     STAT_COUNT,
     STAT_DTHRUST,
     STAT_MAX,
@@ -67,6 +69,7 @@ def simulate(
     on_chunk: Callable[[int, np.ndarray], None] | None = None,
     errors: ErrorModel | None = None,
     drone_ids: np.ndarray | None = None,
+    ground_m: float | None = None,
 ) -> SimResult:
     """Fly every drone of ``reference`` for ``duration_s`` at a fixed step.
 
@@ -97,6 +100,10 @@ def simulate(
         errors: Per-drone error models (default: ideal drones).
         drone_ids: ``(N,)`` each drone's index in the plan, the key of its random
             streams (default ``0..N-1``); a subset flown alone gets its drones' own draws.
+        ground_m: Height of the ground (m): a drone whose true position sinks more than
+            ``GROUND_STRIKE_M`` below it is stopped there ("ground"). None (the default): no
+            ground, for free-space references (the paper scenario's p_ref dips to z = -1 m);
+            a flown show passes its own (``sim.flight._runner.fly_local``).
 
     Returns:
         A ``SimResult``.
@@ -164,6 +171,7 @@ def simulate(
         "params": params, "plant": plant, "gains": gains, "disturbance": dist, "dt_s": dt_s,
         "integrator": integrator, "divergence_limit_m": float(divergence_limit_m),
         "drone": err_tables.drone, "switches": err_tables.switches,
+        "ground_strike_z_m": -math.inf if ground_m is None else float(ground_m) - GROUND_STRIKE_M,
     }
     step = 0
     while step < steps:

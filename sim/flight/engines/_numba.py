@@ -129,6 +129,7 @@ import numba as nb
 import numpy as np
 
 from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
+from sim.flight._quadrotor import YAW_HEADROOM
 from sim.flight.engines._state import (
     C_E2_0,
     C_E4_0,
@@ -160,6 +161,7 @@ from sim.flight.engines._state import (
     D_SAG_RATE,
     D_SIZE,
     D_THRUST,
+    DIVERGED_GROUND,
     DIVERGED_NONFINITE,
     DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
@@ -271,6 +273,75 @@ def _ismc_law(
     wy = -gain * (sy * us + 0.5 * (qy * uq))
     wz = -gain * (sz * us + 0.5 * (qz * uq))
     return unx, uny, unz, sx, sy, sz, wx, wy, wz
+
+
+@nb.njit(inline="always", cache=True)
+def _shift(hi_p: float, lo_p: float, hi_m: float, lo_m: float, top: float) -> float:
+    """PX4's desaturation gain for a direction with entries ±1, from the extremes of the rotors it moves.
+
+    ``hi_p``/``lo_p``: the largest and smallest rotor of those with entry +1, ``hi_m``/``lo_m`` of
+    those with -1 (pass ``hi = -inf, lo = +inf`` where there are none). The generic form (the
+    most negative plus the most positive of each out-of-range rotor's multiple,
+    ``sim.flight._quadrotor._desaturation_gain``) reduces to these, exactly: an over-range +1
+    rotor's multiple ``top - a`` is most negative at the largest, an under-range -1 rotor's ``a``
+    at the smallest, and so on; in-range rotors' multiples (0) change nothing. Two levels of
+    min/max instead of a select and a four-way tree per rotor (the step is latency-bound).
+    """
+    k_min = min(min(top - hi_p, lo_m), 0.0)
+    k_max = max(max(0.0 - lo_p, hi_m - top), 0.0)
+    return k_min + k_max
+
+
+@nb.njit(inline="always", cache=True)
+def _allocate(base: float, roll: float, pitch: float, yw: float, top: float, top_yaw: float,
+              on: bool) -> tuple[float, float, float, float, bool, bool]:
+    """:func:`sim.flight._quadrotor.allocate` for one drone, as selects.
+
+    Returns ``(ω1², ω2², ω3², ω4², thrust short, torque short)``. PX4's sequential
+    desaturation (airmode for roll and pitch; ``on`` False: the plain clip) from the rotors'
+    extremes (``_shift``): a shift along a ±1 direction moves each extreme by exactly the
+    shift (rounding is monotonic), so the second, half pass needs no new extremes. Equal to the
+    numpy version's results (tested).
+    """
+    a1, a2, a3, a4 = base - pitch, base + roll, base + pitch, base - roll
+    ninf, pinf = -math.inf, math.inf
+    # The collective, either way (airmode for roll and pitch).
+    hi = max(max(a1, a2), max(a3, a4))
+    lo = min(min(a1, a2), min(a3, a4))
+    g = _shift(hi, lo, ninf, pinf, top)
+    g = g if on else 0.0
+    g2 = 0.5 * _shift(hi + g, lo + g, ninf, pinf, top)
+    g2 = g2 if on else 0.0
+    t1 = (g != 0.0) | (g2 != 0.0)
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 + g) + g2, (a3 + g) + g2, (a4 + g) + g2
+    # Yaw (+1, -1, +1, -1), with room above the top.
+    a1, a2, a3, a4 = a1 + yw, a2 - yw, a3 + yw, a4 - yw
+    hp, lp = max(a1, a3), min(a1, a3)
+    hm, lm = max(a2, a4), min(a2, a4)
+    g = _shift(hp, lp, hm, lm, top_yaw)
+    g = g if on else 0.0
+    g2 = 0.5 * _shift(hp + g, lp + g, hm - g, lm - g, top_yaw)
+    g2 = g2 if on else 0.0
+    y = (g != 0.0) | (g2 != 0.0)
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 - g) - g2, (a3 + g) + g2, (a4 - g) - g2
+    # The collective again, lowered only.
+    hi = max(max(a1, a2), max(a3, a4))
+    lo = min(min(a1, a2), min(a3, a4))
+    g = _shift(hi, lo, ninf, pinf, top)
+    use = (g <= 0.0) & on
+    g = g if use else 0.0
+    g2 = 0.5 * _shift(hi + g, lo + g, ninf, pinf, top)
+    g2 = g2 if use else 0.0
+    t2 = (g != 0.0) | (g2 != 0.0)
+    a1, a2, a3, a4 = (a1 + g) + g2, (a2 + g) + g2, (a3 + g) + g2, (a4 + g) + g2
+    hi = (hi + g) + g2
+    lo = (lo + g) + g2
+    cut = (lo < 0.0) | (hi > top)
+    o1 = min(max(a1, 0.0), top)
+    o2 = min(max(a2, 0.0), top)
+    o3 = min(max(a3, 0.0), top)
+    o4 = min(max(a4, 0.0), top)
+    return o1, o2, o3, o4, (t1 | t2) | cut, y | cut
 
 
 @nb.njit(inline="always", cache=True)
@@ -393,6 +464,7 @@ def _kernel(
     state, ctrl, stats, dstep, dreason, breaks, coeffs, cursor0, times, offset, yaw, dist, step0, every,
     frames, tel, use_tel, prm, plt, gn, drag, dt, limit, drone, gnss, gnss_every, gnss_first, wtab, wind_k0,
     wind_dt, wgrad, wrad, use_gnss, use_motor, use_drag, use_clock, est_kp, est_kv, gate_h, gate_v, gate_n, reset_v,
+    ground_z, batt_end,
 ):
     n = state.shape[0]
     steps = times.shape[0]
@@ -410,6 +482,8 @@ def _kernel(
     wn, zeta = gn[10], gn[11]
     eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone = gn[12], gn[13], gn[14], gn[15], gn[16], gn[17], gn[18]
     uz_min, tan_tilt = gn[19], gn[20]
+    desat = gn[21] > 0.5  # PX4's sequential desaturation (else the paper's per-rotor clip)
+    wmax2_yaw = (1.0 + YAW_HEADROOM) * wmax2
     # Reciprocals of the constants, hoisted: a multiply is ~5x cheaper than a divide.
     inv_ix, inv_iy, inv_iz = 1.0 / ix, 1.0 / iy, 1.0 / iz
     inv_2akf, inv_4km = 1.0 / (2.0 * arm * kf), 1.0 / (4.0 * km)
@@ -515,6 +589,7 @@ def _kernel(
             dw0, dw1, dw2 = dist[j, 3], dist[j, 4], dist[j, 5]
             d2x, d2y, d2z = dist[j, 6], dist[j, 7], dist[j, 8]
             kf_step = float(k)
+            t_batt = min(t, batt_end)  # the battery sag grows until the pack's endurance, then is held
 
             # ---- the vector part: one control + integration step of every lane. (The trip
             # count is read from the scratch's size, not the constant LANES: LLVM fully
@@ -534,6 +609,9 @@ def _kernel(
                 qx, qy, qz = px - prx, py - pry, pz - prz
                 err = math.sqrt(qx * qx + qy * qy + qz * qz)
                 err_ok = err <= limit  # false for NaN (a non-finite reference) or a runaway drone
+                # Through the show's ground (-inf: none); false for NaN, which is caught as non-finite.
+                below = pz < ground_z
+                err_ok = err_ok & (pz >= ground_z)
                 if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
                     prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(
                         sc, F_REFC, lane, t + sc[(F_DRONE + D_CLOCK) * L + lane], tf, tl)
@@ -698,7 +776,7 @@ def _kernel(
                 tcy = iy * (cph * uay + sph * cth * uaz)
                 tcz = iz * (-sph * uay + cph * cth * uaz)
 
-                # ---- rotors ("+" mixer of sim.flight._quadrotor), saturation, what acts
+                # ---- rotors ("+" mixer of sim.flight._quadrotor), allocation, what acts
                 # The thrust share is divided, as in the reference mixer: that rounding is what
                 # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
                 # The torque shares (0 in hover) multiply by hoisted reciprocals.
@@ -706,23 +784,16 @@ def _kernel(
                 roll = tcx * inv_2akf
                 pitch = tcy * inv_2akf
                 yw = tcz * inv_4km
-                o1 = base - pitch + yw
-                o2 = base + roll - yw
-                o3 = base + pitch + yw
-                o4 = base - roll - yw
-                clipped = (((o1 < 0.0) | (o1 > wmax2)) | ((o2 < 0.0) | (o2 > wmax2))) | (
-                    ((o3 < 0.0) | (o3 > wmax2)) | ((o4 < 0.0) | (o4 > wmax2)))
-                sat = limited | clipped
+                o1, o2, o3, o4, thrust_short, clipped = _allocate(base, roll, pitch, yw, wmax2, wmax2_yaw, desat)
+                # Anti-windup flags (as the numpy step): the position loop freezes when the command
+                # is limited or not delivered, the attitude loop when its torque is not (``clipped``).
+                sat = (limited | thrust_short) | clipped
                 # At the authority limit and pushing back (as the numpy step): "overpowered" vs "runaway".
                 lf_old = sc[(F_CTRL + C_LIMITED) * L + lane]
                 push = (ux * e1x + uy * e1y + uz * e1z) - g * e1z < 0.0
                 follows = ux * zbx + uy * zby + uz * zbz > LIMITED_ALIGN_COS * un
                 held = 1.0 if sat & push & follows else 0.0
                 lf_new = lf_old + (dt / LIMITED_TAU_S) * (held - lf_old)
-                o1 = min(max(o1, 0.0), wmax2)
-                o2 = min(max(o2, 0.0), wmax2)
-                o3 = min(max(o3, 0.0), wmax2)
-                o4 = min(max(o4, 0.0), wmax2)
                 if use_motor:  # first-order lag of the squared rotor speeds toward the command
                     mot = sc[(F_DRONE + D_MOTOR) * L + lane]
                     ro1 = sc[(F_CTRL + C_ROTOR) * L + lane]
@@ -734,7 +805,7 @@ def _kernel(
                     o3 = ro3 + mot * (o3 - ro3)
                     o4 = ro4 + mot * (o4 - ro4)
                 # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
-                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t)
+                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t_batt)
                 thrust = kf * (o1 + o2 + o3 + o4) * rg
                 tqx = arm * kf * (o2 - o4) * rg
                 tqy = arm * kf * (o3 - o1) * rg
@@ -799,8 +870,8 @@ def _kernel(
                 ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
                 ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
                 # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
-                # while the command is limited or a rotor clips, the attitude u_d only while a
-                # rotor clips.
+                # while the command is limited or not delivered, the attitude u_d only while its
+                # torque is not.
                 nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
                 nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
                 nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
@@ -845,6 +916,7 @@ def _kernel(
                 sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
                 far = DIVERGED_OVERPOWERED if lf_old > LIMITED_FRACTION else DIVERGED_RUNAWAY
                 why = far if (not err_ok) and err > limit else DIVERGED_NONFINITE
+                why = DIVERGED_GROUND if below else why
                 sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
 
                 # Statistics and the commit, for the drones that flew this step.
@@ -959,7 +1031,8 @@ def run_chunk_numba(
         frames: ``(F, N, 3)`` output positions (m), written at frame steps.
         tel: ``(F, N, TEL_SIZE)`` telemetry or None.
         opts: ``params``, ``plant``, ``gains``, ``disturbance``, ``dt_s``,
-            ``divergence_limit_m``, optionally ``drone`` and ``switches``, as in the numpy engine.
+            ``divergence_limit_m``, optionally ``drone``, ``switches`` and ``ground_strike_z_m``,
+            as in the numpy engine.
         tables: The chunk's GNSS and wind tables (None: ideal).
     """
     sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
@@ -992,6 +1065,7 @@ def run_chunk_numba(
         float(tables.wind_radius_m),
         bool(sw.gnss), bool(sw.motor), bool(sw.drag), bool(sw.clock), float(sw.est_kp), float(sw.est_kv),
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
+        float(opts.get("ground_strike_z_m", -math.inf)), float(sw.battery_end_s),
     )
     _cached_machine_code(_kernel, args)
     _kernel(*args)

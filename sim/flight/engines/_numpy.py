@@ -6,7 +6,8 @@ One control step at ``t_k = k dt`` (dt = 1 ms, the paper's), for every drone at 
 2. position ISMC -> desired thrust acceleration ``u``; thrust ``τ_f = m u·(R e_z)``;
 3. attitude resolution (eq. 51) -> raw Θ_ref -> command filter -> ``(Θ_c, Θ̇_c, Θ̈_c)``;
 4. attitude ISMC -> ``u_a``; torque ``τ = I W⁻¹ u_a``;
-5. mixer -> ω² -> saturation (anti-windup flag) -> the thrust and torque that act;
+5. allocation (PX4's desaturation, or the paper's per-rotor clip) -> ω² (anti-windup flags:
+   thrust or torque not delivered) -> the thrust and torque that act;
 6. integrators advance; the plant advances one step with the inputs held.
 
 Integrator: **semi-implicit (symplectic) Euler** at the control step
@@ -19,9 +20,10 @@ scenario both meet the paper scenario's thresholds (docs/method.md §7) (``run_p
 integrator="rk4")``).
 
 Divergence: before a step, a drone whose position error exceeds ``divergence_limit_m``
-is frozen; a step that would make any state or input non-finite is not committed and
-the drone is frozen. Frozen drones keep their last finite state and are reported with
-the time and the reason; the others fly on.
+is frozen, and so is one whose true height is below ``ground_strike_z_m`` (a flown
+show's ground less ``GROUND_STRIKE_M``; reason "ground"); a step that would make any
+state or input non-finite is not committed and the drone is frozen. Frozen drones keep
+their last finite state and are reported with the time and the reason; the others fly on.
 
 The controller state of each drone is a flat row of ``CTRL_SIZE`` floats; the layout,
 the reference type and the result live in :mod:`sim.flight.engines._state` so the
@@ -38,11 +40,10 @@ import numpy as np
 from sim.flight._disturbance import Disturbance
 from sim.flight._quadrotor import (
     QuadrotorParams,
+    allocate,
     euler_rate_matrix,
     euler_rate_matrix_inverse,
-    mix,
     quadrotor_derivative,
-    saturate,
     thrust_axis,
     unmix,
     w_dot_omega,
@@ -78,6 +79,7 @@ from sim.flight.engines._state import (
     D_MOTOR,
     D_SAG_RATE,
     D_THRUST,
+    DIVERGED_GROUND,
     DIVERGED_NONFINITE,
     DIVERGED_OVERPOWERED,
     DIVERGED_RUNAWAY,
@@ -240,16 +242,18 @@ def numpy_step(
     u_a = u_na + c[:, C_UDA:C_UDA + 3]
     torque_cmd = inertia * np.einsum("nij,nj->ni", euler_rate_matrix_inverse(euler), u_a)
 
-    # --- rotors: mix, saturate (the command; anti-windup flag), the motors' lag, and what
-    # acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M, d
-    # are the nominal ones)
-    omega_sq, rotor_clipped = saturate(mix(thrust_cmd, torque_cmd, plant), plant)
+    # --- rotors: allocate (within [0, ω_max²]; the anti-windup flags), the motors' lag, and
+    # what acts, scaled by each drone's thrust gain and battery sag (the controller's k_F, k_M,
+    # d are the nominal ones)
+    omega_sq, thrust_short, torque_short = allocate(thrust_cmd, torque_cmd, plant, mixer=gains.mixer)
     # Anti-windup (docs/method.md §4.1): the position loop's u_d and PID integral freeze while
-    # its command is limited or a rotor clips; the attitude loop's u_d only while a rotor
-    # clips. (The thrust/tilt limiter is the position loop's own: freezing the attitude u_d
-    # with it left the attitude loop unable to follow its reference for as long as a strong
-    # wind held the tilt at the limit; its s wound up and it ran away after; issue 20.)
-    saturated = rotor_clipped | limited
+    # its command is limited or the allocation cannot deliver the thrust or the torque; the
+    # attitude loop's u_d only while it cannot deliver the torque (a drone whose collective is
+    # cut to keep roll and pitch gets its torque: its attitude loop keeps learning). (The
+    # thrust/tilt limiter is the position loop's own: freezing the attitude u_d with it left
+    # the attitude loop unable to follow its reference for as long as a strong wind held the
+    # tilt at the limit; its s wound up and it ran away after; issue 20.)
+    saturated = thrust_short | torque_short | limited
     # "At its authority limit, pushing back": the command is limited (or a rotor clips), its
     # part beyond hover points against the error the controller sees and the body's thrust
     # axis follows it (a tumbling drone's command sits at the limit too). A decaying average of it
@@ -264,7 +268,7 @@ def numpy_step(
         omega_sq = rotor + d[:, D_MOTOR:D_MOTOR + 1] * (omega_sq - rotor)
     nc[:, C_ROTOR:C_ROTOR + 4] = omega_sq
     thrust, torque = unmix(omega_sq, plant)
-    gain = d[:, D_THRUST] * (1.0 - d[:, D_SAG_RATE] * t_s)
+    gain = d[:, D_THRUST] * (1.0 - d[:, D_SAG_RATE] * min(t_s, sw.battery_end_s))  # held past the endurance
     thrust = thrust * gain
     torque = torque * gain[:, None]
 
@@ -273,7 +277,7 @@ def numpy_step(
     nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
     nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
-    nc[:, C_UDA:C_UDA + 3] += np.where(rotor_clipped[:, None], 0.0, dt_s * w_att)
+    nc[:, C_UDA:C_UDA + 3] += np.where(torque_short[:, None], 0.0, dt_s * w_att)
     nc[:, C_SAPREV:C_SAPREV + 3] = s_a
     nc[:, C_THC_DOT:C_THC_DOT + 3] = th_c_dot + dt_s * th_c_ddot
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]
@@ -343,10 +347,12 @@ def run_chunk_numpy(
 ) -> None:
     """Advance ``len(times)`` steps in place (the numpy engine's chunk).
 
-    ``opts`` may carry ``drone`` (``(N, D_SIZE)`` constants) and ``switches``
-    (:class:`ErrorSwitches`); ``tables`` the chunk's GNSS and wind tables (default: ideal).
+    ``opts`` may carry ``drone`` (``(N, D_SIZE)`` constants), ``switches``
+    (:class:`ErrorSwitches`) and ``ground_strike_z_m`` (height below which a drone stops, "ground";
+    default -inf: no ground); ``tables`` the chunk's GNSS and wind tables (default: ideal).
     """
     limit = opts["divergence_limit_m"]
+    ground_z = float(opts.get("ground_strike_z_m", -np.inf))
     sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
     drone = opts.get("drone")
     if drone is None:
@@ -366,10 +372,12 @@ def run_chunk_numpy(
                 wind = flown_wind(w_plan, w_grad, state[:, 0:3] - pr, pr[:, 2], tables.wind_radius_m)
         with np.errstate(all="ignore"):
             err = np.sqrt(np.sum((state[:, 0:3] - pr) ** 2, axis=1))
-        runaway = alive & ~(err <= limit)  # NaN (a non-finite reference) or a runaway drone
+        below = state[:, 2] < ground_z  # through the show's ground (never for NaN: caught as non-finite)
+        runaway = alive & (~(err <= limit) | below)  # NaN (a non-finite reference) or a runaway drone
         dstep[runaway] = k
         far = np.where(ctrl[runaway, C_LIMITED] > LIMITED_FRACTION, DIVERGED_OVERPOWERED, DIVERGED_RUNAWAY)
-        dreason[runaway] = np.where(err[runaway] > limit, far, DIVERGED_NONFINITE)
+        why = np.where(err[runaway] > limit, far, DIVERGED_NONFINITE)
+        dreason[runaway] = np.where(below[runaway], DIVERGED_GROUND, why)
         alive &= ~runaway
         with np.errstate(all="ignore"):  # a diverging row may overflow; it is caught below
             ns, nc, trow = numpy_step(

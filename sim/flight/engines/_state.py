@@ -21,11 +21,13 @@ from sim.plan._trajectory import DEGREE, Trajectories
 __all__ = [
     "CTRL_SIZE",
     "D_SIZE",
+    "DIVERGED_GROUND",
     "DIVERGED_NONFINITE",
     "DIVERGED_OVERPOWERED",
     "DIVERGED_REASONS",
     "ErrorSwitches",
     "DIVERGED_RUNAWAY",
+    "GROUND_STRIKE_M",
     "STATS_SIZE",
     "TELEMETRY_FIELDS",
     "TEL_SIZE",
@@ -66,7 +68,7 @@ LIMITED_ALIGN_COS = math.cos(0.2)
 # Per-drone constants of the error models (rows of ``drone``, built by engines._tables).
 D_MASS, D_IX, D_IY, D_IZ = 0, 1, 2, 3  # the true plant's mass (kg) and inertia (kg·m²)
 D_THRUST = 4  # rotor thrust-gain factor at t = 0 (dimensionless)
-D_SAG_RATE = 5  # thrust-gain loss per second of flight (1/s)
+D_SAG_RATE = 5  # thrust-gain loss per second of flight (1/s), until ErrorSwitches.battery_end_s
 D_CLOCK = 6  # show-clock offset δ (s): the drone flies the reference at t + δ
 D_MOTOR = 7  # motor-lag blend 1 - exp(-dt/τ) per step (1: no lag)
 D_DRAG = 8  # quadratic drag over mass c / m (1/m)
@@ -84,12 +86,21 @@ STATS_SIZE = 4
 #   clipped) pointing back toward the reference with the attitude following it (thrust axis
 #   within 0.2 rad of the command): it lacked the authority, e.g. wind beyond its airspeed
 #   limit;
-# * "non-finite": a state or input became NaN or inf (or the reference did).
+# * "non-finite": a state or input became NaN or inf (or the reference did);
+# * "ground": its true position sank more than GROUND_STRIKE_M below the ground of the show it
+#   flies (a crash: the model has no ground contact). Only a flown show has a ground
+#   (``simulate(ground_m=...)``, set by ``sim.flight._runner.fly_local``); the free-space
+#   references of the tests and the paper scenario (p_ref z = sin t dips to -1 m) have none.
+#   Checked before the error limit: a drone that falls is "ground" even if it also fell far.
 DIVERGED_RUNAWAY = 1
 DIVERGED_NONFINITE = 2
 DIVERGED_OVERPOWERED = 3
+DIVERGED_GROUND = 4
 DIVERGED_REASONS = {DIVERGED_RUNAWAY: "runaway", DIVERGED_NONFINITE: "non-finite",
-                    DIVERGED_OVERPOWERED: "overpowered"}
+                    DIVERGED_OVERPOWERED: "overpowered", DIVERGED_GROUND: "ground"}
+#: Depth below the show's ground (its lowest home, at most z = 0) at which a flown drone has crashed
+#: into it (m): a landing sinks a few centimetres under its home while the controller settles.
+GROUND_STRIKE_M = 0.5
 
 # Telemetry row recorded at output frames (when requested).
 TELEMETRY_FIELDS = (
@@ -97,7 +108,7 @@ TELEMETRY_FIELDS = (
     "e3_phi", "e3_theta", "e3_psi",  # Θ - Θ_c, error to the tracked (filtered) reference (rad)
     "er_phi", "er_theta", "er_psi",  # Θ - Θ_ref, error to the unfiltered eq. 51 reference (rad)
     "thrust", "tau_x", "tau_y", "tau_z",  # inputs acting on the body (N, N·m)
-    "saturated",  # 1 when a rotor was clipped
+    "saturated",  # 1 when the command was limited or the allocation could not deliver it
 )
 TEL_SIZE = len(TELEMETRY_FIELDS)
 
@@ -117,6 +128,8 @@ class ErrorSwitches:
         gate_v_m: Innovation gate vertically (m).
         gate_epochs: Consecutive rejected epochs after which p̂ is reset to the fix.
         reset_mps: Speed (m/s, per axis) at which a reset is passed on to what the controller sees.
+        battery_end_s: The pack's endurance (s): the battery sag (``D_SAG_RATE`` t) grows until
+            then and is held after it (``sim.flight._errors``).
     """
 
     gnss: bool = False
@@ -129,6 +142,7 @@ class ErrorSwitches:
     gate_v_m: float = math.inf
     gate_epochs: float = 0.0
     reset_mps: float = math.inf
+    battery_end_s: float = math.inf
 
     @property
     def ideal(self) -> bool:

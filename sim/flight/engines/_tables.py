@@ -219,7 +219,7 @@ class ErrorTables:
         drone_ids: ``(N,)`` the drones' indices in the plan (the keys of their streams).
         plant: The nominal plant (before the per-drone spread).
         dt_s: Control step (s).
-        duration_s: Flight length (s), the default battery duration.
+        duration_s: Flight length (s).
     """
 
     def __init__(
@@ -245,8 +245,8 @@ class ErrorTables:
             d[:, D_THRUST] *= spread("thrust", e.thrust_spread)[:, 0]
         if e.battery_sag > 0 or e.battery_sag_spread > 0:
             sag = e.battery_sag + e.battery_sag_spread * hashed_normal(self.seed, self.ids, STREAMS["sag"], 0)
-            horizon = e.battery_duration_s if e.battery_duration_s is not None else max(duration_s, dt_s)
-            d[:, D_SAG_RATE] = np.clip(sag, 0.0, 0.9) / horizon
+            # Linear to sag_i at the pack's endurance, held after it (ErrorSwitches.battery_end_s).
+            d[:, D_SAG_RATE] = np.clip(sag, 0.0, 0.9) / e.battery_duration_s
         if e.clock_offset_s > 0:
             d[:, D_CLOCK] = e.clock_offset_s * hashed_normal(self.seed, self.ids, STREAMS["clock"], 0)
         if e.motor_time_constant_s > 0:
@@ -307,6 +307,7 @@ class ErrorTables:
             gnss=self.use_gnss, motor=self.use_motor, drag=self.use_drag, clock=self.use_clock,
             est_kp=self.est_kp, est_kv=self.est_kv, gate_h_m=self.gate_h_m, gate_v_m=self.gate_v_m,
             gate_epochs=self.gate_epochs, reset_mps=e.gnss_reset_speed_mps,
+            battery_end_s=e.battery_duration_s,
         )
 
     def initial_gnss_error(self) -> np.ndarray:
