@@ -59,8 +59,14 @@ exact rewrite exists (``sig`` as ``exp(h log(x·x))``, atan2's sector by product
 mixer's torque shares by hoisted reciprocals: 23 divisions + 17 square roots per
 drone-step down to 14 + 9, ~1.1x). Tried and measured slower on this machine, so not
 kept: splitting the step into five stage loops over the lanes (loop fission: 0.7x, more
-scratch traffic), a Newton-iteration reciprocal square root instead of the divider (0.6x),
-32 lanes per block (0.75x; sixteen to eight: 1.08x, kept) and LLVM's forced vector interleaving (0.8x, register spills).
+scratch traffic; and with each stage looping over 32 or 64 lanes, so that a stage has 4-8
+independent vectors for the window: 0.84x and 0.81x of the fused kernel, as at 16 lanes, 0.83x:
+alternating single-thread rounds in one process, kfast-fission c2f3d56 against its parent, so
+the fission does not lose for want of independent work), a Newton-iteration reciprocal
+square root instead of the divider (0.6x), 32 lanes per block (0.75x; sixteen to eight: 1.08x,
+kept) and LLVM's forced vector interleaving (0.8x, register spills); AVX2 code for the
+same Zen 4 (``NUMBA_CPU_NAME=znver3``, two ymm halves per block): no faster per CPU second
+(15.5-18.3 against 17.9-19.1 M drone-steps/s in four alternating process pairs).
 
 Memory operations are a third of the lane loop (its machine code at 16 lanes, per 8
 drone-steps: 2,077 instructions, of which ~1,030 arithmetic, 292 loads/stores of the scratch,
