@@ -254,6 +254,7 @@ YAW_HEADROOM = 0.15
 # collective, roll, pitch and yaw shares adds to each rotor.
 _THRUST_DIR = np.array([1.0, 1.0, 1.0, 1.0])
 _YAW_DIR = np.array([1.0, -1.0, 1.0, -1.0])
+_ROLL_PITCH = np.array([1.0, 1.0, 0.0])  # a torque's roll and pitch, its yaw zeroed
 
 
 def _desaturation_gain(a: np.ndarray, direction: np.ndarray, top: float) -> np.ndarray:
@@ -326,17 +327,14 @@ def allocate(
         raise ValueError(f"unknown mixer {mixer!r} (expected one of {', '.join(MIXERS)})")
     top = params.omega_max_sq
     on = mixer == "desaturate"
-    # The shares of ``mix``, the yaw share kept apart (added after roll and pitch, as PX4 does).
-    base = thrust_n / (4.0 * params.k_f)
-    roll = torque_nm[:, 0] / (2.0 * params.arm_m * params.k_f)
-    pitch = torque_nm[:, 1] / (2.0 * params.arm_m * params.k_f)
+    # ``mix``'s shares, the yaw share kept apart (added after roll and pitch, as PX4 does).
+    a = mix(thrust_n, torque_nm * _ROLL_PITCH, params)
     yaw = torque_nm[:, 2] / (4.0 * params.k_m)
-    a = np.stack([base - pitch, base + roll, base + pitch, base - roll], axis=1)
     a, t1 = _desaturate(a, _THRUST_DIR, top, on=on)
     a, y = _desaturate(a + yaw[:, None] * _YAW_DIR, _YAW_DIR, (1.0 + YAW_HEADROOM) * top, on=on)
     a, t2 = _desaturate(a, _THRUST_DIR, top, on=on, reduce_only=True)
-    cut = np.any((a < 0.0) | (a > top), axis=1)
-    return np.minimum(np.maximum(a, 0.0), top), t1 | t2 | cut, y | cut
+    omega_sq, cut = saturate(a, params)
+    return omega_sq, t1 | t2 | cut, y | cut
 
 
 def quadrotor_derivative(

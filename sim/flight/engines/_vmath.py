@@ -193,6 +193,16 @@ _LOG2E = 1.4426950408889634
 _LN2_HI = 6.93147180369123816490e-01  # fdlibm: ln 2 in 32 + 53 bits
 _LN2_LO = 1.90821492927058770002e-10
 _E = tuple(1.0 / math.factorial(k) for k in range(14))
+_E_2_9 = _E[2:10]
+
+
+@nb.njit(inline="always", cache=True, fastmath=_FLAGS, error_model="numpy")
+def _estrin8(x: float, x2: float, x4: float, c: tuple[float, ...]) -> float:
+    """``c[0] + c[1] x + ... + c[7] x^7`` by Estrin's scheme, given ``x² and x⁴``: a chain of three multiply-adds."""
+    return (((c[0] + x * c[1]) + x2 * (c[2] + x * c[3]))
+            + x4 * ((c[4] + x * c[5]) + x2 * (c[6] + x * c[7])))
+
+
 _EXP_MAX = 709.782712893384  # exp overflows above
 _EXP_MIN = -708.3964185322641  # exp(x) < 2^-1022 below (flushed to 0)
 
@@ -209,18 +219,8 @@ def vexp(x: float) -> float:
     # dependency chain of ~6 operations instead of 12 (the lane kernel waits on its chains).
     r2 = r * r
     r4 = r2 * r2
-    r8 = r4 * r4
-    q01 = _E[2] + r * _E[3]
-    q23 = _E[4] + r * _E[5]
-    q45 = _E[6] + r * _E[7]
-    q67 = _E[8] + r * _E[9]
-    q89 = _E[10] + r * _E[11]
-    qab = _E[12] + r * _E[13]
-    q03 = q01 + r2 * q23
-    q47 = q45 + r2 * q67
-    q8b = q89 + r2 * qab
-    q07 = q03 + r4 * q47
-    p = q07 + r8 * q8b
+    q8b = (_E[10] + r * _E[11]) + r2 * (_E[12] + r * _E[13])
+    p = _estrin8(r, r2, r4, _E_2_9) + (r4 * r4) * q8b
     p = 1.0 + r * p
     p = 1.0 + r * p
     # 2^n in two normal factors (n = 1024 just below the overflow threshold).
@@ -237,6 +237,7 @@ def vexp(x: float) -> float:
 _SQRT2 = 1.4142135623730951
 _MIN_NORMAL = 2.2250738585072014e-308
 _L = tuple(2.0 / (2 * k + 1) for k in range(1, 11))
+_L_0_7 = _L[:8]
 _MANT = (1 << 52) - 1
 _ONE_BITS = 1023 << 52
 
@@ -259,15 +260,7 @@ def vlog(x: float) -> float:
     # rounding is scaled by s² <= 0.03 in the result).
     z2 = z * z
     z4 = z2 * z2
-    z8 = z4 * z4
-    l01 = _L[0] + z * _L[1]
-    l23 = _L[2] + z * _L[3]
-    l45 = _L[4] + z * _L[5]
-    l67 = _L[6] + z * _L[7]
-    l89 = _L[8] + z * _L[9]
-    l03 = l01 + z2 * l23
-    l47 = l45 + z2 * l67
-    pr = (l03 + z4 * l47) + z8 * l89
+    pr = _estrin8(z, z2, z4, _L_0_7) + (z4 * z4) * (_L[8] + z * _L[9])
     rr = z * pr
     lm = f - s * (f - rr)
     out = ef * _LN2_HI + (lm + ef * _LN2_LO)
