@@ -57,6 +57,7 @@ from sim.plan._plan import ShowPlan
 
 __all__ = [
     "DEFAULT_COLLISION_DISTANCE_M",
+    "DEFAULT_FLIGHT_PRESET",
     "PRESETS",
     "MonteCarloResult",
     "RunStats",
@@ -65,10 +66,16 @@ __all__ = [
     "monte_carlo",
     "options_for_preset",
     "reduce_flight",
+    "single_flight_options",
 ]
 
 #: Error-model presets of issue 20 (the names of ``sim.flight.ERROR_PRESETS``).
 PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
+#: The error preset a single flight flies unless told otherwise (``swarmshow simulate SHOW``, the API's
+#: simulate job, the editor): RTK GNSS and light wind (2 m/s at 10 m), the conditions show drones are
+#: normally flown in. "ideal" reports a tracking error of a fraction of a millimetre, which tells a
+#: designer nothing (issue 20); "gusty-rtk" is the stress case the Monte-Carlo margin is for.
+DEFAULT_FLIGHT_PRESET = "calm-rtk"
 #: Centre distance below which two drones count as colliding (m): a show drone is about 0.3-0.5 m
 #: across with its guards, so two centres 1 m apart leave a hand's width once both sway.
 DEFAULT_COLLISION_DISTANCE_M = 1.0
@@ -95,6 +102,29 @@ def options_for_preset(name: str, base: FlightOptions | None = None) -> FlightOp
     # The per-drone, seeded error models (sim.flight._errors) carry everything a preset means; the
     # fleet-wide gusts and mismatch are switched off so they do not count twice.
     return base.with_(errors=error_preset(name), disturbance="none", mismatch=0.0)
+
+
+def single_flight_options(name: str, base: FlightOptions | None = None) -> FlightOptions:
+    """The options of one flight of ``base`` under the error-model preset ``name``, seed ``base.seed``.
+
+    Exactly run ``k`` of :func:`monte_carlo` with ``seed0 + k == base.seed`` (the same
+    :func:`options_for_preset`; a run only skips the colours and the per-frame distance pass,
+    which change nothing flown), so a seed seen in a Monte-Carlo report flies again alone.
+    With ``"ideal"`` the fleet-wide ``base.disturbance`` (the paper's, seeded gusts) still applies:
+    the ideal vehicle in the old disturbances; any other preset carries its own wind, so a
+    fleet-wide disturbance beside it would count the wind twice.
+
+    Raises:
+        ValueError: an unknown preset, or a fleet-wide disturbance with a preset other than
+            "ideal" (names ``disturbance``).
+    """
+    base = base or FlightOptions()
+    if name == "ideal":
+        return options_for_preset(name, base).with_(disturbance=base.disturbance, mismatch=base.mismatch)
+    if base.disturbance != "none":
+        raise ValueError(f"disturbance {base.disturbance!r} goes only with preset 'ideal': preset {name!r} "
+                         "brings its own wind field")
+    return options_for_preset(name, base)
 
 
 def binomial_interval(successes: int, trials: int, confidence: float) -> tuple[float, float]:
