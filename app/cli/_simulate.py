@@ -7,8 +7,8 @@ plans the show, flies every drone at 1 kHz under the error-model preset (default
 a millimetre tells a designer nothing; ``--disturbance`` alone flies the ideal vehicle in that
 fleet-wide disturbance) with seed ``--seed`` (the same seed flies the same flight: it is Monte-Carlo
 run k of ``--seed S --runs K`` when S + k is that seed) and reports the preset and seed, tracking
-errors, the flown minimum distance and diverged drones. Exit 1 (unsafe) when any drone diverged, or when the flown minimum
-distance is below the show's ``min_distance_m`` by more than
+errors, the flown minimum distance and diverged drones. Exit 1 (unsafe) when any drone
+diverged, or when the flown minimum distance is below the show's ``min_distance_m`` by more than
 ``sim.flight.FLOWN_DISTANCE_TOLERANCE_M`` (1 cm: plans that sit exactly on the limit,
 such as a home grid spaced at the minimum distance, must not fail on millimetre
 tracking deviations). A transition forced shorter than the limits allow is flown as designed (a
