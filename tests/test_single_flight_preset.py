@@ -219,3 +219,47 @@ def test_api_old_disturbance_request_flies_the_ideal_vehicle(client):
     sid = _show_id(client, show_doc("single flight wind"))
     flight = _done(client, client.post(f"/api/shows/{sid}/simulate", json={"disturbance": "paper"}))["result"]["flight"]
     assert flight["preset"] == "ideal" and flight["disturbance"] == "paper"
+
+
+# ---------------------------------------------------------------- one origin altitude range
+
+
+def test_origin_altitude_has_one_range_for_the_show_file_and_the_exports(client):
+    """The show file capped the origin's altitude at 10 km and the exports' origin option at 100 km: a place the
+    show could not store was exported. One constant now, named in both 422s; the editor's copy equals it."""
+    import re
+    from pathlib import Path
+
+    from formations import MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M
+
+    doc = show_doc("origin bounds")
+    sid = _show_id(client, doc)
+    for alt, ok in ((MAX_ORIGIN_ALT_M, True), (MAX_ORIGIN_ALT_M + 1, False), (MIN_ORIGIN_ALT_M, True),
+                    (MIN_ORIGIN_ALT_M - 1, False), (50_000.0, False)):
+        r = client.get(f"/api/shows/{sid}/export/qgc-wpl", params={"origin": f"47.4,8.5,{alt:g}"})
+        assert (r.status_code == 200) == ok, (alt, r.text)
+        if not ok:
+            problem = r.json()["detail"][0]
+            assert problem["path"] == "origin" and f"{MAX_ORIGIN_ALT_M:g}" in problem["msg"], problem
+        geo = {"origin_lat_deg": 47.4, "origin_lon_deg": 8.5, "origin_alt_m": alt, "heading_deg": 0.0}
+        r = client.post("/api/shows", json={**doc, "settings": {**doc["settings"], "geo": geo}})
+        assert (r.status_code == 201) == ok, (alt, r.text)
+        if not ok:
+            assert any(p["path"] == "settings.geo.origin_alt_m" for p in r.json()["detail"]), r.json()
+    js = (Path(__file__).parents[1] / "frontend/js/exportcheck.js").read_text()
+    assert float(re.search(r"MAX_ORIGIN_ALT_M = (-?\d+)", js).group(1)) == MAX_ORIGIN_ALT_M
+    assert float(re.search(r"MIN_ORIGIN_ALT_M = (-?\d+)", js).group(1)) == MIN_ORIGIN_ALT_M
+
+
+def test_editor_constants_are_the_servers():
+    import re
+    from pathlib import Path
+
+    from app.api.models import MAX_SEED
+
+    js = (Path(__file__).parents[1] / "frontend/js/flight.js").read_text()
+    assert re.search(r'DEFAULT_PRESET = "([^"]+)"', js).group(1) == DEFAULT_FLIGHT_PRESET
+    assert int(re.search(r"MAX_SEED = (\d+)", js).group(1)) == MAX_SEED
+    html = (Path(__file__).parents[1] / "frontend/index.html").read_text()
+    assert re.search(r'<option value="([^"]+)" selected>', html[html.index('id="sim-preset"'):]).group(1) \
+        == DEFAULT_FLIGHT_PRESET

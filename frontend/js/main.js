@@ -78,9 +78,9 @@ const simulate = new SimulatePanel(state, persist, {
   onPlayRun: (run) => (preview.isOpen ? preview.load(run) : preview.open(run)),
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
-  () => (simulate.hasFlight ? "simulated" : "planned"));
+  () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);
 const playhead = new Playhead(state, timeline, preview);
-const exportMenu = new ExportMenu(state, persist);
+const exportMenu = new ExportMenu(state, persist, { onFormationProblems: () => timeline.render() });
 // The music lane (issue 18) places unpinned formations where the last check planned them.
 const music = new MusicLane(state, {
   plan: () => (report.result ? report.result.plan : null),

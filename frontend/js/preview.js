@@ -12,9 +12,12 @@ export class Preview {
    * @param {import("./persist.js").Persistence} persist
    * @param {() => void} onLayout called when the canvas size changes
    * @param {() => ("planned"|"simulated")} [source] what to play: the simulated flight once one exists
+   * @param {() => ({job_id: string}|undefined)} [flight] the simulation job whose flight (its preset and
+   *   seed) "simulated" plays; none: the default flight
    */
-  constructor(state, persist, onLayout, source = () => "planned") {
+  constructor(state, persist, onLayout, source = () => "planned", flight = () => undefined) {
     this.source = source;
+    this.flight = flight;
     this.state = state;
     this.persist = persist;
     this.onLayout = onLayout;
@@ -46,7 +49,7 @@ export class Preview {
 
   /**
    * Show the preview with the current show.
-   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run to fly and play instead
+   * @param {{job_id: string, run?: number}} [run] a Monte-Carlo run, or a simulation job's flight, to play instead
    */
   async open(run) {
     this.wrap.hidden = false;
@@ -94,8 +97,8 @@ export class Preview {
 
   /**
    * Save if needed, load the show into the viewer and (re)load the viewer page.
-   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run of the show to fly and play (its
-   *   simulated flight) instead of the planned or last simulated show
+   * @param {{job_id: string, run?: number}} [run] a Monte-Carlo run of the show to fly and play (its
+   *   simulated flight), or a simulation job's flight, instead of the planned or last simulated show
    */
   async load(run) {
     setError("preview", "");
@@ -103,6 +106,8 @@ export class Preview {
     // The timeline and the preview share one playhead: a new page starts at the selected formation's hold
     // (the first formation: from the start, takeoff included); a Monte-Carlo run plays from the start.
     this.startFormation = run ? null : st.current;
+    // The last simulation's own flight (its preset and seed), not a default one, once there is one.
+    if (!run && this.source() === "simulated") run = this.flight();
     if (st.meta) {
       if (!(await this.persist.ensureSaved())) {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");

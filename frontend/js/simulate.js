@@ -3,16 +3,9 @@
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
 import * as api from "./api.js";
+import { setError } from "./errors.js";
+import { flightRequest, flightRows, randomSeed, REASONS, seedProblem } from "./flight.js";
 import { fmt, summaryTable } from "./summary.js";
-
-/** The simulation panel. */
-/** What each divergence reason means physically (sim.flight.engines._state). */
-const REASONS = {
-  overpowered: "overpowered: held at its tilt/thrust limit and blown off (wind beyond its authority)",
-  runaway: "runaway: unstable control or a tumble",
-  "non-finite": "non-finite: the state broke down",
-  ground: "ground: crashed: sank 0.5 m below the show's ground",
-};
 
 /** "2 overpowered, 1 runaway" from a `{reason: count}` map. @param {Record<string, number>|undefined} byReason */
 function reasonList(byReason) {
@@ -24,8 +17,8 @@ export class SimulatePanel {
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
    * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
-   *   onPlayRun?: (run: {job_id: string, run: number}) => Promise<void>}} [hooks] onFlown: a simulation finished;
-   *   onPlayRun: play a Monte-Carlo run in the 3D preview
+   *   onPlayRun?: (run: {job_id: string, run?: number}) => Promise<void>}} [hooks] onFlown: a simulation finished;
+   *   onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`), in the 3D preview
    */
   constructor(state, persist, hooks = {}) {
     this.state = state;
@@ -42,6 +35,20 @@ export class SimulatePanel {
     this.body = document.getElementById("sim-body");
     this.cancelBtn = document.getElementById("btn-sim-cancel");
     this.cancelBtn.addEventListener("click", () => this.cancel());
+    this.preset = /** @type {HTMLSelectElement} */ (document.getElementById("sim-preset"));
+    this.seed = /** @type {HTMLInputElement} */ (document.getElementById("sim-seed"));
+    this.disturbance = /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance"));
+    /** @type {string|null} the simulation job whose flight the 3D preview plays (its preset and seed) */
+    this.flightJob = null;
+    document.getElementById("btn-sim-seed").addEventListener("click", () => {
+      this.seed.value = String(randomSeed());
+      setError("sim-seed", "");
+    });
+    this.seed.addEventListener("input", () => setError("sim-seed", ""));
+    // A fleet-wide disturbance is for the ideal vehicle; every other preset brings its own wind field.
+    const ideal = () => { this.disturbance.disabled = this.preset.value !== "ideal"; };
+    this.preset.addEventListener("change", ideal);
+    ideal();
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "load") this.reset();
     });
@@ -50,6 +57,11 @@ export class SimulatePanel {
   /** @returns {boolean} a simulation of the document as it is now has finished (the 3D view can play it). */
   get hasFlight() {
     return this.flownVersion != null && this.flownVersion === this.state.version;
+  }
+
+  /** @returns {{job_id: string}|undefined} the finished simulation the 3D preview plays (its preset and seed). */
+  get flight() {
+    return this.hasFlight && this.flightJob ? { job_id: this.flightJob } : undefined;
   }
 
   /** Stop following the job and clear the panel. */
@@ -79,6 +91,13 @@ export class SimulatePanel {
     const st = this.state;
     if (!st.meta) return;
     this._stopFollowing();
+    const seedText = this.seed.value;
+    const bad = seedProblem(seedText);
+    setError("sim-seed", bad);
+    if (bad) {
+      this.seed.focus();
+      return;
+    }
     const btn = /** @type {HTMLButtonElement} */ (document.getElementById("btn-simulate"));
     btn.disabled = true;
     try {
@@ -92,18 +111,12 @@ export class SimulatePanel {
       const runsSel = /** @type {HTMLSelectElement|null} */ (document.getElementById("sim-runs"));
       const runs = runsSel ? Number(runsSel.value) || 1 : 1;
       this.startedVersion = st.version;
-      let job;
-      if (runs > 1) {
-        // Monte-Carlo: K flights with different seeds; the result is the safety margin and report.
-        const preset = /** @type {HTMLSelectElement} */ (document.getElementById("sim-preset")).value;
-        job = await api.monteCarloShow(st.meta.id, { runs, preset, controller });
-      } else {
-        const options = {
-          controller,
-          disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
-        };
-        job = await api.simulateShow(st.meta.id, options);
-      }
+      // One flight under the error preset with the seed, or a Monte-Carlo of K runs from that seed (its run 0
+      // is the flight of the same seed): the safety margin and report.
+      const req = flightRequest({ runs, preset: this.preset.value, seed: Number(seedText), controller,
+        disturbance: this.disturbance.value });
+      const job = req.kind === "montecarlo" ? await api.monteCarloShow(st.meta.id, req.options)
+        : await api.simulateShow(st.meta.id, req.options);
       this.job = job;
       this._update(job);
       if (!["done", "failed", "cancelled"].includes(job.state)) this._follow(job.id);
@@ -182,12 +195,13 @@ export class SimulatePanel {
       this.cancelBtn.hidden = true;
       this._monteCarlo(this.job.id, (job.result || {}).montecarlo || {}, job.cached);
     } else if (job.state === "done") {
-      const fresh = this.flownVersion !== this.startedVersion;
+      const fresh = this.flownVersion !== this.startedVersion || this.flightJob !== this.job.id;
       this.flownVersion = this.startedVersion;
+      this.flightJob = this.job.id;
       if (fresh && this.hooks.onFlown) this.hooks.onFlown();
       this._progress(1, "100%");
       this.cancelBtn.hidden = true;
-      this._summary(job.result || {}, job.cached);
+      this._summary(job.result || {}, job.cached, this.job.id);
     } else if (job.state === "failed" || job.state === "cancelled") {
       this.cancelBtn.hidden = true;
       this._progress(p, job.state);
@@ -253,31 +267,38 @@ export class SimulatePanel {
         }
       });
       links.append(" · ", play);
+      // That run is the single flight of its seed: fly it alone for its full summary.
+      const alone = document.createElement("button");
+      alone.type = "button";
+      alone.id = "sim-fly-worst";
+      alone.textContent = `Fly seed ${worst.seed} alone`;
+      alone.addEventListener("click", () => {
+        const runsSel = /** @type {HTMLSelectElement|null} */ (document.getElementById("sim-runs"));
+        if (runsSel) runsSel.value = "1";
+        if (mc.preset) this.preset.value = mc.preset;
+        this.preset.dispatchEvent(new Event("change"));
+        this.seed.value = String(worst.seed);
+        this.run();
+      });
+      links.append(" · ", alone);
     }
     this.body.append(links);
   }
 
-  _summary(result, cached) {
+  /**
+   * The flight summary: preset and seed, deviation from the plan, flown separation against the limit, the
+   * closest pair, the drones that diverged and why, and the flight in 3D beside the plan.
+   * @param {any} result the job's result @param {boolean} cached @param {string} [jobId] the simulation job
+   */
+  _summary(result, cached, jobId) {
     const f = result.flight || result;
     /** @type {{path: string, msg: string}[]} transitions forced shorter than the limits allow, flown as designed */
     const problems = Array.isArray(result.problems) ? result.problems : [];
     this.body.replaceChildren();
     const ok = f.ok !== false && !problems.length;
-    const lim = f.min_distance_limit_m;
-    const flown = f.flown_min_distance_m;
     const headline = ok ? "✓ Flown: separation kept, no divergence"
       : problems.length ? "✗ Flown as designed, but the design breaks the limits" : "✗ The flown show breaks a limit";
-    this.body.append(...summaryTable(ok, headline,
-      "Flight summary", [
-        ["Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m")],
-        ["Tracking error (max)", fmt(f.tracking_max_m, 3, " m")],
-        ["Flown min separation", `${fmt(flown, 2, " m")}${lim != null ? ` (≥ ${fmt(lim, 1)})` : ""}`,
-          flown != null && lim != null && flown < lim - (f.flown_distance_tolerance_m || 0)],
-        f.flown_min_distance_pair && ["Closest flown pair", `drones ${f.flown_min_distance_pair.join(" & ")} at ${fmt(f.flown_min_distance_time_s, 1, " s")}`],
-        ["Duration", fmt(f.duration_s, 1, " s")],
-        ["Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—"],
-        f.wall_time_s != null && ["Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
-      ]));
+    this.body.append(...summaryTable(ok, headline, "Flight summary", flightRows(f, cached)));
     for (const pr of problems) {
       const p = document.createElement("p");
       p.className = "report-bad sim-problem";
@@ -290,6 +311,26 @@ export class SimulatePanel {
       p.textContent = `Diverged: ${f.diverged.slice(0, 10).map((d) => `drone ${d.drone} at ${fmt(d.time_s, 1)} s (${d.reason})`).join("; ")}`;
       p.title = Object.values(REASONS).join("\n");
       this.body.append(p);
+    }
+    if (jobId && this.state && this.state.meta) {
+      // The flown trajectories beside the plan, each drone's gap coloured (the viewer's simulated source).
+      const links = document.createElement("p");
+      const play = document.createElement("button");
+      play.type = "button";
+      play.id = "sim-play-flight";
+      play.textContent = `Show this flight in 3D${f.seed != null ? ` (seed ${f.seed})` : ""}`;
+      const showId = this.state.meta.id;
+      play.addEventListener("click", async () => {
+        const run = { job_id: jobId };
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run);
+        try {
+          await api.loadPlayback(showId, "simulated", run);
+        } catch (err) {
+          this._message("report-bad", `Cannot play the flight: ${err.message}`);
+        }
+      });
+      links.append(play);
+      this.body.append(links);
     }
   }
 }
