@@ -27,8 +27,8 @@ from formations._motion import MotionKey as MotionKey
 from formations._naming import source_name as source_name
 from formations._show import MAX_DRONES as MAX_DRONES
 from formations._show import MAX_ORIGIN_ALT_M as MAX_ORIGIN_ALT_M
-from formations._show import MIN_ORIGIN_ALT_M as MIN_ORIGIN_ALT_M
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
+from formations._show import MIN_ORIGIN_ALT_M as MIN_ORIGIN_ALT_M
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
 from formations._show import DronesByCount as DronesByCount
 from formations._show import DronesFromGroup as DronesFromGroup

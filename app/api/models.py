@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
@@ -224,7 +224,7 @@ class SimulateOptions(BaseModel):
     def _default_preset(self) -> SimulateOptions:
         if self.preset is None:
             # The old request (a disturbance, no preset) still flies the ideal vehicle in that disturbance.
-            self.preset = "ideal" if self.disturbance != "none" else DEFAULT_FLIGHT_PRESET
+            self.preset = "ideal" if self.disturbance != "none" else cast(PresetName, DEFAULT_FLIGHT_PRESET)
         return self
 
 

@@ -106,7 +106,7 @@ class _Loader:
         self.app, self.viewer = app, viewer
         self._lock = threading.Lock()
         # (show id) -> ((content hash, Monte-Carlo run or None), plan, flight or None)
-        self._cache: dict[str, tuple[tuple[str, tuple[str, int] | None], Any, Any]] = {}
+        self._cache: dict[str, tuple[tuple[str, tuple[str, int | None] | None], Any, Any]] = {}
         # (content hash) -> check report JSON of its plan
         self._reports: dict[str, Any] = {}
 
