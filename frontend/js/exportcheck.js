@@ -36,7 +36,7 @@ export function parseOrigin(text) {
  */
 export function exportProblem(format, geo) {
   if (GEO_FORMATS.includes(format) && !geo) {
-    return "This format places the show on Earth: enter the show's origin (latitude, longitude, altitude) "
+    return "needs the show's place on Earth: enter its origin (latitude, longitude, altitude) "
       + "in Export options → Origin first.";
   }
   return "";
