@@ -263,3 +263,24 @@ def test_editor_constants_are_the_servers():
     html = (Path(__file__).parents[1] / "frontend/index.html").read_text()
     assert re.search(r'<option value="([^"]+)" selected>', html[html.index('id="sim-preset"'):]).group(1) \
         == DEFAULT_FLIGHT_PRESET
+
+
+def test_cli_names_the_drones_that_diverged_and_why(tmp_path, capsys):
+    """Two drones hovering 700 m up in gusty-rtk's wind (14 m/s there by its power law, beyond the ~13.7 m/s the
+    model drone holds against: tests/test_editor_montecarlo.py) are blown off: exit 1, each named with its reason."""
+    from formations import dump_show
+    from tests.conftest import make_show
+
+    alt = 700.0
+    high = {"name": "High", "hold_s": 5.0, "color": "#ffffff", "points": [[0.0, 0.0, alt], [6.0, 0.0, alt]]}
+    show = make_show([high], drones=2, rows=1, cols=2, spacing_m=6.0, max_altitude_m=alt + 50, max_speed_z_mps=4.0)
+    path = tmp_path / "gale.json"
+    path.write_text(dump_show(show))
+    code, out = _cli_json(capsys, str(path), "--preset", "gusty-rtk", "--seed", "3")
+    assert code == 1 and out["ok"] is False
+    assert sorted(d["drone"] for d in out["diverged"]) == [0, 1]
+    assert {d["reason"] for d in out["diverged"]} == {"overpowered"}
+    assert main(["simulate", str(path), "--preset", "gusty-rtk", "--seed", "3"]) == 1
+    text = capsys.readouterr().out
+    assert "DIVERGED: 2 drones (2 overpowered: held at its tilt/thrust limit" in text
+    assert "UNSAFE" in text

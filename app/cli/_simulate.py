@@ -62,6 +62,14 @@ DEFAULT_COLLISION_DISTANCE_M = 1.0
 #: The preset a single flight flies by default (``sim.flight.DEFAULT_FLIGHT_PRESET``; a test keeps them equal).
 DEFAULT_FLIGHT_PRESET = "calm-rtk"
 
+#: What each divergence reason means physically (``sim.flight.engines._state``; the editor says the same).
+_REASONS = {
+    "overpowered": "held at its tilt/thrust limit and blown off, wind beyond its authority",
+    "runaway": "unstable control or a tumble",
+    "non-finite": "the state broke down",
+    "ground": "sank 0.5 m below the show's ground, a crash",
+}
+
 #: ``local`` (an alias for the in-process engine) is the numba kernel.
 LOCAL_ALIAS = "local"
 #: Environment variable giving the default ``--scheduler`` (shared with the server setting).
@@ -310,7 +318,7 @@ def format_flight(s: dict) -> str:
         f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
         f"({s['engine']} engine, {s['controller']}, disturbance {s['disturbance']}) in {s['wall_time_s']:.1f} s",
         f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
-        f"  tracking error  rms {num(s['tracking_rms_m'], '.2e')} m, max {num(s['tracking_max_m'], '.2e')} m",
+        f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
         f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
     ]
@@ -318,6 +326,12 @@ def format_flight(s: dict) -> str:
         f"  worst drone {w['drone']}: rms {num(w['rms_m'], '.2e')} m, max {num(w['max_m'], '.2e')} m"
         for w in s["worst_drones"][:3]
     )
+    if s["diverged"]:
+        counts: dict[str, int] = {}
+        for d in s["diverged"]:
+            counts[d["reason"]] = counts.get(d["reason"], 0) + 1
+        lines.append(f"  DIVERGED: {len(s['diverged'])} drones ("
+                     + ", ".join(f"{n} {why}: {_REASONS.get(why, why)}" for why, n in sorted(counts.items())) + ")")
     for d in s["diverged"][:20]:
         lines.append(f"  DIVERGED drone {d['drone']} at t = {d['time_s']:.3f} s ({d['reason']})")
     if len(s["diverged"]) > 20:
