@@ -397,7 +397,15 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     summary = result.summary()
     # What was flown, so that the designer can fly it again (the same seed flies the same flight).
     summary["preset"], summary["seed"] = flight_options.errors.name, flight_options.seed
+    summary.update(_planned_closest(plan, result.times_s))
     return {"plan": plan_summary(plan), "flight": summary, "problems": forced_problems(plan)}
+
+
+def _planned_closest(plan: Any, times_s: Any) -> dict[str, Any]:
+    """The plan's closest pair at the flight's frames (``sim.flight.planned_closest``), beside the flown one."""
+    from sim.flight import planned_closest
+
+    return planned_closest(plan, times_s)
 
 
 def single_flight_options(options: dict[str, Any]) -> Any:

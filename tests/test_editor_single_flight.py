@@ -75,7 +75,8 @@ def test_single_flight_flies_the_preset_with_its_seed_and_plays_in_3d(ui: Page):
     assert rows["Error preset"][0] == "gusty-rtk, seed 17"
     shown_max = float(rows["Deviation from plan (max)"][0].split(" m")[0])
     assert shown_max == pytest.approx(flight["tracking_max_m"], abs=5e-4) and shown_max > 0
-    assert rows["Flown min separation"][0].startswith(f"{flight['flown_min_distance_m']:.2f} m")
+    assert rows["Flown min separation"][0] == (f"{flight['flown_min_distance_m']:.2f} m (plan "
+                                               f"{flight['planned_min_distance_m']:.2f} m, ≥ 3.0)")
     a, b = flight["flown_min_distance_pair"]
     assert rows["Closest flown pair"][0] == f"drones {a} & {b} at {flight['flown_min_distance_time_s']:.1f} s"
 

@@ -79,6 +79,21 @@ def test_a_preset_is_not_the_ideal_flight(plan):
     assert np.all(frames_max <= real.tracking_max_m + 1e-6)
 
 
+def test_planned_closest_is_the_brute_force_minimum_over_the_frames(plan):
+    from sim.flight import planned_closest
+
+    times = np.arange(0.0, plan.duration_s, 0.4)
+    pos = plan.motion.evaluate(times, derivatives=0).positions_m
+    per_frame = np.array([pdist(p).min() for p in pos])
+    out = planned_closest(plan, times)
+    k = int(np.argmin(per_frame))
+    assert out["planned_min_distance_m"] == pytest.approx(per_frame[k], rel=1e-12)
+    i, j = out["planned_min_distance_pair"]
+    t = out["planned_min_distance_time_s"]
+    f = int(np.flatnonzero(times == t)[0])
+    assert i < j and np.linalg.norm(pos[f, i] - pos[f, j]) == pytest.approx(per_frame[k], rel=1e-12)
+
+
 def test_a_fleet_disturbance_goes_with_ideal_only():
     ideal = single_flight_options("ideal", FlightOptions(disturbance="wind", seed=3))
     assert ideal.disturbance == "wind" and ideal.errors.name == "ideal" and ideal.seed == 3
@@ -176,6 +191,9 @@ def test_api_simulate_flies_the_preset_and_equals_the_monte_carlo_run(client):
     seeded = _done(client, client.post(f"/api/shows/{sid}/simulate", json={"preset": "gusty-rtk", "seed": 9}))
     flight = seeded["result"]["flight"]
     assert flight["seed"] == 9 and flight["preset"] == "gusty-rtk"
+    # Beside the plan's own minimum at the same frames (what the errors took from the margin).
+    assert flight["planned_min_distance_m"] != flight["flown_min_distance_m"]
+    assert abs(flight["planned_min_distance_m"] - flight["flown_min_distance_m"]) < 2 * flight["tracking_max_m"]
     other = _done(client, client.post(f"/api/shows/{sid}/simulate", json={"preset": "gusty-rtk", "seed": 10}))
     assert other["result"]["flight"]["tracking_rms_m"] != flight["tracking_rms_m"]
     # The Monte-Carlo job (another task, its own reduction of the frames) flies seed 9 as its run 1.

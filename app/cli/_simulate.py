@@ -275,7 +275,7 @@ def _engine(args: argparse.Namespace) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim.flight import FlightOptions, fly_show, single_flight_options
+    from sim.flight import FlightOptions, fly_show, planned_closest, single_flight_options
 
     if args.seed < 0:
         raise CliError(f"--seed must be >= 0, got {args.seed}")
@@ -299,6 +299,7 @@ def _show(args: argparse.Namespace) -> int:
     summary = result.summary()
     summary["show"] = show.name
     summary["preset"], summary["seed"] = preset, args.seed
+    summary.update(planned_closest(plan, result.times_s))
     summary["problems"] = [{"path": f.path, "msg": f.message, "minimum_s": f.minimum_s} for f in plan.forced]
     if args.json:
         print_json(summary)
@@ -319,7 +320,8 @@ def format_flight(s: dict) -> str:
         f"({s['engine']} engine, {s['controller']}, disturbance {s['disturbance']}) in {s['wall_time_s']:.1f} s",
         f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
         f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
-        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (limit {s['min_distance_limit_m']} m"
+        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (plan "
+        f"{num(s.get('planned_min_distance_m'), '.3f')} m, limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
     ]
     lines.extend(

@@ -41,6 +41,7 @@ from sim.flight._montecarlo import binomial_interval as binomial_interval
 from sim.flight._montecarlo import fly_run as fly_run
 from sim.flight._montecarlo import monte_carlo as monte_carlo
 from sim.flight._montecarlo import options_for_preset as options_for_preset
+from sim.flight._montecarlo import planned_closest as planned_closest
 from sim.flight._montecarlo import single_flight_options as single_flight_options
 from sim.flight._options import CONTROLLERS as CONTROLLERS
 from sim.flight._options import DISTURBANCES as DISTURBANCES
@@ -82,6 +83,7 @@ __all__ = [
     "fly_run",
     "monte_carlo",
     "options_for_preset",
+    "planned_closest",
     "single_flight_options",
     "DISTURBANCES",
     "ENGINES",

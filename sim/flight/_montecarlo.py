@@ -65,6 +65,7 @@ __all__ = [
     "frame_min_distances",
     "monte_carlo",
     "options_for_preset",
+    "planned_closest",
     "reduce_flight",
     "single_flight_options",
 ]
@@ -610,18 +611,43 @@ class _Accumulator:
                         "wall_time_s": s.wall_time_s, "flight_wall_time_s": s.flight_wall_time_s}
 
 
-def _planned_reference(plan: ShowPlan, times_s: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The plan's own minimum per segment and per time bin, at the flight's frame times."""
+def _planned_frames(plan: ShowPlan, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plan's closest pair at each of ``times_s`` ``(T,)``: ``(distance_m, i, j)``, each ``(T,)``."""
     n = plan.drone_count
     d = np.empty(times_s.size)
     ii = np.empty(times_s.size, dtype=np.int64)
     jj = np.empty(times_s.size, dtype=np.int64)
-    block = max(1, 2_000_000 // max(n, 1))
+    block = max(1, 2_000_000 // max(n, 1))  # bounds the evaluated positions to ~48 MB
     for f0 in range(0, times_s.size, block):
         pos = plan.motion.evaluate(times_s[f0:f0 + block], derivatives=0).positions_m
         d[f0:f0 + block], ii[f0:f0 + block], jj[f0:f0 + block] = frame_min_distances(pos)
-    seg_min, _, _ = _segment_fold(plan, times_s, d, ii, jj, np.arange(n))
+    return d, ii, jj
+
+
+def _planned_reference(plan: ShowPlan, times_s: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plan's own minimum per segment and per time bin, at the flight's frame times."""
+    d, ii, jj = _planned_frames(plan, times_s)
+    seg_min, _, _ = _segment_fold(plan, times_s, d, ii, jj, np.arange(plan.drone_count))
     return seg_min, np.minimum.reduceat(d, starts)
+
+
+def planned_closest(plan: ShowPlan, times_s: np.ndarray) -> dict[str, Any]:
+    """The plan's closest pair over the frame times ``times_s`` ``(T,)`` of a flight, as JSON-safe values.
+
+    What the flown minimum separation is compared with: the same frames, the plan instead of the flight,
+    so that the difference is what the flight's errors took from the margin (the exact check's minimum,
+    continuous in time, can only be smaller).
+
+    Returns:
+        ``{"planned_min_distance_m", "planned_min_distance_pair", "planned_min_distance_time_s"}`` (None
+        where fewer than two drones).
+    """
+    d, ii, jj = _planned_frames(plan, np.asarray(times_s, dtype=np.float64))
+    k = int(np.argmin(d)) if d.size else 0
+    if d.size == 0 or not np.isfinite(d[k]):
+        return {"planned_min_distance_m": None, "planned_min_distance_pair": None, "planned_min_distance_time_s": None}
+    return {"planned_min_distance_m": float(d[k]), "planned_min_distance_pair": [int(ii[k]), int(jj[k])],
+            "planned_min_distance_time_s": float(times_s[k])}
 
 
 def monte_carlo(

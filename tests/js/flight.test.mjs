@@ -39,7 +39,7 @@ test("diverged drones are grouped by reason with their numbers", () => {
 
 test("summary rows: preset and seed, deviations, separation against the limit, pair, divergences", () => {
   const f = { preset: "calm-rtk", seed: 5, tracking_rms_m: 0.0312, tracking_max_m: 0.0889,
-    worst_drones: [{ drone: 11, rms_m: 0.04, max_m: 0.0889 }], flown_min_distance_m: 2.95, min_distance_limit_m: 3,
+    worst_drones: [{ drone: 11, rms_m: 0.04, max_m: 0.0889 }], flown_min_distance_m: 2.95, min_distance_limit_m: 3, planned_min_distance_m: 3.243,
     flown_distance_tolerance_m: 0.01, flown_min_distance_pair: [7, 11], flown_min_distance_time_s: 21.9,
     diverged: [{ drone: 2, time_s: 40, reason: "overpowered" }], duration_s: 84, controller: "ismc",
     engine: "numba", disturbance: "none", wall_time_s: 1.25 };
@@ -48,7 +48,7 @@ test("summary rows: preset and seed, deviations, separation against the limit, p
     ["Error preset", "calm-rtk, seed 5"],
     ["Deviation from plan (RMS)", "0.031 m"],
     ["Deviation from plan (max)", "0.089 m (drone 11)"],
-    ["Flown min separation", "2.95 m (≥ 3.0)", true],
+    ["Flown min separation", "2.95 m (plan 3.24 m, ≥ 3.0)", true],
     ["Closest flown pair", "drones 7 & 11 at 21.9 s", true],
     ["Diverged", "1 overpowered (drone 2)", true],
     ["Duration", "84.0 s"],
@@ -56,7 +56,11 @@ test("summary rows: preset and seed, deviations, separation against the limit, p
     ["Computed in", "1.3 s (cached)"],
   ]);
   // Within the tolerance is kept; an old result without preset has no preset row.
-  const kept = flightRows({ ...f, preset: undefined, flown_min_distance_m: 2.995, diverged: [] }).filter(Boolean);
+  const kept = flightRows({ ...f, preset: undefined, flown_min_distance_m: 2.995, diverged: [],
+    planned_min_distance_m: undefined }).filter(Boolean);
+  assert.deepEqual(kept.find((r) => r[0] === "Flown min separation"), ["Flown min separation", "3.00 m (≥ 3.0)", false]);
+  assert.equal(flightRows({ flown_min_distance_m: 4 }).filter(Boolean).find((r) => r[0] === "Flown min separation")[1],
+    "4.00 m");
   assert.equal(kept[0][0], "Deviation from plan (RMS)");
   assert.equal(kept.find((r) => r[0] === "Flown min separation")[2], false);
   assert.ok(!kept.some((r) => r[0] === "Diverged"));
