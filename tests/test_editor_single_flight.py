@@ -87,12 +87,20 @@ def test_single_flight_flies_the_preset_with_its_seed_and_plays_in_3d(ui: Page):
     assert played.value.request.post_data_json == {"source": "simulated", "job_id": job_id}
     assert played.value.status == 200 and played.value.json()["source"] == "simulated", played.value.text()
     expect(page.locator("#preview-wrap")).to_be_visible()
-    wait_until("the preview's viewer", lambda: page.evaluate(
-        "() => window.swarmshow.playhead.preview.viewerState()"), timeout_s=90)
+    # It starts at the flight's closest pair (the moment that matters), not at takeoff.
+    t_pair = flight["flown_min_distance_time_s"]
+    wait_until("the preview at the closest pair", lambda: abs((page.evaluate(
+        "() => (window.swarmshow.playhead.preview.viewerState() || {time_s: -1e9}).time_s")) - t_pair) < 0.1,
+        timeout_s=90)
     # "New seed" draws another valid seed.
     page.get_by_role("button", name="Pick a new seed").click()
     seed = page.locator("#sim-seed").input_value()
     assert seed.isdigit() and 0 <= int(seed) <= 2**31 - 1
+    # Preset and seed come back with the page.
+    page.reload()
+    expect(page.locator("#show-title")).to_have_text("Single flight")
+    assert page.locator("#sim-seed").input_value() == seed
+    assert page.locator("#sim-preset").input_value() == "gusty-rtk" and page.locator("#sim-disturbance").is_disabled()
     assert not ui.errors and not errors, (ui.errors, errors)
     ui.shot("editor-single-flight")
 

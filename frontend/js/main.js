@@ -75,7 +75,7 @@ settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
 const simulate = new SimulatePanel(state, persist, {
   onFlown: () => preview.isOpen && preview.load(),
-  onPlayRun: (run) => (preview.isOpen ? preview.load(run) : preview.open(run)),
+  onPlayRun: (run, t) => (preview.isOpen ? preview.load(run, t) : preview.open(run, t)),
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);

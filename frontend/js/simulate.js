@@ -17,8 +17,9 @@ export class SimulatePanel {
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
    * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
-   *   onPlayRun?: (run: {job_id: string, run?: number}) => Promise<void>}} [hooks] onFlown: a simulation finished;
-   *   onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`), in the 3D preview
+   *   onPlayRun?: (run: {job_id: string, run?: number}, startTime?: number|null) => Promise<void>}} [hooks]
+   *   onFlown: a simulation finished; onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`),
+   *   in the 3D preview, from `startTime` (its closest pair)
    */
   constructor(state, persist, hooks = {}) {
     this.state = state;
@@ -40,9 +41,18 @@ export class SimulatePanel {
     this.disturbance = /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance"));
     /** @type {string|null} the simulation job whose flight the 3D preview plays (its preset and seed) */
     this.flightJob = null;
+    // The designer's last preset and seed come back with the page (the same seed flies the same flight).
+    const savedPreset = localStorage.getItem("swarmshow.sim.preset");
+    if (savedPreset && [...this.preset.options].some((o) => o.value === savedPreset)) this.preset.value = savedPreset;
+    const savedSeed = localStorage.getItem("swarmshow.sim.seed");
+    if (savedSeed !== null && !seedProblem(savedSeed)) this.seed.value = savedSeed;
+    this.preset.addEventListener("change", () => localStorage.setItem("swarmshow.sim.preset", this.preset.value));
+    const keepSeed = () => { if (!seedProblem(this.seed.value)) localStorage.setItem("swarmshow.sim.seed", this.seed.value.trim()); };
+    this.seed.addEventListener("change", keepSeed);
     document.getElementById("btn-sim-seed").addEventListener("click", () => {
       this.seed.value = String(randomSeed());
       setError("sim-seed", "");
+      keepSeed();
     });
     this.seed.addEventListener("input", () => setError("sim-seed", ""));
     // A fleet-wide disturbance is for the ideal vehicle; every other preset brings its own wind field.
@@ -258,8 +268,8 @@ export class SimulatePanel {
       play.addEventListener("click", async () => {
         const run = { job_id: jobId, run: worst.run };
         // In the editor the run plays in the 3D preview, opened for it (loading it into the viewer
-        // alone changed nothing on screen while the preview was closed).
-        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run);
+        // alone changed nothing on screen while the preview was closed), at its closest pair.
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run, worst.time_s);
         try {
           await api.loadPlayback(showId, "simulated", run);
         } catch (err) {
@@ -278,6 +288,7 @@ export class SimulatePanel {
         if (mc.preset) this.preset.value = mc.preset;
         this.preset.dispatchEvent(new Event("change"));
         this.seed.value = String(worst.seed);
+        this.seed.dispatchEvent(new Event("change"));
         this.run();
       });
       links.append(" · ", alone);
@@ -318,11 +329,13 @@ export class SimulatePanel {
       const play = document.createElement("button");
       play.type = "button";
       play.id = "sim-play-flight";
-      play.textContent = `Show this flight in 3D${f.seed != null ? ` (seed ${f.seed})` : ""}`;
+      const at = f.flown_min_distance_time_s;
+      play.textContent = `Show this flight in 3D${f.seed != null ? ` (seed ${f.seed})` : ""}`
+        + `${at != null ? ` at its closest pair, ${fmt(at, 1, " s")}` : ""}`;
       const showId = this.state.meta.id;
       play.addEventListener("click", async () => {
         const run = { job_id: jobId };
-        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run);
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run, at);
         try {
           await api.loadPlayback(showId, "simulated", run);
         } catch (err) {
