@@ -143,3 +143,21 @@ def test_qgc_export_without_origin_is_caught_in_the_editor(ui: Page):
         page.get_by_role("button", name="Export in the chosen format").click()
     assert resp.value.status == 200, resp.value.text()
     assert not errors, errors
+
+
+def test_a_simulation_refused_for_a_formation_marks_its_card(ui: Page):
+    """A cue time the planner cannot meet fails the simulation job naming formations[1].arrive_at_s: the failure
+    says so and the card of formation 1 is marked, as the check and the exports mark it."""
+    page = ui.page
+    doc = show_doc("Early cue")
+    first = doc["formations"][0]
+    doc["formations"].append({**first, "name": "up", "arrive_at_s": 3.0,
+                              "points": [[x, y, z + 20] for x, y, z in first["points"]]})
+    _open(ui, doc)
+    card = page.locator('.tl-card[data-index="1"]')
+    expect(card).not_to_have_class("tl-card has-problem")
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-body")).to_contain_text("formations[1].arrive_at_s", timeout=120_000)
+    expect(card).to_have_class("tl-card has-problem")
+    expect(card.locator(".field-error")).to_contain_text("too early")
+    expect(page.locator('.tl-card[data-index="0"]')).not_to_have_class("tl-card has-problem")

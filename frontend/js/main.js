@@ -76,6 +76,7 @@ const report = new ReportPanel($("report-body"), state, persist, { timeline, vie
 const simulate = new SimulatePanel(state, persist, {
   onFlown: () => preview.isOpen && preview.load(),
   onPlayRun: (run, t) => (preview.isOpen ? preview.load(run, t) : preview.open(run, t)),
+  onFormationProblems: () => timeline.render(),
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);

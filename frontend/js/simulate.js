@@ -3,7 +3,7 @@
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
 import * as api from "./api.js";
-import { setError } from "./errors.js";
+import { setError, showShowErrors } from "./errors.js";
 import { flightRequest, flightRows, randomSeed, REASONS, seedProblem } from "./flight.js";
 import { fmt, summaryTable } from "./summary.js";
 
@@ -17,7 +17,8 @@ export class SimulatePanel {
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
    * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
-   *   onPlayRun?: (run: {job_id: string, run?: number}, startTime?: number|null) => Promise<void>}} [hooks]
+   *   onPlayRun?: (run: {job_id: string, run?: number}, startTime?: number|null) => Promise<void>,
+   *   onFormationProblems?: () => void}} [hooks] onFormationProblems: a failure named formations (marked)
    *   onFlown: a simulation finished; onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`),
    *   in the 3D preview, from `startTime` (its closest pair)
    */
@@ -215,8 +216,16 @@ export class SimulatePanel {
     } else if (job.state === "failed" || job.state === "cancelled") {
       this.cancelBtn.hidden = true;
       this._progress(p, job.state);
-      const why = job.error ? job.error.message || JSON.stringify(job.error.detail) : "";
+      const detail = job.error && Array.isArray(job.error.detail) ? job.error.detail : [];
+      const why = job.error ? job.error.message || detail.map((d) => (d.path ? `${d.path}: ${d.msg}` : d.msg)).join("; ")
+        || JSON.stringify(job.error.detail) : "";
       this._message("report-bad", job.state === "cancelled" ? "Cancelled." : `Failed: ${why}`);
+      // As the check and the exports: a formation the refusal names is marked on its timeline card.
+      const named = detail.filter((d) => /^formations\[\d+\]/.test((d && d.path) || ""));
+      if (named.length) {
+        showShowErrors(named, () => {});
+        if (this.hooks.onFormationProblems) this.hooks.onFormationProblems();
+      }
     }
   }
 
