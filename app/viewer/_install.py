@@ -105,7 +105,7 @@ class _Loader:
     def __init__(self, app: FastAPI, viewer: Viewer) -> None:
         self.app, self.viewer = app, viewer
         self._lock = threading.Lock()
-        # (show id) -> ((content hash, Monte-Carlo run or None), plan, flight or None)
+        # (show id) -> ((content hash, (job id, Monte-Carlo run or None) or None), plan, flight or None)
         self._cache: dict[str, tuple[tuple[str, tuple[str, int | None] | None], Any, Any]] = {}
         # (content hash) -> check report JSON of its plan
         self._reports: dict[str, Any] = {}
