@@ -161,3 +161,23 @@ def test_a_simulation_refused_for_a_formation_marks_its_card(ui: Page):
     expect(card).to_have_class("tl-card has-problem")
     expect(card.locator(".field-error")).to_contain_text("too early")
     expect(page.locator('.tl-card[data-index="0"]')).not_to_have_class("tl-card has-problem")
+
+
+def test_drones_blown_off_in_a_single_flight_are_named_with_their_reason(ui: Page):
+    """Two drones hovering 700 m up in gusty-rtk's wind are blown off (tests/test_editor_montecarlo.py): the
+    flight's summary fails, names both drones under their reason and says on screen what the reason means."""
+    from tests.conftest import make_show
+
+    high = {"name": "High", "hold_s": 5.0, "color": "#ffffff", "points": [[0.0, 0.0, 700.0], [6.0, 0.0, 700.0]]}
+    show = make_show([high], drones=2, rows=1, cols=2, spacing_m=6.0, max_altitude_m=750.0,
+                     max_speed_z_mps=4.0).model_copy(update={"name": "Gale alone"})
+    page = ui.page
+    _open(ui, show.model_dump(mode="json", exclude_none=True))
+    page.select_option("#sim-preset", "gusty-rtk")
+    page.fill("#sim-seed", "3")
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-percent")).to_have_text("100%", timeout=300_000)
+    expect(page.locator("#sim-body > .report-bad").first).to_contain_text("✗")
+    rows = _rows(ui)
+    assert rows["Diverged"] == ("2 overpowered (drones 0, 1)", "bad-value"), rows
+    expect(page.locator("#sim-body .sim-reasons")).to_contain_text("blown off (wind beyond its authority)")

@@ -70,6 +70,7 @@ export function divergedText(diverged) {
     by.get(d.reason).push(d.drone);
   }
   return [...by].map(([why, drones]) => {
+    drones.sort((a, b) => a - b);
     const shown = drones.slice(0, 8).join(", ") + (drones.length > 8 ? ", …" : "");
     return `${drones.length} ${why} (drone${drones.length > 1 ? "s" : ""} ${shown})`;
   }).join(", ");

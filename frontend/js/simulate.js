@@ -330,7 +330,12 @@ export class SimulatePanel {
       p.className = "report-bad";
       p.textContent = `Diverged: ${f.diverged.slice(0, 10).map((d) => `drone ${d.drone} at ${fmt(d.time_s, 1)} s (${d.reason})`).join("; ")}`;
       p.title = Object.values(REASONS).join("\n");
-      this.body.append(p);
+      // What each reason that occurred means, on screen (a tooltip alone is easily missed).
+      const why = document.createElement("p");
+      why.className = "muted sim-reasons";
+      why.textContent = [...new Set(f.diverged.map((d) => d.reason))]
+        .map((r) => (Object.hasOwn(REASONS, r) ? REASONS[r] : r)).join(". ");
+      this.body.append(p, why);
     }
     if (jobId && this.state && this.state.meta) {
       // The flown trajectories beside the plan, each drone's gap coloured (the viewer's simulated source).

@@ -29,8 +29,8 @@ test("seeds: whole numbers from 0 to the API's bound", () => {
 });
 
 test("diverged drones are grouped by reason with their numbers", () => {
-  const d = [{ drone: 3, time_s: 1, reason: "overpowered" }, { drone: 7, time_s: 2, reason: "ground" },
-    { drone: 5, time_s: 3, reason: "overpowered" }];
+  const d = [{ drone: 5, time_s: 1, reason: "overpowered" }, { drone: 7, time_s: 2, reason: "ground" },
+    { drone: 3, time_s: 3, reason: "overpowered" }];
   assert.equal(divergedText(d), "2 overpowered (drones 3, 5), 1 ground (drone 7)");
   const many = Array.from({ length: 10 }, (_, i) => ({ drone: i, time_s: 0, reason: "runaway" }));
   assert.equal(divergedText(many), "10 runaway (drones 0, 1, 2, 3, 4, 5, 6, 7, …)");
