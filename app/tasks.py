@@ -379,8 +379,9 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     plan = _plan_job(show_text, progress, enforce_limits=False)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
     fly_show = _fly_show()
+    flight_options = single_flight_options(options)
     try:
-        result = fly_show(plan, **options, progress=progress.scaled(PLAN_SHARE, 1.0))
+        result = fly_show(plan, flight_options, progress=progress.scaled(PLAN_SHARE, 1.0))
     except TaskCancelled:
         raise
     except ConnectionError as exc:
@@ -393,7 +394,40 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
         progress.check_cancelled(force=True)
         raise
     progress(1.0)
-    return {"plan": plan_summary(plan), "flight": result.summary(), "problems": forced_problems(plan)}
+    summary = result.summary()
+    # What was flown, so that the designer can fly it again (the same seed flies the same flight).
+    summary["preset"], summary["seed"] = flight_options.errors.name, flight_options.seed
+    summary.update(_planned_closest(plan, result.times_s))
+    return {"plan": plan_summary(plan), "flight": summary, "problems": forced_problems(plan)}
+
+
+def _planned_closest(plan: Any, times_s: Any) -> dict[str, Any]:
+    """The plan's closest pair at the flight's frames (``sim.flight.planned_closest``), beside the flown one."""
+    from sim.flight import planned_closest
+
+    return planned_closest(plan, times_s)
+
+
+def single_flight_options(options: dict[str, Any]) -> Any:
+    """The ``FlightOptions`` of a single flight from the API's ``SimulateOptions`` fields (as
+    :func:`flight_options` resolved them): ``sim.flight.single_flight_options`` of its preset (default
+    ``sim.flight.DEFAULT_FLIGHT_PRESET``, or ideal with a fleet-wide disturbance) and seed, which is
+    run ``seed - seed0`` of a Monte-Carlo job with that preset and controller.
+
+    Raises:
+        TaskFailure: a disturbance beside a preset that brings its own wind (names ``disturbance``).
+    """
+    from sim.flight import DEFAULT_FLIGHT_PRESET, FlightOptions
+    from sim.flight import single_flight_options as resolve
+
+    disturbance = options.get("disturbance", "none")
+    preset = options.get("preset") or ("ideal" if disturbance != "none" else DEFAULT_FLIGHT_PRESET)
+    kwargs = {k: options[k] for k in ("engine", "controller", "output_hz", "scheduler") if k in options}
+    try:
+        return resolve(preset, FlightOptions(**kwargs, disturbance=disturbance, seed=int(options.get("seed", 0))))
+    except ValueError as exc:
+        field = "disturbance" if "disturbance" in str(exc) else "preset"
+        raise TaskFailure(FailureKind.INVALID, [{"loc": ["body", field], "path": field, "msg": str(exc)}]) from None
 
 
 def _plan_job(show_text: str, progress: Progress, *, enforce_limits: bool = True) -> Any:
@@ -673,13 +707,16 @@ def viewer_plan_task(show_text: str) -> Any:
 def viewer_flight_task(show_text: str, options: dict[str, Any]) -> tuple[Any, Any]:
     """Plan and fly a stored show for the 3D viewer; returns ``(plan, flight)``.
 
+    ``options``: a simulate job's (``SimulateOptions`` fields, :func:`single_flight_options`), so that the
+    viewer plays the flight the job reported; ``{}`` flies the default preset with seed 0.
+
     Raises:
         TaskFailure: the show cannot be planned, or its recording would be too large.
     """
     plan = viewer_plan_task(show_text)
     check_output_samples(plan.drone_count, plan.duration_s, float(options.get("output_hz", 25.0)))
     _check_viewer_work(plan)
-    return plan, _fly_show()(plan, **options)
+    return plan, _fly_show()(plan, single_flight_options(options))
 
 
 def montecarlo_run_options(options: dict[str, Any], run: int) -> Any:

@@ -26,7 +26,9 @@ from formations._motion import Motion as Motion
 from formations._motion import MotionKey as MotionKey
 from formations._naming import source_name as source_name
 from formations._show import MAX_DRONES as MAX_DRONES
+from formations._show import MAX_ORIGIN_ALT_M as MAX_ORIGIN_ALT_M
 from formations._show import MAX_SHOW_FILE_BYTES as MAX_SHOW_FILE_BYTES
+from formations._show import MIN_ORIGIN_ALT_M as MIN_ORIGIN_ALT_M
 from formations._show import SHOW_FORMAT as SHOW_FORMAT
 from formations._show import DronesByCount as DronesByCount
 from formations._show import DronesFromGroup as DronesFromGroup
@@ -51,6 +53,8 @@ from formations._show import show_json_schema as show_json_schema
 __all__ = [
     "MAX_HOME_CSV_BYTES",
     "MAX_DRONES",
+    "MAX_ORIGIN_ALT_M",
+    "MIN_ORIGIN_ALT_M",
     "MAX_SHOW_FILE_BYTES",
     "SHOW_FORMAT",
     "DroneGroups",

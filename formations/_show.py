@@ -64,6 +64,11 @@ MIN_HOME_SLOTS = 16
 DEFAULT_HORIZONTAL_EXTENT_M = 2_000.0
 #: Highest ``settings.max_altitude_m`` a show may set, metres.
 MAX_CEILING_M = 10_000.0
+#: Range of the show origin's altitude above mean sea level, metres (``settings.geo.origin_alt_m``): the
+#: Dead Sea shore (-430 m) to above the highest launch site; the exports' ``origin`` option shares it
+#: (``app.exports``), so a place the show file refuses is not accepted as an export option either.
+MIN_ORIGIN_ALT_M = -1_000.0
+MAX_ORIGIN_ALT_M = 10_000.0
 #: Largest show area a show file may ask for, metres (half-width).
 MAX_HORIZONTAL_EXTENT_M = 20_000.0
 #: Shortest hold or forced transition, seconds: a subnormal 1e-320 is "> 0" but no real duration.
@@ -147,7 +152,8 @@ class GeoPlacement(BaseModel):
 
     origin_lat_deg: float = Field(ge=-90, le=90, description="Latitude of the origin, degrees.")
     origin_lon_deg: float = Field(ge=-180, le=180, description="Longitude of the origin, degrees.")
-    origin_alt_m: float = Field(0.0, ge=-1_000, le=10_000, description="Altitude of the origin above MSL, metres.")
+    origin_alt_m: float = Field(0.0, ge=MIN_ORIGIN_ALT_M, le=MAX_ORIGIN_ALT_M,
+                                description="Altitude of the origin above MSL, metres.")
     heading_deg: float = Field(0.0, ge=0, lt=360, description="Compass heading of +y, degrees clockwise from north.")
 
 

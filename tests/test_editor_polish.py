@@ -93,7 +93,7 @@ def test_flight_and_monte_carlo_summaries_render_through_the_helper(ui: Page):
     assert got["flight"]["head"] == ["report-bad", "✗ The flown show breaks a limit"]
     assert got["flight"]["label"] == "Flight summary"
     assert got["flight"]["rows"] == [
-        ["Tracking error (RMS)", "0.012 m", ""], ["Tracking error (max)", "0.200 m", ""],
+        ["Deviation from plan (RMS)", "0.012 m", ""], ["Deviation from plan (max)", "0.200 m", ""],
         ["Flown min separation", "2.50 m (≥ 3.0)", "bad-value"], ["Duration", "61.3 s", ""],
         ["Controller", "pid, numba", ""], ["Computed in", "4.0 s (cached)", ""]]
     assert got["mc"]["head"] == ["report-ok", "✓ 20 runs: every run kept the minimum distance"]

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from formations import ShowFile
 from formations._shapes import SHAPE_KINDS
 from sim import CheckReport
-from sim.flight import ControllerName, DisturbanceName  # the one list of names (FlightOptions)
+from sim.flight import DEFAULT_FLIGHT_PRESET, ControllerName, DisturbanceName  # the one list of names (FlightOptions)
 
 Plane = Literal["xz", "xy", "yz"]
 
@@ -187,22 +187,50 @@ class CheckOut(BaseModel):
     report: CheckReport
 
 
+PresetName = Literal["ideal", "calm-rtk", "gusty-rtk", "gps-only"]
+#: Largest seed of a flight or a Monte-Carlo job's first run (the editor's seed field has the same bound).
+MAX_SEED = 2**31 - 1
+
+
 class SimulateOptions(BaseModel):
-    """How to fly the show in simulation."""
+    """How to fly the show in simulation: one flight under an error-model preset with a seed.
+
+    The flight of ``preset`` and ``seed`` is run ``seed - seed0`` of a Monte-Carlo job with that preset and
+    controller (``sim.flight.single_flight_options``): the same seed flies the same flight.
+    """
 
     model_config = ConfigDict(extra="forbid")
 
     engine: Literal["numba", "numpy"] = Field("numba", description="Simulation engine.")
     controller: ControllerName = Field("ismc", description="Position and attitude controllers.")
-    disturbance: DisturbanceName = Field("none", description="External disturbance model.")
+    preset: PresetName | None = Field(None, description=(
+        f"Error-model preset (per-drone GNSS/RTK error, clock offset, wind field, motor lag, spread, battery, drag). "
+        f"Default {DEFAULT_FLIGHT_PRESET!r}, or 'ideal' when a disturbance other than 'none' is asked."))
+    seed: int = Field(0, ge=0, le=MAX_SEED, description="Seed of every random error: the same seed, the same flight.")
+    disturbance: DisturbanceName = Field("none", description=(
+        "Fleet-wide external disturbance; only with preset 'ideal' (the other presets bring their own wind)."))
     output_hz: float = Field(25.0, gt=0, le=1000, description="Rate of the recorded trajectory, Hz.")
+
+    @field_validator("disturbance")
+    @classmethod
+    def _one_wind(cls, value: str, info: ValidationInfo) -> str:
+        preset = info.data.get("preset")
+        if value != "none" and preset not in (None, "ideal"):
+            raise ValueError(f"disturbance {value!r} goes only with preset 'ideal': preset {preset!r} brings its "
+                             "own wind field")
+        return value
+
+    @model_validator(mode="after")
+    def _default_preset(self) -> SimulateOptions:
+        if self.preset is None:
+            # The old request (a disturbance, no preset) still flies the ideal vehicle in that disturbance.
+            self.preset = "ideal" if self.disturbance != "none" else cast(PresetName, DEFAULT_FLIGHT_PRESET)
+        return self
 
 
 #: Most Monte-Carlo runs one job may ask for (the work is also bounded by drones x duration x runs,
 #: :data:`app.tasks.MAX_MONTECARLO_DRONE_S`).
 MAX_MONTECARLO_RUNS = 200
-
-PresetName = Literal["ideal", "calm-rtk", "gusty-rtk", "gps-only"]
 
 
 class MonteCarloOptions(BaseModel):
@@ -213,7 +241,7 @@ class MonteCarloOptions(BaseModel):
     runs: int = Field(20, ge=1, le=MAX_MONTECARLO_RUNS, description="K, the number of flights (seeds seed0..).")
     preset: PresetName = Field("gusty-rtk", description="Error-model preset.")
     controller: ControllerName = Field("ismc", description="Position and attitude controllers.")
-    seed0: int = Field(0, ge=0, le=2**31 - 1, description="Seed of the first run.")
+    seed0: int = Field(0, ge=0, le=MAX_SEED, description="Seed of the first run.")
     confidence: float = Field(0.99, gt=0, lt=1, description="Level of the intervals and of the extra spacing.")
     collision_distance_m: float = Field(1.0, gt=0, le=100, description="Centre distance counted as a collision, m.")
 

@@ -1,11 +1,14 @@
 """``swarmshow simulate``: fly a planned show, or reproduce the paper's scenario.
 
-``swarmshow simulate SHOW [--json] [--engine numba|numpy] [--controller ismc|baseline]
-[--disturbance none|paper|wind] [--output-hz HZ] [--seed N] [--scheduler tcp://HOST:PORT]``
-plans the show, flies
-every drone at 1 kHz and reports tracking errors, the flown minimum distance and
-diverged drones. Exit 1 (unsafe) when any drone diverged, or when the flown minimum
-distance is below the show's ``min_distance_m`` by more than
+``swarmshow simulate SHOW [--json] [--preset calm-rtk] [--seed N] [--engine numba|numpy]
+[--controller ismc|baseline] [--disturbance none|paper|wind] [--output-hz HZ] [--scheduler tcp://HOST:PORT]``
+plans the show, flies every drone at 1 kHz under the error-model preset (default
+:data:`DEFAULT_FLIGHT_PRESET`, ``calm-rtk``: the ideal vehicle's tracking error of a fraction of
+a millimetre tells a designer nothing; ``--disturbance`` alone flies the ideal vehicle in that
+fleet-wide disturbance) with seed ``--seed`` (the same seed flies the same flight: it is Monte-Carlo
+run k of ``--seed S --runs K`` when S + k is that seed) and reports the preset and seed, tracking
+errors, the flown minimum distance and diverged drones. Exit 1 (unsafe) when any drone
+diverged, or when the flown minimum distance is below the show's ``min_distance_m`` by more than
 ``sim.flight.FLOWN_DISTANCE_TOLERANCE_M`` (1 cm: plans that sit exactly on the limit,
 such as a home grid spaced at the minimum distance, must not fail on millimetre
 tracking deviations). A transition forced shorter than the limits allow is flown as designed (a
@@ -56,6 +59,16 @@ from app.cli._common import (
 #: building the parser does not import the simulation; a test keeps them equal).
 PRESETS = ("ideal", "calm-rtk", "gusty-rtk", "gps-only")
 DEFAULT_COLLISION_DISTANCE_M = 1.0
+#: The preset a single flight flies by default (``sim.flight.DEFAULT_FLIGHT_PRESET``; a test keeps them equal).
+DEFAULT_FLIGHT_PRESET = "calm-rtk"
+
+#: What each divergence reason means physically (``sim.flight.engines._state``; the editor says the same).
+_REASONS = {
+    "overpowered": "held at its tilt/thrust limit and blown off, wind beyond its authority",
+    "runaway": "unstable control or a tumble",
+    "non-finite": "the state broke down",
+    "ground": "sank 0.5 m below the show's ground, a crash",
+}
 
 #: ``local`` (an alias for the in-process engine) is the numba kernel.
 LOCAL_ALIAS = "local"
@@ -93,7 +106,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")
     p.add_argument("--preset", choices=PRESETS,
-                   help="error-model preset (replaces --disturbance): ideal, calm-rtk, gusty-rtk, gps-only")
+                   help=f"error-model preset: ideal, calm-rtk, gusty-rtk, gps-only (a single flight's default: "
+                   f"{DEFAULT_FLIGHT_PRESET}, or ideal with --disturbance; presets other than ideal bring their "
+                   "own wind and replace --disturbance)")
     p.add_argument("--runs", type=int, metavar="K",
                    help="Monte-Carlo: fly the show K times with seeds SEED..SEED+K-1 and report the margin")
     p.add_argument("--confidence", type=float, default=None, metavar="C",
@@ -155,6 +170,13 @@ def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
         output_hz=args.output_hz, seed=args.seed, **dask,
     )
     return options if args.preset is None else options_for_preset(args.preset, options)
+
+
+def single_preset(args: argparse.Namespace) -> str:
+    """The preset a single flight flies: ``--preset``, else ideal with ``--disturbance``, else the default."""
+    if args.preset is not None:
+        return str(args.preset)
+    return "ideal" if args.disturbance != "none" else DEFAULT_FLIGHT_PRESET
 
 
 def _montecarlo(args: argparse.Namespace) -> int:
@@ -253,18 +275,31 @@ def _engine(args: argparse.Namespace) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim.flight import fly_show
+    from sim.flight import FlightOptions, fly_show, planned_closest, single_flight_options
 
+    if args.seed < 0:
+        raise CliError(f"--seed must be >= 0, got {args.seed}")
     dask = _dask_options(args)
+    preset = single_preset(args)
+    try:
+        options = single_flight_options(preset, FlightOptions(
+            engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
+            output_hz=args.output_hz, seed=args.seed, **dask))
+    except ValueError as exc:
+        raise CliError(f"--disturbance {args.disturbance} goes only with --preset ideal (--preset {preset} "
+                       "brings its own wind field)" if "disturbance" in str(exc) else str(exc)) from None
     show = load_show_arg(args.show)
     with contextlib.ExitStack() as stack:
         # A what-if, as the app's simulate: a transition forced shorter than the limits allow is flown as
         # designed and named in ``problems`` (then exit 1: the show cannot be flown as it is).
         plan = _connect_and_plan(args, stack, dask, show, enforce_limits=False)
         with progress_bar("simulate") as update:
-            result = fly_show(plan, _flight_options(args, dask), progress=update)
+            result = fly_show(plan, options.with_(scheduler=dask.get("scheduler")) if dask else options,
+                              progress=update)
     summary = result.summary()
     summary["show"] = show.name
+    summary["preset"], summary["seed"] = preset, args.seed
+    summary.update(planned_closest(plan, result.times_s))
     summary["problems"] = [{"path": f.path, "msg": f.message, "minimum_s": f.minimum_s} for f in plan.forced]
     if args.json:
         print_json(summary)
@@ -283,14 +318,22 @@ def format_flight(s: dict) -> str:
     lines = [
         f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
         f"({s['engine']} engine, {s['controller']}, disturbance {s['disturbance']}) in {s['wall_time_s']:.1f} s",
-        f"  tracking error  rms {num(s['tracking_rms_m'], '.2e')} m, max {num(s['tracking_max_m'], '.2e')} m",
-        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (limit {s['min_distance_limit_m']} m"
+        f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
+        f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
+        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (plan "
+        f"{num(s.get('planned_min_distance_m'), '.3f')} m, limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
     ]
     lines.extend(
         f"  worst drone {w['drone']}: rms {num(w['rms_m'], '.2e')} m, max {num(w['max_m'], '.2e')} m"
         for w in s["worst_drones"][:3]
     )
+    if s["diverged"]:
+        counts: dict[str, int] = {}
+        for d in s["diverged"]:
+            counts[d["reason"]] = counts.get(d["reason"], 0) + 1
+        lines.append(f"  DIVERGED: {len(s['diverged'])} drones ("
+                     + ", ".join(f"{n} {why}: {_REASONS.get(why, why)}" for why, n in sorted(counts.items())) + ")")
     for d in s["diverged"][:20]:
         lines.append(f"  DIVERGED drone {d['drone']} at t = {d['time_s']:.3f} s ({d['reason']})")
     if len(s["diverged"]) > 20:

@@ -13,6 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
+from formations import MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M
+
 if TYPE_CHECKING:
     from app.media import AudioTrack
     from formations import ShowFile
@@ -93,8 +95,10 @@ class ExportOptions:
                 raise ExportError(f"origin latitude must be in [-90, 90] degrees, got {lat}", field="origin")
             if not -180.0 <= lon <= 180.0:
                 raise ExportError(f"origin longitude must be in [-180, 180] degrees, got {lon}", field="origin")
-            if not -1_000.0 <= alt <= 100_000.0:
-                raise ExportError(f"origin altitude must be in [-1000, 100000] m, got {alt}", field="origin")
+            if not MIN_ORIGIN_ALT_M <= alt <= MAX_ORIGIN_ALT_M:
+                # The show file's own bounds (settings.geo.origin_alt_m): one place on Earth, one range.
+                raise ExportError(f"origin altitude must be in [{MIN_ORIGIN_ALT_M:g}, {MAX_ORIGIN_ALT_M:g}] m "
+                                  f"(as the show file's settings.geo.origin_alt_m), got {alt:g}", field="origin")
             object.__setattr__(self, "origin", (lat, lon, alt))
         heading = check_heading(self.heading_deg)
         object.__setattr__(self, "heading_deg", heading % 360.0)

@@ -34,9 +34,11 @@ class PlaybackRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
     source: Source = "planned"
     job_id: str | None = Field(None, max_length=64, description=(
-        "With source 'simulated': a Monte-Carlo job of this show (POST /api/shows/{id}/montecarlo) "
-        "whose run `run` is flown and played instead of the default single flight."))
-    run: int | None = Field(None, ge=0, description="The run of `job_id` to play (0-based; seed = seed0 + run).")
+        "With source 'simulated': a simulation job of this show (POST /api/shows/{id}/simulate), whose flight "
+        "(its preset and seed) is played, or a Monte-Carlo job (POST /api/shows/{id}/montecarlo) whose run "
+        "`run` is; without it the default single flight (default preset, seed 0) plays."))
+    run: int | None = Field(None, ge=0, description=(
+        "With a Monte-Carlo `job_id`: the run to play (0-based; seed = seed0 + run)."))
 
 
 class SeekRequest(BaseModel):
@@ -103,19 +105,20 @@ class _Loader:
     def __init__(self, app: FastAPI, viewer: Viewer) -> None:
         self.app, self.viewer = app, viewer
         self._lock = threading.Lock()
-        # (show id) -> ((content hash, Monte-Carlo run or None), plan, flight or None)
-        self._cache: dict[str, tuple[tuple[str, tuple[str, int] | None], Any, Any]] = {}
+        # (show id) -> ((content hash, (job id, Monte-Carlo run or None) or None), plan, flight or None)
+        self._cache: dict[str, tuple[tuple[str, tuple[str, int | None] | None], Any, Any]] = {}
         # (content hash) -> check report JSON of its plan
         self._reports: dict[str, Any] = {}
 
     def load(
-        self, show_id: str, source: Source = "planned", run: tuple[str, int] | None = None
+        self, show_id: str, source: Source = "planned", run: tuple[str, int | None] | None = None
     ) -> tuple[Any, Any, bool]:
         """Plan (and for ``simulated`` fly) the stored show and put it in the viewer.
 
         Called from a thread; the planning and the flight run in the job manager's interactive pool
         under its time budget, never in the server process. ``run`` = ``(job id, k)`` flies run k of
-        a Monte-Carlo job of this show instead of the default single flight.
+        a Monte-Carlo job of this show instead of the default single flight; ``(job id, None)`` flies
+        the flight of a simulation job of this show (its preset and seed).
 
         Returns:
             ``(record, plan, cached)``.
@@ -125,7 +128,8 @@ class _Loader:
         jobs = self.app.state.jobs
         record = self.app.state.store.get(show_id)
         label = _label(record)
-        run_options = self._run_options(record, run) if run is not None and source == "simulated" else None
+        job_kind, run_options = (self._run_options(record, run) if run is not None and source == "simulated"
+                                 else ("", None))
         # The cached flight is the one of this content and this run (None: the default flight).
         key = (record.content_hash, None if run_options is None else run)
         with self._lock:
@@ -136,8 +140,13 @@ class _Loader:
         cached = plan is not None and (source == "planned" or flight is not None)
         viewer = self.viewer
         try:
-            if run_options is not None and flight is None:
-                assert run is not None
+            if run_options is not None and flight is None and job_kind == "simulate":
+                viewer.set_busy(f"Simulating {record.name} ({run_options.get('preset')}, seed "
+                                f"{run_options.get('seed', 0)})", 0.0)
+                options = tasks.flight_options(run_options, jobs.settings.dask_scheduler)
+                plan, flight = jobs.run_sync(tasks.viewer_flight_task, record.json, options)
+            elif run_options is not None and flight is None:
+                assert run is not None and run[1] is not None
                 viewer.set_busy(f"Flying run {run[1]} of {record.name}", 0.0)
                 plan, flight = jobs.run_sync(tasks.viewer_montecarlo_run_task, record.json, run_options, run[1])
             elif source == "simulated" and flight is None:
@@ -177,24 +186,31 @@ class _Loader:
                 del self._reports[next(iter(self._reports))]
         self.viewer.set_report(label, report)
 
-    def _run_options(self, record: Any, run: tuple[str, int]) -> dict[str, Any]:
-        """The options of a Monte-Carlo job of ``record``'s show, checked for playing run ``run[1]``.
+    def _run_options(self, record: Any, run: tuple[str, int | None]) -> tuple[str, dict[str, Any]]:
+        """The kind and options of a simulation or Monte-Carlo job of ``record``'s show, checked for
+        playing its flight (``run[1]`` None) or run ``run[1]``.
 
         Raises:
             JobNotFound: no such job (404).
-            ApiError: 422 naming ``job_id`` (not a Monte-Carlo job of this show) or ``run`` (out of range).
+            ApiError: 422 naming ``job_id`` (not a simulation or Monte-Carlo job of this show) or ``run``
+                (out of range, missing for a Monte-Carlo job, or given for a simulation's one flight).
         """
         from app.api.errors import ApiError
 
         job = self.app.state.jobs.get(run[0])
-        if job.kind != "montecarlo" or job.content_hash != record.content_hash:
+        if job.kind not in ("simulate", "montecarlo") or job.content_hash != record.content_hash:
             raise ApiError(422, [{"loc": ["body", "job_id"], "path": "job_id", "msg": (
-                f"job {run[0]!r} is not a Monte-Carlo job of this show as it is now")}])
+                f"job {run[0]!r} is not a simulation or Monte-Carlo job of this show as it is now")}])
+        if job.kind == "simulate":
+            if run[1] is not None:
+                raise ApiError(422, [{"loc": ["body", "run"], "path": "run", "msg": (
+                    "a simulation job flew one flight: leave run out (run picks a Monte-Carlo job's run)")}])
+            return job.kind, dict(job.options)
         runs = int(job.options.get("runs", 0))
-        if not 0 <= run[1] < runs:
+        if run[1] is None or not 0 <= run[1] < runs:
             raise ApiError(422, [{"loc": ["body", "run"], "path": "run",
                                   "msg": f"run must be in 0..{runs - 1} (the job flew {runs} runs)"}])
-        return dict(job.options)
+        return job.kind, dict(job.options)
 
     def catalog(self) -> dict[str, str]:
         """``{show id: label}`` of the stored shows (the selector's list); drafts cannot be planned, so
@@ -252,12 +268,12 @@ def playback_router() -> APIRouter:
         require_valid(request.app.state.store.get(show_id), "shown in the 3D viewer")  # a draft: 422
         req = body or PlaybackRequest()
         source: Source = req.source
-        run: tuple[str, int] | None = None
+        run: tuple[str, int | None] | None = None
         if req.job_id is not None or req.run is not None:
-            if source != "simulated" or req.job_id is None or req.run is None:
-                field = "run" if req.run is None else "job_id" if req.job_id is None else "source"
+            if source != "simulated" or req.job_id is None:
+                field = "job_id" if req.job_id is None else "source"
                 raise ApiError(422, [{"loc": ["body", field], "path": field,
-                                      "msg": "job_id and run go together, with source 'simulated'"}])
+                                      "msg": "job_id (and run, for a Monte-Carlo job) go with source 'simulated'"}])
             run = (req.job_id, req.run)
         # TaskFailure / TaskError raised by the load reach the app's handlers (422, 413, 504, ...).
         record, plan, cached = await asyncio.to_thread(loader.load, show_id, source, run)

@@ -295,7 +295,8 @@ export function buildFormation(source, params, file) {
 
 /**
  * @param {string} id @param {"planned"|"simulated"} [source]
- * @param {{job_id: string, run: number}} [run] with "simulated": fly this run of a Monte-Carlo job
+ * @param {{job_id: string, run?: number}} [run] with "simulated": fly this run of a Monte-Carlo job, or (no
+ *   `run`) the flight of this simulation job (its preset and seed)
  */
 export function loadPlayback(id, source = "planned", run = undefined) {
   return request("POST", `/api/shows/${encodeURIComponent(id)}/playback`, { json: run ? { source, ...run } : { source } });

@@ -4,6 +4,8 @@
 
 import * as api from "./api.js";
 import { toast } from "./dialogs.js";
+import { showShowErrors } from "./errors.js";
+import { exportProblem, parseOrigin } from "./exportcheck.js";
 import { downloadBlob } from "./shows.js";
 
 /** Human names of the known formats. */
@@ -23,10 +25,13 @@ export class ExportMenu {
   /**
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
+   * @param {{onFormationProblems?: () => void}} [hooks] onFormationProblems: a refusal named formations
+   *   (marked in `formationProblems`): the timeline redraws its cards
    */
-  constructor(state, persist) {
+  constructor(state, persist, hooks = {}) {
     this.state = state;
     this.persist = persist;
+    this.hooks = hooks;
     this.select = /** @type {HTMLSelectElement} */ (document.getElementById("export-format"));
     this.button = /** @type {HTMLButtonElement} */ (document.getElementById("btn-export"));
     this.button.addEventListener("click", () => this.run());
@@ -79,9 +84,10 @@ export class ExportMenu {
       if (st.show.settings.geo) st.edit("Remove the show's origin", () => { delete st.show.settings.geo; });
       return;
     }
-    const v = text.split(/[,\s]+/).filter(Boolean).map(Number);
-    if (v.length < 2 || v.length > 3 || !v.every(Number.isFinite) || Math.abs(v[0]) > 90 || Math.abs(v[1]) > 180) {
-      err.textContent = "Origin: latitude, longitude (degrees) and optionally altitude (m), e.g. 47.3977, 8.5456, 410";
+    // The show file's bounds (settings.geo), so that a typed origin is never refused later by the save.
+    const { value: v, error } = parseOrigin(text);
+    if (!v) {
+      err.textContent = error;
       return;
     }
     // As the API and the command line: within one turn either way (400 is a typo for 40, not a bearing).
@@ -89,7 +95,7 @@ export class ExportMenu {
       err.textContent = "Heading: degrees clockwise from north, between -360 and 360";
       return;
     }
-    const geo = { origin_lat_deg: v[0], origin_lon_deg: v[1], origin_alt_m: v[2] ?? 0, heading_deg: ((heading % 360) + 360) % 360 };
+    const geo = { origin_lat_deg: v[0], origin_lon_deg: v[1], origin_alt_m: v[2], heading_deg: ((heading % 360) + 360) % 360 };
     st.edit("Set the show's origin", () => { st.show.settings.geo = geo; });
   }
 
@@ -104,6 +110,14 @@ export class ExportMenu {
           && !(key === "scale" && Number(v) === 1)) out[key] = v;
     }
     return out;
+  }
+
+  /** Open the export options at the origin field with `message` under it. @param {string} message */
+  _pointAtOrigin(message) {
+    const details = /** @type {HTMLDetailsElement} */ (document.getElementById("export-options"));
+    details.open = true;
+    document.querySelector('[data-error-for="origin"]').textContent = message;
+    this.fields.origin.focus();
   }
 
   /** Ask the server which formats it offers and fill the menu. */
@@ -125,6 +139,13 @@ export class ExportMenu {
     const el = document.getElementById("export-error");
     this._clearErrors();
     const format = this.select.value;
+    // Known before asking the server (a 422 in the browser console otherwise): the QGC formats need the origin.
+    const problem = exportProblem(format, st.show && st.show.settings.geo);
+    if (problem) {
+      el.textContent = `${FORMAT_LABELS[format] || format}: ${problem}`;
+      this._pointAtOrigin(problem);
+      return;
+    }
     this.button.disabled = true;
     this.button.setAttribute("aria-busy", "true");
     const old = this.button.textContent;
@@ -139,12 +160,13 @@ export class ExportMenu {
       toast(warnings.length ? `Downloaded ${filename} (${warnings.join("; ")})` : `Downloaded ${filename}`, { ms: warnings.length ? 8000 : 2500 });
     } catch (err) {
       el.textContent = `${FORMAT_LABELS[format] || format}: ${err.message}`;
-      if (/origin/i.test(err.message)) {
-        const details = /** @type {HTMLDetailsElement} */ (document.getElementById("export-options"));
-        details.open = true;
-        document.querySelector('[data-error-for="origin"]').textContent = err.message;
-        this.fields.origin.focus();
+      const problems = err instanceof api.ApiError && Array.isArray(err.problems) ? err.problems : [];
+      if (problems.some((p) => /^formations\[\d+\]/.test(p.path || ""))) {
+        // As the check does: the formation the refusal names is marked on its timeline card.
+        showShowErrors(problems.filter((p) => /^formations\[\d+\]/.test(p.path || "")), () => {});
+        if (this.hooks.onFormationProblems) this.hooks.onFormationProblems();
       }
+      if (/origin/i.test(err.message)) this._pointAtOrigin(err.message);
     } finally {
       this.button.textContent = old;
       this.button.disabled = false;

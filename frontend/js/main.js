@@ -75,12 +75,13 @@ settingsForm.fitAll = () => sources.fitAll();
 const report = new ReportPanel($("report-body"), state, persist, { timeline, view });
 const simulate = new SimulatePanel(state, persist, {
   onFlown: () => preview.isOpen && preview.load(),
-  onPlayRun: (run) => (preview.isOpen ? preview.load(run) : preview.open(run)),
+  onPlayRun: (run, t) => (preview.isOpen ? preview.load(run, t) : preview.open(run, t)),
+  onFormationProblems: () => timeline.render(),
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
-  () => (simulate.hasFlight ? "simulated" : "planned"));
+  () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);
 const playhead = new Playhead(state, timeline, preview);
-const exportMenu = new ExportMenu(state, persist);
+const exportMenu = new ExportMenu(state, persist, { onFormationProblems: () => timeline.render() });
 // The music lane (issue 18) places unpinned formations where the last check planned them.
 const music = new MusicLane(state, {
   plan: () => (report.result ? report.result.plan : null),

@@ -121,8 +121,10 @@ export class Playhead {
     if (vs && vs.token !== this._page) {
       this._page = vs.token;
       const k = this.preview.startFormation;
-      this.preview.startFormation = null;
-      if (k != null && k > 0) this.seek({ formation: k });
+      const t = this.preview.startTime;
+      this.preview.startFormation = this.preview.startTime = null;
+      if (t != null) this.seek({ time_s: t });
+      else if (k != null && k > 0) this.seek({ formation: k });
     }
     this.readout.textContent = vs ? `3D ${vs.playing ? "▶" : "‖"} ${vs.time_s.toFixed(1)} s` : "";
     this._mark(vs);

@@ -12,9 +12,12 @@ export class Preview {
    * @param {import("./persist.js").Persistence} persist
    * @param {() => void} onLayout called when the canvas size changes
    * @param {() => ("planned"|"simulated")} [source] what to play: the simulated flight once one exists
+   * @param {() => ({job_id: string}|undefined)} [flight] the simulation job whose flight (its preset and
+   *   seed) "simulated" plays; none: the default flight
    */
-  constructor(state, persist, onLayout, source = () => "planned") {
+  constructor(state, persist, onLayout, source = () => "planned", flight = () => undefined) {
     this.source = source;
+    this.flight = flight;
     this.state = state;
     this.persist = persist;
     this.onLayout = onLayout;
@@ -29,6 +32,8 @@ export class Preview {
     });
     /** @type {number|null} the formation whose hold a new viewer page starts at (the playhead seeks it there) */
     this.startFormation = null;
+    /** @type {number|null} the time a new viewer page starts at instead (a flight's closest pair), seconds */
+    this.startTime = null;
     document.getElementById("btn-preview-close").addEventListener("click", () => this.close());
     document.getElementById("btn-preview-reload").addEventListener("click", () => this.load());
   }
@@ -46,13 +51,14 @@ export class Preview {
 
   /**
    * Show the preview with the current show.
-   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run to fly and play instead
+   * @param {{job_id: string, run?: number}} [run] a Monte-Carlo run, or a simulation job's flight, to play instead
+   * @param {number|null} [startTime] where that flight starts playing (s; its closest pair), else from the start
    */
-  async open(run) {
+  async open(run, startTime = null) {
     this.wrap.hidden = false;
     this.button.setAttribute("aria-pressed", "true");
     this._layout();
-    await this.load(run);
+    await this.load(run, startTime);
   }
 
   /** Hide the preview. */
@@ -94,15 +100,19 @@ export class Preview {
 
   /**
    * Save if needed, load the show into the viewer and (re)load the viewer page.
-   * @param {{job_id: string, run: number}} [run] a Monte-Carlo run of the show to fly and play (its
-   *   simulated flight) instead of the planned or last simulated show
+   * @param {{job_id: string, run?: number}} [run] a Monte-Carlo run of the show to fly and play (its
+   *   simulated flight), or a simulation job's flight, instead of the planned or last simulated show
+   * @param {number|null} [startTime] with `run`: the time the new page starts at (s), else from the start
    */
-  async load(run) {
+  async load(run, startTime = null) {
     setError("preview", "");
     const st = this.state;
     // The timeline and the preview share one playhead: a new page starts at the selected formation's hold
     // (the first formation: from the start, takeoff included); a Monte-Carlo run plays from the start.
     this.startFormation = run ? null : st.current;
+    this.startTime = run && startTime != null ? startTime : null;
+    // The last simulation's own flight (its preset and seed), not a default one, once there is one.
+    if (!run && this.source() === "simulated") run = this.flight();
     if (st.meta) {
       if (!(await this.persist.ensureSaved())) {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");

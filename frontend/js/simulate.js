@@ -3,16 +3,9 @@
 // polling when events are unavailable), show the tracking and flown-separation summary.
 
 import * as api from "./api.js";
+import { setError, showShowErrors } from "./errors.js";
+import { flightRequest, flightRows, randomSeed, REASONS, seedProblem } from "./flight.js";
 import { fmt, summaryTable } from "./summary.js";
-
-/** The simulation panel. */
-/** What each divergence reason means physically (sim.flight.engines._state). */
-const REASONS = {
-  overpowered: "overpowered: held at its tilt/thrust limit and blown off (wind beyond its authority)",
-  runaway: "runaway: unstable control or a tumble",
-  "non-finite": "non-finite: the state broke down",
-  ground: "ground: crashed: sank 0.5 m below the show's ground",
-};
 
 /** "2 overpowered, 1 runaway" from a `{reason: count}` map. @param {Record<string, number>|undefined} byReason */
 function reasonList(byReason) {
@@ -24,8 +17,10 @@ export class SimulatePanel {
    * @param {import("./state.js").EditorState} state
    * @param {import("./persist.js").Persistence} persist
    * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
-   *   onPlayRun?: (run: {job_id: string, run: number}) => Promise<void>}} [hooks] onFlown: a simulation finished;
-   *   onPlayRun: play a Monte-Carlo run in the 3D preview
+   *   onPlayRun?: (run: {job_id: string, run?: number}, startTime?: number|null) => Promise<void>,
+   *   onFormationProblems?: () => void}} [hooks] onFormationProblems: a failure named formations (marked)
+   *   onFlown: a simulation finished; onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`),
+   *   in the 3D preview, from `startTime` (its closest pair)
    */
   constructor(state, persist, hooks = {}) {
     this.state = state;
@@ -42,6 +37,29 @@ export class SimulatePanel {
     this.body = document.getElementById("sim-body");
     this.cancelBtn = document.getElementById("btn-sim-cancel");
     this.cancelBtn.addEventListener("click", () => this.cancel());
+    this.preset = /** @type {HTMLSelectElement} */ (document.getElementById("sim-preset"));
+    this.seed = /** @type {HTMLInputElement} */ (document.getElementById("sim-seed"));
+    this.disturbance = /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance"));
+    /** @type {string|null} the simulation job whose flight the 3D preview plays (its preset and seed) */
+    this.flightJob = null;
+    // The designer's last preset and seed come back with the page (the same seed flies the same flight).
+    const savedPreset = localStorage.getItem("swarmshow.sim.preset");
+    if (savedPreset && [...this.preset.options].some((o) => o.value === savedPreset)) this.preset.value = savedPreset;
+    const savedSeed = localStorage.getItem("swarmshow.sim.seed");
+    if (savedSeed !== null && !seedProblem(savedSeed)) this.seed.value = savedSeed;
+    this.preset.addEventListener("change", () => localStorage.setItem("swarmshow.sim.preset", this.preset.value));
+    const keepSeed = () => { if (!seedProblem(this.seed.value)) localStorage.setItem("swarmshow.sim.seed", this.seed.value.trim()); };
+    this.seed.addEventListener("change", keepSeed);
+    document.getElementById("btn-sim-seed").addEventListener("click", () => {
+      this.seed.value = String(randomSeed());
+      setError("sim-seed", "");
+      keepSeed();
+    });
+    this.seed.addEventListener("input", () => setError("sim-seed", ""));
+    // A fleet-wide disturbance is for the ideal vehicle; every other preset brings its own wind field.
+    const ideal = () => { this.disturbance.disabled = this.preset.value !== "ideal"; };
+    this.preset.addEventListener("change", ideal);
+    ideal();
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (e.detail.kind === "load") this.reset();
     });
@@ -50,6 +68,11 @@ export class SimulatePanel {
   /** @returns {boolean} a simulation of the document as it is now has finished (the 3D view can play it). */
   get hasFlight() {
     return this.flownVersion != null && this.flownVersion === this.state.version;
+  }
+
+  /** @returns {{job_id: string}|undefined} the finished simulation the 3D preview plays (its preset and seed). */
+  get flight() {
+    return this.hasFlight && this.flightJob ? { job_id: this.flightJob } : undefined;
   }
 
   /** Stop following the job and clear the panel. */
@@ -79,6 +102,13 @@ export class SimulatePanel {
     const st = this.state;
     if (!st.meta) return;
     this._stopFollowing();
+    const seedText = this.seed.value;
+    const bad = seedProblem(seedText);
+    setError("sim-seed", bad);
+    if (bad) {
+      this.seed.focus();
+      return;
+    }
     const btn = /** @type {HTMLButtonElement} */ (document.getElementById("btn-simulate"));
     btn.disabled = true;
     try {
@@ -92,18 +122,12 @@ export class SimulatePanel {
       const runsSel = /** @type {HTMLSelectElement|null} */ (document.getElementById("sim-runs"));
       const runs = runsSel ? Number(runsSel.value) || 1 : 1;
       this.startedVersion = st.version;
-      let job;
-      if (runs > 1) {
-        // Monte-Carlo: K flights with different seeds; the result is the safety margin and report.
-        const preset = /** @type {HTMLSelectElement} */ (document.getElementById("sim-preset")).value;
-        job = await api.monteCarloShow(st.meta.id, { runs, preset, controller });
-      } else {
-        const options = {
-          controller,
-          disturbance: /** @type {HTMLSelectElement} */ (document.getElementById("sim-disturbance")).value,
-        };
-        job = await api.simulateShow(st.meta.id, options);
-      }
+      // One flight under the error preset with the seed, or a Monte-Carlo of K runs from that seed (its run 0
+      // is the flight of the same seed): the safety margin and report.
+      const req = flightRequest({ runs, preset: this.preset.value, seed: Number(seedText), controller,
+        disturbance: this.disturbance.value });
+      const job = req.kind === "montecarlo" ? await api.monteCarloShow(st.meta.id, req.options)
+        : await api.simulateShow(st.meta.id, req.options);
       this.job = job;
       this._update(job);
       if (!["done", "failed", "cancelled"].includes(job.state)) this._follow(job.id);
@@ -182,17 +206,26 @@ export class SimulatePanel {
       this.cancelBtn.hidden = true;
       this._monteCarlo(this.job.id, (job.result || {}).montecarlo || {}, job.cached);
     } else if (job.state === "done") {
-      const fresh = this.flownVersion !== this.startedVersion;
+      const fresh = this.flownVersion !== this.startedVersion || this.flightJob !== this.job.id;
       this.flownVersion = this.startedVersion;
+      this.flightJob = this.job.id;
       if (fresh && this.hooks.onFlown) this.hooks.onFlown();
       this._progress(1, "100%");
       this.cancelBtn.hidden = true;
-      this._summary(job.result || {}, job.cached);
+      this._summary(job.result || {}, job.cached, this.job.id);
     } else if (job.state === "failed" || job.state === "cancelled") {
       this.cancelBtn.hidden = true;
       this._progress(p, job.state);
-      const why = job.error ? job.error.message || JSON.stringify(job.error.detail) : "";
+      const detail = job.error && Array.isArray(job.error.detail) ? job.error.detail : [];
+      const why = job.error ? job.error.message || detail.map((d) => (d.path ? `${d.path}: ${d.msg}` : d.msg)).join("; ")
+        || JSON.stringify(job.error.detail) : "";
       this._message("report-bad", job.state === "cancelled" ? "Cancelled." : `Failed: ${why}`);
+      // As the check and the exports: a formation the refusal names is marked on its timeline card.
+      const named = detail.filter((d) => /^formations\[\d+\]/.test((d && d.path) || ""));
+      if (named.length) {
+        showShowErrors(named, () => {});
+        if (this.hooks.onFormationProblems) this.hooks.onFormationProblems();
+      }
     }
   }
 
@@ -244,8 +277,8 @@ export class SimulatePanel {
       play.addEventListener("click", async () => {
         const run = { job_id: jobId, run: worst.run };
         // In the editor the run plays in the 3D preview, opened for it (loading it into the viewer
-        // alone changed nothing on screen while the preview was closed).
-        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run);
+        // alone changed nothing on screen while the preview was closed), at its closest pair.
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run, worst.time_s);
         try {
           await api.loadPlayback(showId, "simulated", run);
         } catch (err) {
@@ -253,31 +286,39 @@ export class SimulatePanel {
         }
       });
       links.append(" · ", play);
+      // That run is the single flight of its seed: fly it alone for its full summary.
+      const alone = document.createElement("button");
+      alone.type = "button";
+      alone.id = "sim-fly-worst";
+      alone.textContent = `Fly seed ${worst.seed} alone`;
+      alone.addEventListener("click", () => {
+        const runsSel = /** @type {HTMLSelectElement|null} */ (document.getElementById("sim-runs"));
+        if (runsSel) runsSel.value = "1";
+        if (mc.preset) this.preset.value = mc.preset;
+        this.preset.dispatchEvent(new Event("change"));
+        this.seed.value = String(worst.seed);
+        this.seed.dispatchEvent(new Event("change"));
+        this.run();
+      });
+      links.append(" · ", alone);
     }
     this.body.append(links);
   }
 
-  _summary(result, cached) {
+  /**
+   * The flight summary: preset and seed, deviation from the plan, flown separation against the limit, the
+   * closest pair, the drones that diverged and why, and the flight in 3D beside the plan.
+   * @param {any} result the job's result @param {boolean} cached @param {string} [jobId] the simulation job
+   */
+  _summary(result, cached, jobId) {
     const f = result.flight || result;
     /** @type {{path: string, msg: string}[]} transitions forced shorter than the limits allow, flown as designed */
     const problems = Array.isArray(result.problems) ? result.problems : [];
     this.body.replaceChildren();
     const ok = f.ok !== false && !problems.length;
-    const lim = f.min_distance_limit_m;
-    const flown = f.flown_min_distance_m;
     const headline = ok ? "✓ Flown: separation kept, no divergence"
       : problems.length ? "✗ Flown as designed, but the design breaks the limits" : "✗ The flown show breaks a limit";
-    this.body.append(...summaryTable(ok, headline,
-      "Flight summary", [
-        ["Tracking error (RMS)", fmt(f.tracking_rms_m, 3, " m")],
-        ["Tracking error (max)", fmt(f.tracking_max_m, 3, " m")],
-        ["Flown min separation", `${fmt(flown, 2, " m")}${lim != null ? ` (≥ ${fmt(lim, 1)})` : ""}`,
-          flown != null && lim != null && flown < lim - (f.flown_distance_tolerance_m || 0)],
-        f.flown_min_distance_pair && ["Closest flown pair", `drones ${f.flown_min_distance_pair.join(" & ")} at ${fmt(f.flown_min_distance_time_s, 1, " s")}`],
-        ["Duration", fmt(f.duration_s, 1, " s")],
-        ["Controller", [f.controller, f.engine, f.disturbance && `disturbance: ${f.disturbance}`].filter(Boolean).join(", ") || "—"],
-        f.wall_time_s != null && ["Computed in", `${fmt(f.wall_time_s, 1, " s")}${cached ? " (cached)" : ""}`],
-      ]));
+    this.body.append(...summaryTable(ok, headline, "Flight summary", flightRows(f, cached)));
     for (const pr of problems) {
       const p = document.createElement("p");
       p.className = "report-bad sim-problem";
@@ -289,7 +330,34 @@ export class SimulatePanel {
       p.className = "report-bad";
       p.textContent = `Diverged: ${f.diverged.slice(0, 10).map((d) => `drone ${d.drone} at ${fmt(d.time_s, 1)} s (${d.reason})`).join("; ")}`;
       p.title = Object.values(REASONS).join("\n");
-      this.body.append(p);
+      // What each reason that occurred means, on screen (a tooltip alone is easily missed).
+      const why = document.createElement("p");
+      why.className = "muted sim-reasons";
+      why.textContent = [...new Set(f.diverged.map((d) => d.reason))]
+        .map((r) => (Object.hasOwn(REASONS, r) ? REASONS[r] : r)).join(". ");
+      this.body.append(p, why);
+    }
+    if (jobId && this.state && this.state.meta) {
+      // The flown trajectories beside the plan, each drone's gap coloured (the viewer's simulated source).
+      const links = document.createElement("p");
+      const play = document.createElement("button");
+      play.type = "button";
+      play.id = "sim-play-flight";
+      const at = f.flown_min_distance_time_s;
+      play.textContent = `Show this flight in 3D${f.seed != null ? ` (seed ${f.seed})` : ""}`
+        + `${at != null ? ` at its closest pair, ${fmt(at, 1, " s")}` : ""}`;
+      const showId = this.state.meta.id;
+      play.addEventListener("click", async () => {
+        const run = { job_id: jobId };
+        if (this.hooks.onPlayRun) return this.hooks.onPlayRun(run, at);
+        try {
+          await api.loadPlayback(showId, "simulated", run);
+        } catch (err) {
+          this._message("report-bad", `Cannot play the flight: ${err.message}`);
+        }
+      });
+      links.append(play);
+      this.body.append(links);
     }
   }
 }

@@ -9,6 +9,9 @@ Public names re-exported from the private modules (see each for the details)::
     # the same flight sharded over drones on a Dask cluster (identical arrays)
     result = fly_show(plan, FlightOptions(engine="dask", scheduler="tcp://127.0.0.1:8786"))
 
+    # one flight under an error-model preset: Monte-Carlo run k of seed0 + k == seed
+    result = fly_show(plan, single_flight_options("calm-rtk", FlightOptions(seed=7)))
+
     # K flights with seeds 0..K-1 folded into the flown-separation margin (Monte-Carlo)
     mc = monte_carlo(plan, options_for_preset("gusty-rtk"), runs=20, confidence=0.99)
     mc.to_json()
@@ -30,6 +33,7 @@ from sim.flight._errors import ErrorModel as ErrorModel
 from sim.flight._errors import error_preset as error_preset
 from sim.flight._fly import fly_show as fly_show
 from sim.flight._montecarlo import DEFAULT_COLLISION_DISTANCE_M as DEFAULT_COLLISION_DISTANCE_M
+from sim.flight._montecarlo import DEFAULT_FLIGHT_PRESET as DEFAULT_FLIGHT_PRESET
 from sim.flight._montecarlo import PRESETS as PRESETS
 from sim.flight._montecarlo import MonteCarloResult as MonteCarloResult
 from sim.flight._montecarlo import RunStats as RunStats
@@ -37,6 +41,8 @@ from sim.flight._montecarlo import binomial_interval as binomial_interval
 from sim.flight._montecarlo import fly_run as fly_run
 from sim.flight._montecarlo import monte_carlo as monte_carlo
 from sim.flight._montecarlo import options_for_preset as options_for_preset
+from sim.flight._montecarlo import planned_closest as planned_closest
+from sim.flight._montecarlo import single_flight_options as single_flight_options
 from sim.flight._options import CONTROLLERS as CONTROLLERS
 from sim.flight._options import DISTURBANCES as DISTURBANCES
 from sim.flight._options import ENGINES as ENGINES
@@ -69,6 +75,7 @@ from sim.flight.scenarios._paper import run_paper_scenario as run_paper_scenario
 __all__ = [
     "CONTROLLERS",
     "DEFAULT_COLLISION_DISTANCE_M",
+    "DEFAULT_FLIGHT_PRESET",
     "PRESETS",
     "MonteCarloResult",
     "RunStats",
@@ -76,6 +83,8 @@ __all__ = [
     "fly_run",
     "monte_carlo",
     "options_for_preset",
+    "planned_closest",
+    "single_flight_options",
     "DISTURBANCES",
     "ENGINES",
     "ERROR_PRESETS",

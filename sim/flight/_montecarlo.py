@@ -57,6 +57,7 @@ from sim.plan._plan import ShowPlan
 
 __all__ = [
     "DEFAULT_COLLISION_DISTANCE_M",
+    "DEFAULT_FLIGHT_PRESET",
     "PRESETS",
     "MonteCarloResult",
     "RunStats",
@@ -64,11 +65,18 @@ __all__ = [
     "frame_min_distances",
     "monte_carlo",
     "options_for_preset",
+    "planned_closest",
     "reduce_flight",
+    "single_flight_options",
 ]
 
 #: Error-model presets of issue 20 (the names of ``sim.flight.ERROR_PRESETS``).
 PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
+#: The error preset a single flight flies unless told otherwise (``swarmshow simulate SHOW``, the API's
+#: simulate job, the editor): RTK GNSS and light wind (2 m/s at 10 m), the conditions show drones are
+#: normally flown in. "ideal" reports a tracking error of a fraction of a millimetre, which tells a
+#: designer nothing (issue 20); "gusty-rtk" is the stress case the Monte-Carlo margin is for.
+DEFAULT_FLIGHT_PRESET = "calm-rtk"
 #: Centre distance below which two drones count as colliding (m): a show drone is about 0.3-0.5 m
 #: across with its guards, so two centres 1 m apart leave a hand's width once both sway.
 DEFAULT_COLLISION_DISTANCE_M = 1.0
@@ -95,6 +103,29 @@ def options_for_preset(name: str, base: FlightOptions | None = None) -> FlightOp
     # The per-drone, seeded error models (sim.flight._errors) carry everything a preset means; the
     # fleet-wide gusts and mismatch are switched off so they do not count twice.
     return base.with_(errors=error_preset(name), disturbance="none", mismatch=0.0)
+
+
+def single_flight_options(name: str, base: FlightOptions | None = None) -> FlightOptions:
+    """The options of one flight of ``base`` under the error-model preset ``name``, seed ``base.seed``.
+
+    Exactly run ``k`` of :func:`monte_carlo` with ``seed0 + k == base.seed`` (the same
+    :func:`options_for_preset`; a run only skips the colours and the per-frame distance pass,
+    which change nothing flown), so a seed seen in a Monte-Carlo report flies again alone.
+    With ``"ideal"`` the fleet-wide ``base.disturbance`` (the paper's, seeded gusts) still applies:
+    the ideal vehicle in the old disturbances; any other preset carries its own wind, so a
+    fleet-wide disturbance beside it would count the wind twice.
+
+    Raises:
+        ValueError: an unknown preset, or a fleet-wide disturbance with a preset other than
+            "ideal" (names ``disturbance``).
+    """
+    base = base or FlightOptions()
+    if name == "ideal":
+        return options_for_preset(name, base).with_(disturbance=base.disturbance, mismatch=base.mismatch)
+    if base.disturbance != "none":
+        raise ValueError(f"disturbance {base.disturbance!r} goes only with preset 'ideal': preset {name!r} "
+                         "brings its own wind field")
+    return options_for_preset(name, base)
 
 
 def binomial_interval(successes: int, trials: int, confidence: float) -> tuple[float, float]:
@@ -580,18 +611,43 @@ class _Accumulator:
                         "wall_time_s": s.wall_time_s, "flight_wall_time_s": s.flight_wall_time_s}
 
 
-def _planned_reference(plan: ShowPlan, times_s: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The plan's own minimum per segment and per time bin, at the flight's frame times."""
+def _planned_frames(plan: ShowPlan, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plan's closest pair at each of ``times_s`` ``(T,)``: ``(distance_m, i, j)``, each ``(T,)``."""
     n = plan.drone_count
     d = np.empty(times_s.size)
     ii = np.empty(times_s.size, dtype=np.int64)
     jj = np.empty(times_s.size, dtype=np.int64)
-    block = max(1, 2_000_000 // max(n, 1))
+    block = max(1, 2_000_000 // max(n, 1))  # bounds the evaluated positions to ~48 MB
     for f0 in range(0, times_s.size, block):
         pos = plan.motion.evaluate(times_s[f0:f0 + block], derivatives=0).positions_m
         d[f0:f0 + block], ii[f0:f0 + block], jj[f0:f0 + block] = frame_min_distances(pos)
-    seg_min, _, _ = _segment_fold(plan, times_s, d, ii, jj, np.arange(n))
+    return d, ii, jj
+
+
+def _planned_reference(plan: ShowPlan, times_s: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plan's own minimum per segment and per time bin, at the flight's frame times."""
+    d, ii, jj = _planned_frames(plan, times_s)
+    seg_min, _, _ = _segment_fold(plan, times_s, d, ii, jj, np.arange(plan.drone_count))
     return seg_min, np.minimum.reduceat(d, starts)
+
+
+def planned_closest(plan: ShowPlan, times_s: np.ndarray) -> dict[str, Any]:
+    """The plan's closest pair over the frame times ``times_s`` ``(T,)`` of a flight, as JSON-safe values.
+
+    What the flown minimum separation is compared with: the same frames, the plan instead of the flight,
+    so that the difference is what the flight's errors took from the margin (the exact check's minimum,
+    continuous in time, can only be smaller).
+
+    Returns:
+        ``{"planned_min_distance_m", "planned_min_distance_pair", "planned_min_distance_time_s"}`` (None
+        where fewer than two drones).
+    """
+    d, ii, jj = _planned_frames(plan, np.asarray(times_s, dtype=np.float64))
+    k = int(np.argmin(d)) if d.size else 0
+    if d.size == 0 or not np.isfinite(d[k]):
+        return {"planned_min_distance_m": None, "planned_min_distance_pair": None, "planned_min_distance_time_s": None}
+    return {"planned_min_distance_m": float(d[k]), "planned_min_distance_pair": [int(ii[k]), int(jj[k])],
+            "planned_min_distance_time_s": float(times_s[k])}
 
 
 def monte_carlo(

@@ -1,0 +1,43 @@
+// @ts-check
+// What the editor can tell about an export before asking the server (no DOM, run under node --test):
+// the typed origin's syntax and ranges (the show file's settings.geo bounds) and the formats that need it.
+
+/** Formats that place the show on Earth and refuse a show without an origin (app.exports, _qgc.py). */
+export const GEO_FORMATS = ["qgc-plan", "qgc-wpl"];
+/** The origin altitude's range, metres (formations.MIN_ORIGIN_ALT_M / MAX_ORIGIN_ALT_M; a test keeps them equal). */
+export const MIN_ORIGIN_ALT_M = -1000;
+export const MAX_ORIGIN_ALT_M = 10000;
+
+/**
+ * The origin field's text as numbers, or why it cannot be one.
+ * @param {string} text "lat, lon[, alt m]"
+ * @returns {{value: [number, number, number], error: ""} | {value: null, error: string}}
+ */
+export function parseOrigin(text) {
+  const v = String(text).split(/[,\s]+/).filter(Boolean).map(Number);
+  if (v.length < 2 || v.length > 3 || !v.every(Number.isFinite)) {
+    return { value: null, error: "Origin: latitude, longitude (degrees) and optionally altitude (m), e.g. 47.3977, 8.5456, 410" };
+  }
+  if (Math.abs(v[0]) > 90) return { value: null, error: `Origin: latitude must be in [-90, 90] degrees, got ${v[0]}` };
+  if (Math.abs(v[1]) > 180) return { value: null, error: `Origin: longitude must be in [-180, 180] degrees, got ${v[1]}` };
+  const alt = v[2] ?? 0;
+  if (alt < MIN_ORIGIN_ALT_M || alt > MAX_ORIGIN_ALT_M) {
+    return { value: null, error: `Origin: altitude must be in [${MIN_ORIGIN_ALT_M}, ${MAX_ORIGIN_ALT_M}] m above sea level, got ${alt}` };
+  }
+  return { value: [v[0], v[1], alt], error: "" };
+}
+
+/**
+ * Why `format` cannot be exported from a show placed at `geo` (its settings.geo), "" when it can as far
+ * as the editor knows: the QGroundControl formats need the show's origin.
+ * @param {string} format
+ * @param {object|null|undefined} geo
+ * @returns {string}
+ */
+export function exportProblem(format, geo) {
+  if (GEO_FORMATS.includes(format) && !geo) {
+    return "needs the show's place on Earth: enter its origin (latitude, longitude, altitude) "
+      + "in Export options → Origin first.";
+  }
+  return "";
+}
