@@ -206,3 +206,14 @@ def test_source_names_are_short_clean_and_never_empty(raw, kind):
     assert "  " not in name
     if kind in ("image", "svg", "mesh"):
         assert "/" not in name and "\\" not in name
+
+
+@pytest.mark.parametrize("key", ["n", "kind", "size_m", "center_m", "plane", "min_spacing_m", "color", "radius"])
+def test_shape_params_that_are_not_the_kinds_are_a_422_naming_params(client, key):
+    # Found by the API fuzz: {"params": {"n": 3}} collided with generate_shape's own argument (500,
+    # "got multiple values for argument 'n'"). Any key the kind does not take is the caller's error.
+    r = client.post("/api/formations/shape", json={"kind": "helix", "n": 12, "size_m": 40, "params": {key: 3}})
+    assert r.status_code == 422, r.text
+    problem = r.json()["detail"][0]
+    assert problem["path"].startswith("params") and key in problem["msg"]
+    assert "turns" in problem["msg"]  # says what the kind accepts

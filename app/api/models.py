@@ -7,7 +7,7 @@ from typing import Any, Literal, cast
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from formations import ShowFile
-from formations._shapes import SHAPE_KINDS
+from formations._shapes import SHAPE_KINDS, SHAPE_PARAMS
 from sim import CheckReport
 from sim.flight import DEFAULT_FLIGHT_PRESET, ControllerName, DisturbanceName  # the one list of names (FlightOptions)
 
@@ -305,6 +305,20 @@ class ShapeRequest(_FormationBase):
         default_factory=dict,
         description="Kind-specific: polygon sides; star points, inner_ratio; helix turns, radius_m; cube filled.",
     )
+
+    @field_validator("params")
+    @classmethod
+    def _kind_params(cls, value: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        # Checked here, not only by the generator: a key such as "n" or "size_m" would otherwise reach
+        # generate_shape() twice as a keyword (a 500 the API fuzz found).
+        kind = info.data.get("kind")
+        if kind is None:
+            return value
+        accepted = SHAPE_PARAMS[kind]
+        unknown = sorted(set(value) - set(accepted))
+        if unknown:
+            raise ValueError(f"unknown parameter {unknown[0]!r} for {kind} (accepted: {', '.join(accepted) or 'none'})")
+        return value
 
     model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
         {"kind": "star", "n": 50, "size_m": 40.0, "center_m": [0, 0, 40], "plane": "xz", "color": "#ffcc00",
