@@ -1,0 +1,178 @@
+"""QA pass on the command line (operator's view): odd but valid shows, bad flags and the README's examples.
+
+Each test was written failing against the defect it names, before the fix.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main as cli_main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _one_drone_show(tmp_path: Path, hold_s: float = 2.0) -> Path:
+    show = {
+        "format": "swarmshow/1", "name": "solo", "drones": 1,
+        "home": {"grid": {"rows": 1, "cols": 1, "spacing_m": 3.0}},
+        "formations": [{"name": "a", "hold_s": hold_s, "points": [[0.0, 0.0, 12.0]], "color": "#ffffff"}],
+    }
+    path = tmp_path / "solo.json"
+    path.write_text(json.dumps(show))
+    return path
+
+
+def _run(capsys, argv: list[str]) -> tuple[int, str, str]:
+    code = cli_main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# --- simulate: bad --output-hz and a recording too large for memory -------------------------------------
+
+
+@pytest.mark.parametrize("hz", ["inf", "-inf", "1e400"])
+def test_simulate_output_hz_not_finite_is_a_one_line_error(capsys, tmp_path, hz):
+    """``--output-hz inf`` passed the CLI's ``> 0`` test and died in FlightOptions with a traceback (exit 1)."""
+    show = _one_drone_show(tmp_path)
+    code, out, err = _run(capsys, ["simulate", str(show), f"--output-hz={hz}"])
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1 and "--output-hz" in err, err
+
+
+def test_simulate_refuses_a_recording_larger_than_the_budget_before_flying(capsys, tmp_path, monkeypatch):
+    """The CLI recorded every drone at ``--output-hz`` for the whole show with no bound (a 10,000-drone,
+    17-minute show at 1 kHz asked numpy for 115 GiB and died with a MemoryError traceback). It now refuses,
+    before planning or flying, naming ``--output-hz`` and the highest rate that fits, and that rate does fit."""
+    from app.cli import _simulate
+
+    show = _one_drone_show(tmp_path, hold_s=100.0)
+    flew: list[int] = []
+    import sim.flight
+
+    monkeypatch.setattr(sim.flight, "fly_show", lambda *a, **k: flew.append(1))
+    # A budget of 50,000 drone-frames: this one-drone show of ~125 s at 1 kHz needs ~125,000.
+    monkeypatch.setattr(_simulate, "MAX_RECORDED_SAMPLES", 50_000)
+    code, out, err = _run(capsys, ["simulate", str(show), "--output-hz", "1000"])
+    assert code == 2 and out == "" and not flew
+    assert err.count("\n") == 1 and "--output-hz" in err, err
+    most = float(re.search(r"--output-hz ([0-9.]+) or less", err).group(1))
+    # Independent count: the runner records frames every round(1000 / hz) steps of 1 ms over the plan.
+    from formations import parse_show
+    from sim.plan import plan_show
+
+    duration_s = plan_show(parse_show(show.read_bytes())).duration_s
+    steps = int(round(duration_s / 1e-3)) + 1
+    every = max(int(round(1.0 / (most * 1e-3))), 1)
+    assert (steps - 1) // every + 1 <= 50_000
+    every_more = max(int(round(1.0 / (2 * most * 1e-3))), 1)
+    assert (steps - 1) // every_more + 1 > 50_000  # the rate named is not needlessly low
+
+
+# --- formation: results outside any show's space ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["formation", "shape", "heart", "-n", "10", "--size-m", "1e9"], "--size-m"),
+    (["formation", "shape", "circle", "-n", "10", "--center", "0,0,-50"], "--center"),
+    (["formation", "text", "HI", "-n", "20", "--height-m", "30000"], "--height-m"),
+    (["formation", "shape", "circle", "-n", "10", "--center", "50000,0,30"], "--center"),
+])
+def test_formation_result_outside_any_show_is_refused(capsys, argv, flag):
+    """The API refuses formation results below the ground, above 10 km or beyond +-20 km (422 naming the
+    size or the centre); the CLI wrote them (a heart of size 1e9 m reached z = -4.6e8 m) and exited 0."""
+    code, out, err = _run(capsys, [*argv, "-o", "-"])
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and flag in err, err
+
+
+def test_formation_result_inside_the_bounds_still_written(capsys):
+    code, out, _ = _run(capsys, ["formation", "shape", "circle", "-n", "10", "--size-m", "60", "-o", "-"])
+    assert code == 0
+    pts = np.asarray(json.loads(out)["points"])
+    assert pts.shape == (10, 3) and pts[:, 2].min() >= 0
+
+
+# --- the README's examples --------------------------------------------------------------------------------
+
+
+def _readme_formation_examples() -> list[list[str]]:
+    """The ``swarmshow formation shape|text ...`` lines of the README's command-line examples (those that need
+    no input file)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("swarmshow formation ")]
+    cmds = [shlex.split(ln.split("#")[0])[1:] for ln in lines]
+    return [c for c in cmds if c[1] in ("shape", "text")]
+
+
+def test_readme_formation_examples_run(capsys, tmp_path):
+    """``swarmshow formation shape heart -n 100 --size-m 90`` (the README's first example) exits 2: at most 90
+    points fit that heart at 3 m."""
+    examples = _readme_formation_examples()
+    assert len(examples) >= 2
+    for argv in examples:
+        argv = [a if not a.endswith(".json") else str(tmp_path / a) for a in argv]
+        code, _, err = _run(capsys, argv)
+        assert code == 0, (argv, err)
+
+
+def test_export_fps_help_states_the_real_defaults(capsys):
+    """``export --help`` said the skybrush-csv default was 4 fps; the exporter's default is 24 (Blender's)."""
+    from app.exports import _skybrush_csv, _waypoints_csv
+
+    with pytest.raises(SystemExit):
+        cli_main(["export", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"skybrush-csv default {_skybrush_csv.DEFAULT_FPS:g}" in out
+    assert f"waypoints-csv default {_waypoints_csv.DEFAULT_FPS:g}" in out
+
+
+# --- check: a one-drone show has no pair --------------------------------------------------------------------
+
+
+def test_check_text_of_a_one_drone_show_names_no_pair(capsys, tmp_path):
+    """With one drone there is no pair: the text said "min distance -1.000 m (limit 3.0 m; drones 0 and 0)",
+    below the limit although the show is fine, and each transition "exact min -1.000 m (CAPT bound -1.000 m)"."""
+    code, out, _ = _run(capsys, ["check", str(_one_drone_show(tmp_path))])
+    assert code == 0
+    assert "-1.000" not in out
+    assert "drones 0 and 0" not in out
+    assert re.search(r"min distance +n/a", out), out
+
+
+def test_check_text_prints_no_negative_zero_altitude(capsys, tmp_path):
+    """The lowest altitude (-3e-14 m at the pads) printed as "-0.0"."""
+    code, out, _ = _run(capsys, ["check", str(_one_drone_show(tmp_path))])
+    assert code == 0
+    assert re.search(r"altitude +0\.0 \.\.", out), out
+
+
+# --- Monte-Carlo text: a formation's transition and hold read alike ----------------------------------------
+
+
+def test_montecarlo_text_tells_a_transition_from_its_hold(capsys, tmp_path):
+    """Two drones held at exactly min_distance_m: every segment is listed, and the text read
+    "segment 1 'a'" and "segment 2 'a'" for the transition into 'a' and its hold."""
+    show = {
+        "format": "swarmshow/1", "name": "pair", "drones": 2,
+        "home": {"points": [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]]},
+        "formations": [{"name": "a", "hold_s": 2.0, "points": [[0.0, 0.0, 12.0], [3.0, 0.0, 12.0]],
+                        "color": "#ffffff"}],
+    }
+    path = tmp_path / "pair.json"
+    path.write_text(json.dumps(show))
+    code, out, _ = _run(capsys, ["simulate", str(path), "--runs", "1", "--preset", "calm-rtk"])
+    assert code in (0, 1)
+    seg_lines = [ln.split(":")[0].strip() for ln in out.splitlines() if ln.strip().startswith("segment ")]
+    assert seg_lines, out
+    described = [re.sub(r"^segment \d+ ", "", s) for s in seg_lines]
+    assert len(set(described)) == len(described), seg_lines
+    assert any("hold 'a'" in s for s in seg_lines) or not any("'a'" in s for s in seg_lines), seg_lines
