@@ -30,8 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"one of: {', '.join(EXPORT_FORMATS)}")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file ('-' for stdout; an existing directory receives the suggested file name)")
+    from app.exports._skybrush_csv import DEFAULT_FPS as skybrush_fps
+    from app.exports._waypoints_csv import DEFAULT_FPS as waypoints_fps
+
     p.add_argument("--fps", type=float, default=None, help="samples per second of sampled formats "
-                   "(skybrush-csv default 4, waypoints-csv default 10)")
+                   f"(skybrush-csv default {skybrush_fps:g}, waypoints-csv default {waypoints_fps:g}; lower for "
+                   "shows past the 4 M-sample budget)")
     p.add_argument("--origin", default=None, metavar="LAT,LON[,ALT]",
                    help="WGS84 latitude, longitude (degrees) and altitude (m, default 0) of the show origin "
                    "(qgc-plan, qgc-wpl, skyc)")

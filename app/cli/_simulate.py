@@ -231,6 +231,13 @@ def _montecarlo(args: argparse.Namespace) -> int:
     return EXIT_FAILED if unsafe else EXIT_OK
 
 
+def _segment_name(seg: dict) -> str:
+    """A segment as the report's table names it: its kind and its label ("transition 'a'", "hold 'a'"), so that
+    a formation's transition and its hold do not read alike; takeoff and landing by their kind alone."""
+    kind, label = seg.get("kind") or "", seg["label"]
+    return kind if kind == label else f"{kind} {label!r}".strip()
+
+
 def format_montecarlo(r: dict) -> str:
     """The Monte-Carlo summary as a few human-readable lines."""
 
@@ -261,7 +268,8 @@ def format_montecarlo(r: dict) -> str:
     for seg in r["segments"]:
         if seg["extra_spacing"]["extra_m"] > 0 or seg["p_below_min_distance"]["runs_below"]:
             lines.append(
-                f"  segment {seg['index']} {seg['label']!r}: worst {num(seg['flown_min_m']['quantiles'].get('0'))} m, "
+                f"  segment {seg['index']} {_segment_name(seg)}: worst "
+                f"{num(seg['flown_min_m']['quantiles'].get('0'))} m, "
                 f"{seg['p_below_min_distance']['runs_below']} runs below, needs "
                 f"+{seg['extra_spacing']['extra_m']:.3f} m")
     for p in r["worst_pairs"][:3]:
