@@ -183,3 +183,18 @@ def test_montecarlo_text_tells_a_transition_from_its_hold(capsys, tmp_path):
     described = [re.sub(r"^segment \d+ ", "", s) for s in seg_lines]
     assert len(set(described)) == len(described), seg_lines
     assert any("hold 'a'" in s for s in seg_lines) or not any("'a'" in s for s in seg_lines), seg_lines
+
+
+# --- home: an explicit 0 is not "the default" --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("flag", ["--rows", "--cols"])
+@pytest.mark.parametrize("value", ["0", "-2"])
+def test_home_boxes_zero_or_negative_rows_cols_are_refused(capsys, tmp_path, flag, value):
+    """``--rows 0`` was read as "not given" (``args.rows or ...``) and wrote a layout of 1 x 2 boxes, exit 0;
+    a negative count came back as a message about ``home.boxes.grid.cols``, not the flag given."""
+    show = _one_drone_show(tmp_path)
+    out_path = tmp_path / "out.json"
+    code, _, err = _run(capsys, ["home", str(show), "--boxes", "1", flag, value, "-o", str(out_path)])
+    assert code == 2 and not out_path.exists()
+    assert err.count("\n") == 1 and flag in err, err
