@@ -198,3 +198,29 @@ def test_home_boxes_zero_or_negative_rows_cols_are_refused(capsys, tmp_path, fla
     code, _, err = _run(capsys, ["home", str(show), "--boxes", "1", flag, value, "-o", str(out_path)])
     assert code == 2 and not out_path.exists()
     assert err.count("\n") == 1 and flag in err, err
+
+
+# --- simulate --preset: say which conditions were flown ----------------------------------------------------
+
+
+def test_simulate_preset_and_disturbance_together_is_a_usage_error(capsys, tmp_path):
+    """``--preset calm-rtk --disturbance paper`` flew calm-rtk and dropped the paper's disturbance without a
+    word (the help says the preset replaces it)."""
+    code, out, err = _run(capsys, ["simulate", str(_one_drone_show(tmp_path)), "--preset", "calm-rtk",
+                                   "--disturbance", "paper"])
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "--preset" in err and "--disturbance" in err, err
+
+
+def test_simulate_summary_names_the_preset_flown(capsys, tmp_path):
+    """A flight with ``--preset gusty-rtk`` (Dryden wind, GNSS error, ...) was summarised as "disturbance none",
+    and its JSON did not say which preset was flown."""
+    show = str(_one_drone_show(tmp_path))
+    code, out, _ = _run(capsys, ["simulate", show, "--preset", "gusty-rtk", "--json"])
+    assert code in (0, 1)
+    assert json.loads(out)["preset"] == "gusty-rtk"
+    code, out, _ = _run(capsys, ["simulate", show, "--preset", "gusty-rtk"])
+    assert "preset gusty-rtk" in out.splitlines()[0] and "disturbance none" not in out, out
+    code, out, _ = _run(capsys, ["simulate", show, "--disturbance", "wind", "--json"])
+    summary = json.loads(out)
+    assert summary["preset"] is None and summary["disturbance"] != "none"

@@ -93,8 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --engine dask: seconds to reach the scheduler and a worker (default 10)")
     p.add_argument("--controller", choices=CONTROLLERS, default="ismc",
                    help="ismc: the paper's controllers (default); baseline: cascaded PD")
-    p.add_argument("--disturbance", choices=DISTURBANCES, default="none",
-                   help="external disturbance for a show flight (default none)")
+    p.add_argument("--disturbance", choices=DISTURBANCES, default=None,
+                   help="external disturbance for a show flight (default none; not with --preset, whose error "
+                   "models carry their own wind)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")
@@ -123,6 +124,12 @@ def _simulate(args: argparse.Namespace) -> int:
         raise CliError("a SHOW file or --scenario is required")
     if args.plot is not None:
         raise CliError("--plot is only available with --scenario paper")
+    if args.preset is not None and args.disturbance is not None:
+        # The preset replaces the disturbance (sim.flight.options_for_preset sets it to none and flies the
+        # preset's own wind field): flying one and dropping the other without a word misreports the run.
+        raise CliError(f"--preset {args.preset} and --disturbance {args.disturbance} cannot be combined: the "
+                       "preset's error models bring their own wind; drop --disturbance")
+    args.disturbance = args.disturbance or "none"
     if not (math.isfinite(args.output_hz) and args.output_hz > 0):
         raise CliError(f"--output-hz must be a finite number > 0, got {args.output_hz}")
     if args.scheduler is not None and args.engine != "dask":
@@ -317,6 +324,7 @@ def _show(args: argparse.Namespace) -> int:
             result = fly_show(plan, options, progress=update)
     summary = result.summary()
     summary["show"] = show.name
+    summary["preset"] = args.preset  # the conditions flown: the preset's error models, or none
     summary["problems"] = [{"path": f.path, "msg": f.message, "minimum_s": f.minimum_s} for f in plan.forced]
     if args.json:
         print_json(summary)
@@ -334,7 +342,9 @@ def format_flight(s: dict) -> str:
     pair = s["flown_min_distance_pair"]
     lines = [
         f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
-        f"({s['engine']} engine, {s['controller']}, disturbance {s['disturbance']}) in {s['wall_time_s']:.1f} s",
+        f"({s['engine']} engine, {s['controller']}, "
+        f"{'preset ' + s['preset'] if s.get('preset') else 'disturbance ' + str(s['disturbance'])}) "
+        f"in {s['wall_time_s']:.1f} s",
         f"  tracking error  rms {num(s['tracking_rms_m'], '.2e')} m, max {num(s['tracking_max_m'], '.2e')} m",
         f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
