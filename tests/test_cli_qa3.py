@@ -224,3 +224,64 @@ def test_simulate_summary_names_the_preset_flown(capsys, tmp_path):
     code, out, _ = _run(capsys, ["simulate", show, "--disturbance", "wind", "--json"])
     summary = json.loads(out)
     assert summary["preset"] is None and summary["disturbance"] != "none"
+
+
+# --- the safety report: labels a reader can tell apart, counts as counts -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def pair_report() -> dict:
+    """One calm-rtk run of two drones at exactly min_distance_m (every segment has a worst pair)."""
+    from formations import parse_show
+    from sim.flight import FlightOptions, monte_carlo, options_for_preset
+    from sim.plan import plan_show
+
+    show = parse_show(json.dumps({
+        "format": "swarmshow/1", "name": "pair", "drones": 2,
+        "home": {"points": [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]]},
+        "formations": [{"name": "a", "hold_s": 2.0, "points": [[0.0, 0.0, 12.0], [3.0, 0.0, 12.0]],
+                        "color": "#ffffff"}],
+    }))
+    plan = plan_show(show)
+    result = monte_carlo(plan, options_for_preset("calm-rtk", FlightOptions()), runs=2, seed0=0,
+                         preset="calm-rtk")
+    report = result.to_json()
+    report["show"] = show.name
+    return report
+
+
+def _figure_svg(page: str, heading: str) -> str:
+    """The inline SVG under ``<h2>{heading}</h2>``."""
+    start = page.index(f"<h2>{heading}</h2>")
+    return page[start:page.index("</svg>", start)]
+
+
+def test_report_names_a_transition_and_its_hold_apart(pair_report):
+    """The per-segment plot and the worst-pairs table said "1: a" and "2: a" for the transition into 'a' and its
+    hold (only the segments table had the kind)."""
+    from app.exports import render_safety_report
+
+    page = render_safety_report(pair_report, "html").decode()
+    kinds = {s["index"]: s["kind"] for s in pair_report["segments"]}
+    assert set(kinds.values()) >= {"transition", "hold"}
+    pairs = page[page.index("<h2>Worst pairs</h2>"):]
+    cells = re.findall(r"<td>(\d+: [^<]*)</td>", pairs)
+    assert cells
+    for cell in cells:
+        index = int(cell.split(":")[0])
+        assert kinds[index] in cell, cell
+    plot = _figure_svg(page, "Per segment")
+    for s in pair_report["segments"]:
+        assert s["kind"] in plot
+
+
+def test_report_deviation_histogram_counts_in_whole_numbers(pair_report):
+    """The deviation histogram's count axis ("drones x runs") had ticks 0.25, 0.5, ... for 4 drone-runs."""
+    from app.exports import render_safety_report
+
+    page = render_safety_report(pair_report, "html").decode()
+    svg = _figure_svg(page, "Deviation from the plan")
+    # y tick labels are the plain numbers matplotlib writes as text (x ticks are 10^k, with "×" or "−").
+    ticks = [float(t) for t in re.findall(r">\s*([0-9]+(?:\.[0-9]+)?)\s*<", svg)]
+    assert ticks, "no tick labels found"
+    assert all(t == int(t) for t in ticks), ticks
