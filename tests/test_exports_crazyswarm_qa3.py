@@ -47,3 +47,30 @@ def test_dense_one_formation_show_is_cut_where_every_drone_rests():
             assert np.linalg.norm(got32 - want, axis=1).max() <= 1e-3
     # Each part fits its half of the memory (checked per file in _drone_positions too).
     assert cs_module.PART_MAX_PIECES == 15
+
+
+def test_refusal_names_the_transition_that_needs_too_many_pieces():
+    """A layered transition of 22 pieces cannot be cut (no drone rests inside it); the refusal said
+    "add a hold or use fewer formations", which cannot help. It now names the transition and its piece count
+    (counted here from the exported piece table) and what does help."""
+    import pytest
+
+    from app.exports import ExportError
+
+    show = dense_show(25, formations=2)
+    plan = plan_show(show)
+    drone, start, duration, _, *_ = cs_module.piece_table(plan)
+    end = start + duration
+    worst = None
+    for seg in plan.segments:
+        inside = (start < seg.end_s - 1e-9) & (end > seg.start_s + 1e-9)
+        count = int(np.bincount(drone[inside], minlength=show.drones).max())
+        if seg.kind == "transition" and count > cs_module.PART_MAX_PIECES:
+            worst = (seg, count)
+    assert worst is not None
+    seg, count = worst
+    with pytest.raises(ExportError) as info:
+        export_show(show, "crazyswarm", plan=plan)
+    msg = str(info.value)
+    assert f"transition into {seg.label!r}" in msg and f"{count} pieces" in msg, msg
+    assert "add a hold" not in msg

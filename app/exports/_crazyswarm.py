@@ -209,10 +209,18 @@ def plan_parts(plan, drone, start, duration, n: int, names: list[str], coef: np.
             b = nxt[0] if nxt else horizon
             bad = np.flatnonzero(pieces_in(a, b) > PART_MAX_PIECES)
             shown = ", ".join(names[i] for i in bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+            # A transition that alone needs more than a part holds (no drone rests inside it: a layered or
+            # blended one) cannot be cut; more holds cannot help, so say which it is.
+            crowded = [(seg.label, int(pieces_in(seg.start_s, seg.end_s).max())) for seg in plan.segments
+                       if seg.kind == "transition" and seg.start_s < b - 1e-9 and seg.end_s > a + 1e-9]
+            crowded = [(label, k) for label, k in crowded if k > PART_MAX_PIECES]
+            why = ("; " + ", ".join(f"the transition into {label!r} alone needs {k} pieces" for label, k in crowded)
+                   + " (no instant inside it where every drone rests): space its formations wider so that it is "
+                   "flown on straight lines, or fly .skyc" if crowded else "; add a hold or use fewer formations")
             raise ExportError(
                 f"crazyswarm: {len(bad)} drone(s) need more than {PART_MAX_PIECES} trajectory pieces between "
                 f"t = {a:.1f} s and {b:.1f} s with no hold to split at, so the trajectory cannot be uploaded to a "
-                f"Crazyflie (31 pieces) in parts: {shown}; add a hold or use fewer formations"
+                f"Crazyflie (31 pieces) in parts: {shown}{why}"
             )
         a = max(reachable)
         cuts.append(a)
