@@ -285,3 +285,39 @@ def test_report_deviation_histogram_counts_in_whole_numbers(pair_report):
     ticks = [float(t) for t in re.findall(r">\s*([0-9]+(?:\.[0-9]+)?)\s*<", svg)]
     assert ticks, "no tick labels found"
     assert all(t == int(t) for t in ticks), ticks
+
+
+# --- export: options a format does not use are refused, not dropped ---------------------------------------
+
+
+@pytest.mark.parametrize("fmt, extra, flag", [
+    ("skybrush-csv", ["--scale", "0.1"], "--scale"),
+    ("waypoints-csv", ["--offset", "1,2,0"], "--offset"),
+    ("skyc", ["--scale", "0.5"], "--scale"),
+    ("crazyswarm", ["--audio", "AUDIO"], "--audio"),
+    ("waypoints-csv", ["--audio", "AUDIO"], "--audio"),
+])
+def test_export_refuses_an_option_the_format_does_not_use(capsys, tmp_path, fmt, extra, flag):
+    """``export --format skybrush-csv --scale 0.1`` wrote the show at full size, exit 0 (only crazyswarm scales);
+    ``--audio`` with crazyswarm or a CSV was dropped without a word (only skyc and viser-html embed it)."""
+    wav = tmp_path / "a.wav"
+    import wave
+
+    with wave.open(str(wav), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(8000)
+        w.writeframes((np.sin(np.arange(8000) * 0.1) * 3000).astype("<i2").tobytes())
+    out_path = tmp_path / "out.zip"
+    argv = ["export", str(_one_drone_show(tmp_path)), "-f", fmt, "-o", str(out_path),
+            *[str(wav) if a == "AUDIO" else a for a in extra]]
+    code, _, err = _run(capsys, argv)
+    assert code == 2 and not out_path.exists()
+    assert err.count("\n") == 1 and flag in err and fmt in err, err
+
+
+def test_export_keeps_the_options_its_format_uses(capsys, tmp_path):
+    out_path = tmp_path / "cs.zip"
+    code, _, err = _run(capsys, ["export", str(_one_drone_show(tmp_path)), "-f", "crazyswarm", "-o", str(out_path),
+                                 "--scale", "0.5", "--offset", "1,0,0"])
+    assert code == 0 and out_path.exists(), err
