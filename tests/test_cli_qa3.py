@@ -321,3 +321,24 @@ def test_export_keeps_the_options_its_format_uses(capsys, tmp_path):
     code, _, err = _run(capsys, ["export", str(_one_drone_show(tmp_path)), "-f", "crazyswarm", "-o", str(out_path),
                                  "--scale", "0.5", "--offset", "1,0,0"])
     assert code == 0 and out_path.exists(), err
+
+
+# --- bench: ratios below 1 ---------------------------------------------------------------------------------
+
+
+def test_bench_texts_state_ratios_below_one_plainly():
+    """``bench check --drones 2`` printed "a 10 Hz sampled check takes 0.091 s (0x the exact one)" and
+    ``bench plan --drones 2`` "ours is 0.1x faster" (i.e. 10x slower)."""
+    from app.cli._bench import _format_check, _format_plan
+
+    check = _format_check({"drones": 2, "formations": 5, "show_duration_s": 60.0, "plan_s": 0.05, "check_s": 0.641,
+                           "exact_min_distance_m": 4.5, "violations": 0, "sampled_10hz_s": 0.091,
+                           "sampled_over_exact_check": 0.091 / 0.641, "sampled_10hz_min_distance_m": 4.5})
+    assert "(0x" not in check and "0.14x the exact one" in check, check
+    plan = {"kind": "plan", "drones": 2, "assign_s": 0.0004, "timing_s": 6e-5, "verify_s": 0.0, "plan_and_verify_s": 0.0004,
+            "duration_s": 23.3, "min_distance_m": 4.09, "capt_guarantee_m": 3.18, "dense_lsa_s": 0.00004,
+            "dense_over_ours_assign": 0.1, "cost_equal": True}
+    text = _format_plan(plan)
+    assert "0.1x faster" not in text and "10.0x slower" in text, text
+    text = _format_plan({**plan, "dense_over_ours_assign": 119.0})
+    assert "119.0x faster" in text, text
