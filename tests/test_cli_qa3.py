@@ -336,7 +336,8 @@ def test_bench_texts_state_ratios_below_one_plainly():
                            "sampled_over_exact_check": 0.091 / 0.641, "sampled_10hz_min_distance_m": 4.5})
     assert "(0x" not in check and "0.14x the exact one" in check, check
     plan = {"kind": "plan", "drones": 2, "assign_s": 0.0004, "timing_s": 6e-5, "verify_s": 0.0,
-            "plan_and_verify_s": 0.0004, "duration_s": 23.3, "min_distance_m": 4.09, "capt_guarantee_m": 3.18, "dense_lsa_s": 0.00004,
+            "plan_and_verify_s": 0.0004, "duration_s": 23.3, "min_distance_m": 4.09, "capt_guarantee_m": 3.18,
+            "dense_lsa_s": 0.00004,
             "dense_over_ours_assign": 0.1, "cost_equal": True}
     text = _format_plan(plan)
     assert "0.1x faster" not in text and "10.0x slower" in text, text
