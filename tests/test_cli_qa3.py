@@ -343,3 +343,24 @@ def test_bench_texts_state_ratios_below_one_plainly():
     assert "0.1x faster" not in text and "10.0x slower" in text, text
     text = _format_plan({**plan, "dense_over_ours_assign": 119.0})
     assert "119.0x faster" in text, text
+
+
+# --- sampled exports: say which rate fits ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt", ["skybrush-csv", "waypoints-csv"])
+def test_sampled_export_over_budget_names_a_rate_that_fits(capsys, tmp_path, monkeypatch, fmt):
+    """Past the sample budget the error said only "lower --fps" (also through the API, which has no such flag);
+    a one-drone show of 4.3 M s needs a rate below 1 fps that nobody would guess. It now names the highest rate
+    that fits, and that rate is accepted."""
+    from app.exports import _sampling
+
+    monkeypatch.setattr(_sampling, "MAX_SAMPLES", 1_000)
+    show = str(_one_drone_show(tmp_path, hold_s=60.0))
+    code, _, err = _run(capsys, ["export", show, "-f", fmt, "-o", str(tmp_path / "a.zip"), "--fps", "100"])
+    assert code == 2 and err.count("\n") == 1, err
+    most = float(re.search(r"fps <= ([0-9.]+)", err).group(1))
+    code, _, err = _run(capsys, ["export", show, "-f", fmt, "-o", str(tmp_path / "b.zip"), "--fps", str(most)])
+    assert code == 0, err
+    code, _, err = _run(capsys, ["export", show, "-f", fmt, "-o", str(tmp_path / "c.zip"), "--fps", str(most * 1.2)])
+    assert code == 2  # and the rate named is close to the highest
