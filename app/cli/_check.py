@@ -35,22 +35,30 @@ def _check(args: argparse.Namespace) -> int:
 def format_report(report) -> str:
     """The check report as a few human-readable lines."""
     lim = report.limits
+    # A show of one drone has no pair: the report's distances are then -1 (no value), not a distance.
+    if report.min_distance_m >= 0:
+        closest = (f"{report.min_distance_m:8.3f} m   (limit {lim['min_distance_m']} m; drones "
+                   f"{report.min_distance_pair[0]} and {report.min_distance_pair[1]} at t = "
+                   f"{report.min_distance_time_s:.2f} s)")
+    else:
+        closest = f"     n/a     (limit {lim['min_distance_m']} m; one drone, no pair)"
     lines = [
         f"show {report.show!r}: {report.drones} drones, {report.duration_s:.1f} s, "
         f"{len(report.transitions)} transitions",
-        f"  min distance   {report.min_distance_m:8.3f} m   (limit {lim['min_distance_m']} m; drones "
-        f"{report.min_distance_pair[0]} and {report.min_distance_pair[1]} at t = {report.min_distance_time_s:.2f} s)",
+        f"  min distance   {closest}",
         f"  speed xy       {report.max_speed_xy_mps:8.3f} m/s (limit {lim['max_speed_xy_mps']})",
         f"  speed z        {report.max_speed_z_mps:8.3f} m/s (limit {lim['max_speed_z_mps']})",
         f"  acceleration   {report.max_accel_mps2:8.3f} m/s² (limit {lim['max_accel_mps2']})",
-        f"  altitude       {report.min_altitude_m:.1f} .. {report.max_altitude_m:.1f} m "
+        # + 0.0 turns the pads' -3e-14 m (rounding) into 0.0, not "-0.0".
+        f"  altitude       {round(report.min_altitude_m, 1) + 0.0:.1f} .. {report.max_altitude_m:.1f} m "
         f"(limit {lim['max_altitude_m']} m)",
     ]
     for t in report.transitions:
         lines.append(
             f"  {t.from_!r} -> {t.to!r}: start {t.start_s:.1f} s, {t.duration_s:.1f} s, "
-            f"cost {t.assignment_cost_m2:.1f} m², exact min {t.capt.exact_min_distance_m:.3f} m "
-            f"(CAPT bound {t.capt.guaranteed_min_distance_m:.3f} m)"
+            f"cost {t.assignment_cost_m2:.1f} m²"
+            + (f", exact min {t.capt.exact_min_distance_m:.3f} m (CAPT bound {t.capt.guaranteed_min_distance_m:.3f} m)"
+               if t.capt.exact_min_distance_m >= 0 else "")
         )
     lines.append("per transition (worst first):")
     for g in report.worst_transitions():

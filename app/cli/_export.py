@@ -13,6 +13,10 @@ from app.cli._common import write_atomically as write_atomically
 if TYPE_CHECKING:
     from app.media import AudioTrack
 
+#: Formats that apply ``--scale`` / ``--offset``, and those that embed ``--audio`` (``app.exports``).
+_SCALING_FORMATS = ("crazyswarm",)
+_AUDIO_FORMATS = ("skyc", "viser-html")
+
 #: Shows with at least this many drones draw a progress bar (smaller ones finish in a blink).
 _PROGRESS_MIN_DRONES = 200
 
@@ -30,8 +34,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"one of: {', '.join(EXPORT_FORMATS)}")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file ('-' for stdout; an existing directory receives the suggested file name)")
+    from app.exports._skybrush_csv import DEFAULT_FPS as skybrush_fps
+    from app.exports._waypoints_csv import DEFAULT_FPS as waypoints_fps
+
     p.add_argument("--fps", type=float, default=None, help="samples per second of sampled formats "
-                   "(skybrush-csv default 4, waypoints-csv default 10)")
+                   f"(skybrush-csv default {skybrush_fps:g}, waypoints-csv default {waypoints_fps:g}; lower for "
+                   "shows past the 4 M-sample budget)")
     p.add_argument("--origin", default=None, metavar="LAT,LON[,ALT]",
                    help="WGS84 latitude, longitude (degrees) and altitude (m, default 0) of the show origin "
                    "(qgc-plan, qgc-wpl, skyc)")
@@ -108,6 +116,15 @@ def _export(args: argparse.Namespace) -> int:
 
     if args.format not in EXPORT_FORMATS:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
+    # An option the format does not use would be dropped without a word (a show "scaled for indoors" written
+    # at full size): refuse it, as --source simulated is refused for the exact formats.
+    unused = [flag for flag, given, formats in (
+        ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
+        ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
+    if unused:
+        flag = unused[0]
+        users = _SCALING_FORMATS if flag != "--audio" else _AUDIO_FORMATS
+        raise CliError(f"{flag} is not used by format {args.format!r} (only by {', '.join(users)}); drop it")
     origin = parse_origin(args.origin) if args.origin is not None else None
     if args.heading is not None:
         check_heading_arg(args.heading)

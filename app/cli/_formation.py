@@ -136,15 +136,52 @@ def _write(obj: dict[str, Any], output: str) -> None:
     print(f"wrote {n} points{spacing} to {output}", file=sys.stderr)
 
 
+#: The flag that sets each source's size, named when its points leave the space any show may use.
+_SIZE_FLAG = {"shape": "--size-m", "text": "--height-m", "image": "--width-m", "svg": "--width-m", "mesh": "--size"}
+
+
+def _check_bounds(points_m: Any, args: argparse.Namespace) -> None:
+    """Refuse points no show could use, as the API does (``app.tasks._check_formation_result``): below the
+    ground, above the highest ceiling a show may have, or outside the largest show area. The message names
+    ``--center`` when the centre itself is outside, else the source's size flag.
+
+    Raises:
+        CliError: naming the flag to change.
+    """
+    import numpy as np
+
+    from formations._show import MAX_CEILING_M, MAX_HORIZONTAL_EXTENT_M
+
+    pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+    if not pts.size:
+        return
+    if not np.isfinite(pts).all():
+        problem = "some points are not finite numbers"
+    elif pts[:, 2].min() < 0 or pts[:, 2].max() > MAX_CEILING_M:
+        problem = (f"points reach altitudes {pts[:, 2].min():.4g} .. {pts[:, 2].max():.4g} m, outside "
+                   f"[0, {MAX_CEILING_M:g}] m")
+    elif np.abs(pts[:, :2]).max() > MAX_HORIZONTAL_EXTENT_M:
+        problem = (f"points reach {np.abs(pts[:, :2]).max():.4g} m from the origin, outside the largest show "
+                   f"area +-{MAX_HORIZONTAL_EXTENT_M:g} m")
+    else:
+        return
+    centre = np.asarray(getattr(args, "center", (0.0, 0.0, 0.0)), dtype=np.float64)
+    centre_out = not 0.0 <= centre[2] <= MAX_CEILING_M or np.abs(centre[:2]).max() > MAX_HORIZONTAL_EXTENT_M
+    flag = "--center" if centre_out else _SIZE_FLAG.get(args.source, "--size-m")
+    raise CliError(f"{args.source}: {problem}; change {flag} (lower the size or move the centre)")
+
+
 def _run(build, args: argparse.Namespace, name: str | None = None) -> int:
-    """Call a source; FormationError (with the largest N that fits) becomes a CliError. ``name``: the
-    formation's name after its source (:func:`formations.source_name`), added to the JSON."""
+    """Call a source; FormationError (with the largest N that fits) becomes a CliError, and so do points
+    outside the space any show may use (:func:`_check_bounds`). ``name``: the formation's name after its
+    source (:func:`formations.source_name`), added to the JSON."""
     from formations.sources import FormationError
 
     try:
         points = build()
     except FormationError as exc:
         raise CliError(str(exc)) from None
+    _check_bounds(points.points_m, args)
     doc = points.to_json()
     if name is not None:
         doc["name"] = name

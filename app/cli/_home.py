@@ -47,6 +47,9 @@ def _home(args: argparse.Namespace) -> int:
             raise CliError(f"{args.csv}: {exc}") from exc
         home = {"points": points}
     else:
+        for flag, value in (("--rows", args.rows), ("--cols", args.cols), ("--box-cols", args.box_cols)):
+            if value is not None and value < 1:  # an explicit 0 must not read as "not given" below
+                raise CliError(f"{flag} must be >= 1, got {value}")
         boxes = max(1, math.ceil(show.drones / max(args.boxes, 1)))
         cols = args.cols or (math.ceil(boxes / args.rows) if args.rows else math.ceil(math.sqrt(boxes)))
         rows = args.rows or math.ceil(boxes / cols)

@@ -70,6 +70,12 @@ _REASONS = {
     "ground": "sank 0.5 m below the show's ground, a crash",
 }
 
+#: Largest recording a flight may keep, drones x frames (``sim.flight``'s runner keeps every drone's
+#: position at every recorded frame, float32: 12 bytes a sample, so 3.6 GB; a 10,000-drone, 17-minute
+#: show at the default 25 Hz is 258 M). Past it the command refuses before flying and names the highest
+#: ``--output-hz`` that fits, instead of asking numpy for 115 GiB at 1 kHz (a MemoryError traceback).
+MAX_RECORDED_SAMPLES = 300_000_000
+
 #: ``local`` (an alias for the in-process engine) is the numba kernel.
 LOCAL_ALIAS = "local"
 #: Environment variable giving the default ``--scheduler`` (shared with the server setting).
@@ -100,8 +106,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --engine dask: seconds to reach the scheduler and a worker (default 10)")
     p.add_argument("--controller", choices=CONTROLLERS, default="ismc",
                    help="ismc: the paper's controllers (default); baseline: cascaded PD")
-    p.add_argument("--disturbance", choices=DISTURBANCES, default="none",
-                   help="external disturbance for a show flight (default none)")
+    p.add_argument("--disturbance", choices=DISTURBANCES, default=None,
+                   help="external disturbance for a show flight (default none; not with --preset, whose error "
+                   "models carry their own wind)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")
@@ -132,8 +139,18 @@ def _simulate(args: argparse.Namespace) -> int:
         raise CliError("a SHOW file or --scenario is required")
     if args.plot is not None:
         raise CliError("--plot is only available with --scenario paper")
-    if not args.output_hz > 0:
-        raise CliError(f"--output-hz must be > 0, got {args.output_hz}")
+    if args.preset is not None and args.disturbance is not None and (args.preset != "ideal" or args.runs):
+        # A preset other than ideal brings its own wind field, and a Monte-Carlo run flies the preset alone
+        # (sim.flight.options_for_preset sets the disturbance to none): flying one and dropping the other
+        # without a word misreports the run. One flight of the ideal vehicle in a disturbance is the API's
+        # preset "ideal" with a disturbance (sim.flight.single_flight_options).
+        why = ("a Monte-Carlo run flies the preset alone" if args.preset == "ideal" else
+               "the preset's error models bring their own wind (one flight of --preset ideal can take it)")
+        raise CliError(f"--preset {args.preset} and --disturbance {args.disturbance} cannot be combined: {why}; "
+                       "drop --disturbance")
+    args.disturbance = args.disturbance or "none"
+    if not (math.isfinite(args.output_hz) and args.output_hz > 0):
+        raise CliError(f"--output-hz must be a finite number > 0, got {args.output_hz}")
     if args.scheduler is not None and args.engine != "dask":
         raise CliError("--scheduler is only used with --engine dask")
     if not args.scheduler_timeout > 0:
@@ -154,6 +171,39 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.report is not None and _report_format(args.report) is None:
         raise CliError(f"--report {args.report}: the file name must end in .html or .pdf")
     return _montecarlo(args)
+
+
+def recorded_frames(duration_s: float, output_hz: float) -> int:
+    """Frames the flight runner records over ``duration_s`` at ``output_hz``: one every
+    ``round(1 / (output_hz * 1 ms))`` control steps of 1 ms, the first at t = 0 (``sim.flight._runner``)."""
+    steps = int(round(duration_s / 1e-3)) + 1
+    every = max(int(round(1.0 / (output_hz * 1e-3))), 1)  # as the runner computes it
+    return (steps - 1) // every + 1
+
+
+def check_recording_size(plan: Any, output_hz: float) -> None:
+    """Refuse a flight whose recording (drones x frames) exceeds :data:`MAX_RECORDED_SAMPLES`.
+
+    Raises:
+        CliError: naming ``--output-hz`` and the highest rate that fits (one frame every ``k`` ms).
+    """
+    drones, duration_s = int(plan.drone_count), float(plan.duration_s)
+    samples = drones * recorded_frames(duration_s, output_hz)
+    if samples <= MAX_RECORDED_SAMPLES:
+        return
+    steps = int(round(duration_s / 1e-3)) + 1
+    frames = max(MAX_RECORDED_SAMPLES // max(drones, 1), 1)
+    # Smallest step count between frames with (steps - 1) // every + 1 <= frames.
+    every = max(-(-(steps - 1) // max(frames - 1, 1)) if frames > 1 else steps, 1)
+    while (steps - 1) // every + 1 > frames:
+        every += 1
+    # Rounded down, so that the rate as printed still records one frame every ``every`` steps or fewer.
+    most_hz = f"{math.floor(1000.0 / every * 1e4) / 1e4:.4f}".rstrip("0").rstrip(".")
+    raise CliError(
+        f"--output-hz {output_hz:g}: {drones} drones x {duration_s:.0f} s would record {samples:,} positions, "
+        f"over the limit of {MAX_RECORDED_SAMPLES:,} ({MAX_RECORDED_SAMPLES * 12 / 1e9:.1f} GB); "
+        f"use --output-hz {most_hz} or less"
+    )
 
 
 def _report_format(path: str) -> str | None:
@@ -189,6 +239,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
         raise CliError(f"{report_path}: cannot write: no such directory {str(report_path.parent)!r}")
     with contextlib.ExitStack() as stack:
         plan = _connect_and_plan(args, stack, dask, show)
+        check_recording_size(plan, args.output_hz)
         with progress_bar(f"monte-carlo x{args.runs}") as update:
             result = monte_carlo(
                 plan, _flight_options(args, dask), runs=args.runs, seed0=args.seed,
@@ -211,6 +262,13 @@ def _montecarlo(args: argparse.Namespace) -> int:
         print(format_montecarlo(report))
     unsafe = report["show_min"]["p_below_min_distance"]["runs_below"] > 0 or report["diverged_count"] > 0
     return EXIT_FAILED if unsafe else EXIT_OK
+
+
+def _segment_name(seg: dict) -> str:
+    """A segment as the report's table names it: its kind and its label ("transition 'a'", "hold 'a'"), so that
+    a formation's transition and its hold do not read alike; takeoff and landing by their kind alone."""
+    kind, label = seg.get("kind") or "", seg["label"]
+    return kind if kind == label else f"{kind} {label!r}".strip()
 
 
 def format_montecarlo(r: dict) -> str:
@@ -243,7 +301,8 @@ def format_montecarlo(r: dict) -> str:
     for seg in r["segments"]:
         if seg["extra_spacing"]["extra_m"] > 0 or seg["p_below_min_distance"]["runs_below"]:
             lines.append(
-                f"  segment {seg['index']} {seg['label']!r}: worst {num(seg['flown_min_m']['quantiles'].get('0'))} m, "
+                f"  segment {seg['index']} {_segment_name(seg)}: worst "
+                f"{num(seg['flown_min_m']['quantiles'].get('0'))} m, "
                 f"{seg['p_below_min_distance']['runs_below']} runs below, needs "
                 f"+{seg['extra_spacing']['extra_m']:.3f} m")
     for p in r["worst_pairs"][:3]:
@@ -293,6 +352,10 @@ def _show(args: argparse.Namespace) -> int:
         # A what-if, as the app's simulate: a transition forced shorter than the limits allow is flown as
         # designed and named in ``problems`` (then exit 1: the show cannot be flown as it is).
         plan = _connect_and_plan(args, stack, dask, show, enforce_limits=False)
+        check_recording_size(plan, args.output_hz)
+        # The summary never reads the LED colours: not evaluating them saves as much memory again as the
+        # positions (and 4-7 % of the time).
+        options = options.with_(colors=False)
         with progress_bar("simulate") as update:
             result = fly_show(plan, options.with_(scheduler=dask.get("scheduler")) if dask else options,
                               progress=update)
@@ -317,7 +380,9 @@ def format_flight(s: dict) -> str:
     pair = s["flown_min_distance_pair"]
     lines = [
         f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
-        f"({s['engine']} engine, {s['controller']}, disturbance {s['disturbance']}) in {s['wall_time_s']:.1f} s",
+        f"({s['engine']} engine, {s['controller']}, "
+        f"{'disturbance ' + str(s['disturbance']) if s.get('preset') in (None, 'ideal') else 'preset ' + s['preset']}"
+        f") in {s['wall_time_s']:.1f} s",
         f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
         f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
         f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (plan "

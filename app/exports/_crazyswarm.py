@@ -19,7 +19,8 @@ frame); times are kept, so speeds and accelerations scale with ``scale``.
 
 Piece limit: a Crazyflie's trajectory memory (4 KiB) holds :data:`CRAZYFLIE_MAX_PIECES`
 = 31 pieces. When a drone needs more, every drone's trajectory is cut at the same
-show times, in the middle of holds (all drones at rest), into parts of at most
+show times, in the middle of holds or at the end of the takeoff and the start of the landing (all drones
+at rest), into parts of at most
 :data:`PART_MAX_PIECES` = 15 pieces (``drone_001.part1.csv``, ...): part k is uploaded
 at piece offset 0 (k odd) or 16 (k even), so the next part uploads into the other
 half of the memory while the current one flies (Crazyswarm's
@@ -82,8 +83,9 @@ Operator notes:
 
 _ONE_PART = "Every drone fits: one file per drone, upload at pieceOffset 0, start all together at t = 0."
 _PARTS = """This show needs more, so each drone's trajectory is cut into
-  {n} parts at the same show times, in the middle of holds where every drone is at
-  rest (manifest.json "parts": start time, duration, piece offset of each part).
+  {n} parts at the same show times where every drone is at rest: in the middle of
+  holds, at the end of the takeoff or at the start of the landing (manifest.json
+  "parts": start time, duration, piece offset of each part).
   Files drone_NNN.partK.csv. Part K is uploaded at pieceOffset 0 (K odd) or 16
   (K even), with trajectoryId K: upload parts 1 and 2 before the show, start part 1
   on all drones at t = 0; when part K ends (at its start + duration) start part K+1
@@ -156,7 +158,8 @@ def plan_parts(plan, drone, start, duration, n: int, names: list[str], coef: np.
     """Show times at which to cut every drone's trajectory so each part has <= PART_MAX_PIECES pieces.
 
     Candidates are the middles of holds (all drones at rest; in a moving hold, the instants
-    where every drone rests); greedily, each part runs
+    where every drone rests), the end of the takeoff and the start of the landing (where every drone
+    rests); greedily, each part runs
     to the last candidate it can reach. Raises :class:`ExportError` naming the drones
     that need more than PART_MAX_PIECES pieces between two candidates.
     """
@@ -180,12 +183,15 @@ def plan_parts(plan, drone, start, duration, n: int, names: list[str], coef: np.
         c for s in plan.segments if s.kind == "hold" and s.duration_s > 0
         for c in ([s.start_s + s.duration_s / 2] if still(s.start_s, s.end_s) else rests(s.start_s, s.end_s))
     ]
-    launch = getattr(plan, "launch", None)
-    if launch is not None and (launch.takeoff is not None or launch.landing is not None):
-        # Takeoff / landing in waves (sim.plan._waves) add rests and pieces before the first hold: the end of
-        # the takeoff and the start of the landing are instants where every drone rests too.
-        cands += [s.end_s for s in plan.segments if s.kind == "takeoff"]
-        cands += [s.start_s for s in plan.segments if s.kind == "landing"]
+    # The end of the takeoff and the start of the landing: every drone rests there (a vertical rest-to-rest leg
+    # meets a transition that starts or ends at rest), in waves (sim.plan._waves) or not. Without them a show
+    # whose first transition is layered (7 takeoff pieces + ~14) could not be cut at all: the parts switch there
+    # with no upload (parts 1 and 2 are both in memory before the show), the drones hovering meanwhile.
+    edges = np.array([s.end_s for s in plan.segments if s.kind == "takeoff"]
+                     + [s.start_s for s in plan.segments if s.kind == "landing"], dtype=np.float64)
+    if edges.size:
+        v = plan.motion.evaluate(edges).velocities_mps  # (E, N, 3)
+        cands += [float(t) for t in edges[np.abs(v).max(axis=(1, 2), initial=0.0) < 1e-9]]
     candidates = np.array(sorted(cands))
 
     def pieces_in(a: float, b: float) -> np.ndarray:
@@ -203,10 +209,18 @@ def plan_parts(plan, drone, start, duration, n: int, names: list[str], coef: np.
             b = nxt[0] if nxt else horizon
             bad = np.flatnonzero(pieces_in(a, b) > PART_MAX_PIECES)
             shown = ", ".join(names[i] for i in bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+            # A transition that alone needs more than a part holds (no drone rests inside it: a layered or
+            # blended one) cannot be cut; more holds cannot help, so say which it is.
+            crowded = [(seg.label, int(pieces_in(seg.start_s, seg.end_s).max())) for seg in plan.segments
+                       if seg.kind == "transition" and seg.start_s < b - 1e-9 and seg.end_s > a + 1e-9]
+            crowded = [(label, k) for label, k in crowded if k > PART_MAX_PIECES]
+            why = ("; " + ", ".join(f"the transition into {label!r} alone needs {k} pieces" for label, k in crowded)
+                   + " (no instant inside it where every drone rests): space its formations wider so that it is "
+                   "flown on straight lines, or fly .skyc" if crowded else "; add a hold or use fewer formations")
             raise ExportError(
                 f"crazyswarm: {len(bad)} drone(s) need more than {PART_MAX_PIECES} trajectory pieces between "
                 f"t = {a:.1f} s and {b:.1f} s with no hold to split at, so the trajectory cannot be uploaded to a "
-                f"Crazyflie (31 pieces) in parts: {shown}; add a hold or use fewer formations"
+                f"Crazyflie (31 pieces) in parts: {shown}{why}"
             )
         a = max(reachable)
         cuts.append(a)

@@ -98,6 +98,9 @@ def _deviation_figure(r: dict[str, Any]) -> Any:
             ax.set_xlim(edges[max(nz[0] - 2, 0)], edges[min(nz[-1] + 3, edges.size - 1)])
         ax.set_xlabel("largest deviation from the plan (m)")
         ax.set_ylabel("drones × runs")
+        from matplotlib.ticker import MaxNLocator
+
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: no 0.25 drone-runs
         ax.set_title("Deviation per drone and run")
         return fig
 
@@ -134,7 +137,8 @@ def _segments_figure(r: dict[str, Any]) -> Any:
         ax.bar(x + 0.2, extra, 0.4, bottom=np.nan_to_num(low), color="#fc9272", alpha=0.8,
                label=f"extra spacing at {100 * r['confidence']:g} %")
         ax.axhline(r["min_distance_m"], color="#d95f02", lw=1.0)
-        ax.set_xticks(x, [f"{s['index']}: {s['label'][:18]}" for s in segs], rotation=60, ha="right", fontsize=6)
+        ax.set_xticks(x, [f"{s['index']}: {_segment_name(s.get('kind'), s['label'])[:24]}" for s in segs],
+                      rotation=60, ha="right", fontsize=6)
         ax.set_ylabel("closest pair (m)")
         ax.set_title("Per segment")
         ax.legend(fontsize=7, ncols=4)
@@ -214,9 +218,17 @@ SEGMENT_HEAD = ["#", "kind", "segment", "start s", "plan m", "worst m", "median 
 PAIR_HEAD = ["drones", "distance m", "time s", "segment", "run", "seed", "runs closest"]
 
 
+def _segment_name(kind: str | None, label: str) -> str:
+    """A segment by its kind and label ("transition a", "hold a"): a formation's transition and its hold share
+    the label; takeoff and landing by their kind alone."""
+    return label if not kind or kind == label else f"{kind} {label}"
+
+
 def _pair_rows(r: dict[str, Any]) -> list[list[str]]:
+    kinds = {s["index"]: s.get("kind") for s in r["segments"]}
     return [[f"{p['drones'][0]} & {p['drones'][1]}", f"{p['distance_m']:.3f}", f"{p['time_s']:.2f}",
-             f"{p['segment']}: {p['label']}", str(p["run"]), str(p["seed"]), str(p["runs_closest"])]
+             f"{p['segment']}: {_segment_name(kinds.get(p['segment']), p['label'])}", str(p["run"]), str(p["seed"]),
+             str(p["runs_closest"])]
             for p in r["worst_pairs"]]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 from collections.abc import Iterator
@@ -58,9 +59,14 @@ def check_sample_count(ctx: ExportContext, n_times: int) -> None:
     """Refuse exports that would hold more than :data:`MAX_SAMPLES` samples."""
     total = n_times * ctx.show.drones
     if total > MAX_SAMPLES:
+        # The highest rate that fits, rounded down: frame_count() frames plus at most one extra row (the
+        # Skybrush CSV's closing row), so (duration * fps + 3) * drones <= MAX_SAMPLES.
+        most = (MAX_SAMPLES / max(ctx.show.drones, 1) - 3.0) / max(ctx.plan.duration_s, 1e-9)
+        hint = (f"use fps <= {math.floor(most * 1e4) / 1e4:.4f}".rstrip("0").rstrip(".") if most >= 1e-4
+                else "too many drones for a sampled export; use .skyc or crazyswarm")
         raise ExportError(
             f"{ctx.show.drones} drones x {n_times} frames = {total} samples exceeds the limit of {MAX_SAMPLES}; "
-            "lower --fps", field="fps"
+            f"{hint}", field="fps"
         )
 
 

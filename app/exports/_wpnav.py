@@ -491,6 +491,29 @@ def time_mission(legs: PlanLegs, top_xy_mps: float, top_up_mps: float, top_dn_mp
     return Mission(legs, xy, up, dn, delay, depart, arrive, wpnav)
 
 
+def _moving_frames(mission: Mission, plan, grid_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """(T,) bool: the frames of ``grid_s`` within ``dt_s`` of an instant where some replayed drone or the plan
+    moves. Every other frame lies in a stretch where nothing moves, so it repeats the kept frame just before
+    it (positions, distances and the plan's alike) and the pair search may skip it: a show with day-long
+    holds then costs frames for its moves only (it sampled every 0.1 s of every hold)."""
+    # Replayed moves: each leg from its departure to its arrival (the drone is still outside them).
+    a = [mission.depart_s.ravel()]
+    b = [mission.arrive_s.ravel()]
+    # The plan's: everything but its holds (still: the QGC export refuses a show with a moving hold).
+    segs = [(sg.start_s, sg.end_s) for sg in plan.segments if sg.kind != "hold"]
+    if segs:
+        a.append(np.array([x for x, _ in segs], dtype=np.float64))
+        b.append(np.array([y for _, y in segs], dtype=np.float64))
+    start, stop = np.concatenate(a) - dt_s, np.concatenate(b) + dt_s
+    order = np.argsort(start, kind="stable")
+    start, stop = start[order], np.maximum.accumulate(stop[order])
+    # Merged windows: a new one begins where a start exceeds every earlier stop.
+    new = np.r_[True, start[1:] > stop[:-1]]
+    w0, w1 = start[new], np.r_[stop[np.flatnonzero(new)[1:] - 1], stop[-1]]
+    k = np.searchsorted(w0, grid_s, side="right") - 1
+    return (k >= 0) & (grid_s <= w1[np.maximum(k, 0)])
+
+
 def close_pairs(mission: Mission, plan, min_distance_m: float, *, max_samples: int = 6_000_000,
                 dt_s: float = 0.1) -> tuple[list[tuple[int, int, float, float]], float]:
     """Pairs the replay brings closer than ``min_distance_m`` where the plan keeps them further apart.
@@ -508,7 +531,8 @@ def close_pairs(mission: Mission, plan, min_distance_m: float, *, max_samples: i
     end = float(mission.arrive_s[-1].max())
     dt = max(dt_s, end * n / max_samples)
     keys, dists, times = [], [], []
-    for t in np.arange(float(mission.depart_s[0].min()), end + dt / 2, dt):
+    grid = np.arange(float(mission.depart_s[0].min()), end + dt / 2, dt)
+    for t in grid[_moving_frames(mission, plan, grid, dt)]:
         pos = mission.positions(float(t))
         # A tree per frame: an unbalanced, uncompacted build is the cheaper one for a single query.
         tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
