@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -132,6 +133,106 @@ class ServerProcess:
         except subprocess.TimeoutExpired:
             pass
         self.crash()
+
+
+#: The fork server of :class:`ForkedServerProcess`: imports the code ``swarmshow serve`` imports, then
+#: answers one JSON command a line on stdin: ``["start", argv, log]`` forks a child that runs the CLI
+#: with ``argv`` in a session of its own, its output appended to ``log`` (answers its pid);
+#: ``["poll", pid]`` answers its exit status or null while it runs; ``["wait", pid]`` its exit status.
+_FORK_SERVER = """
+import json, os, sys
+import uvicorn
+import app.cli, app.cli._serve, app.server, app.server._exposure, app.server._http
+app.cli.build_parser(["serve"])
+for line in sys.stdin:
+    cmd = json.loads(line)
+    if cmd[0] == "start":
+        sys.stdout.flush()
+        pid = os.fork()
+        if pid == 0:
+            os.setsid()
+            out = os.open(cmd[2], os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+            os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+            os.dup2(out, 1)
+            os.dup2(out, 2)
+            sys.exit(app.cli.main(cmd[1]))
+        answer = pid
+    else:
+        done, status = os.waitpid(cmd[1], os.WNOHANG if cmd[0] == "poll" else 0)
+        answer = os.waitstatus_to_exitcode(status) if done else None
+    print(json.dumps(answer), flush=True)
+"""
+
+
+class _ForkedChild:
+    """A server forked by the fork server: the part of :class:`subprocess.Popen` that ServerProcess uses."""
+
+    def __init__(self, ask: Callable[..., Any], pid: int) -> None:
+        self.ask, self.pid = ask, pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            self.returncode = self.ask("poll", self.pid)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if timeout is None:
+            if self.returncode is None:
+                self.returncode = self.ask("wait", self.pid)
+            return self.returncode
+        deadline = time.monotonic() + timeout
+        while self.poll() is None:
+            if time.monotonic() > deadline:
+                raise subprocess.TimeoutExpired("swarmshow serve", timeout)
+            time.sleep(0.02)
+        return self.returncode  # type: ignore[return-value]
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            os.kill(self.pid, sig)
+
+
+class ForkedServerProcess(ServerProcess):
+    """:class:`ServerProcess` for a test that restarts the server many times: each server is forked from a
+    process that has imported the server's code once (``python -c`` of :data:`_FORK_SERVER`), so that a start
+    costs the server's start-up (store, worker pool, port) but not the seconds of importing Python modules.
+    The forked server runs the CLI's ``main(["serve", ...])`` in a session of its own, as the installed command
+    would. :meth:`close` ends the fork server."""
+
+    def __init__(self, data_dir: Path, **kwargs: Any) -> None:
+        super().__init__(data_dir, **kwargs)
+        self.fork_server = subprocess.Popen([sys.executable, "-c", _FORK_SERVER], stdin=subprocess.PIPE,
+                                            stdout=subprocess.PIPE, env=self.env, text=True)
+
+    def _ask(self, *cmd: Any) -> Any:
+        assert self.fork_server.stdin is not None and self.fork_server.stdout is not None
+        self.fork_server.stdin.write(json.dumps(cmd) + "\n")
+        self.fork_server.stdin.flush()
+        line = self.fork_server.stdout.readline()
+        if not line:
+            raise AssertionError(f"the fork server exited ({self.fork_server.wait()})")
+        return json.loads(line)
+
+    def start(self, *, wait: bool = True, timeout_s: float = 60.0) -> float:
+        t0 = time.monotonic()
+        argv = ["serve", "--port", str(self.port), "--data-dir", str(self.data_dir), "--workers", str(self.workers)]
+        self.proc = _ForkedChild(self._ask, self._ask("start", argv, str(self.log)))  # type: ignore[assignment]
+        if not wait:
+            return 0.0
+        self.wait_ready(timeout_s=timeout_s)
+        return time.monotonic() - t0
+
+    def close(self) -> None:
+        """Stop the server (as :meth:`stop`) and end the fork server."""
+        self.stop()
+        if self.fork_server.stdin is not None:
+            self.fork_server.stdin.close()
+        try:
+            self.fork_server.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.fork_server.kill()
+            self.fork_server.wait()
 
 
 @contextlib.contextmanager
