@@ -269,19 +269,25 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # idled. So a child process compiles both variants into that same cache (``warm_up``, which compiles
 # through numba's cache exactly as a first flight would, see ``_cached_machine_code``) while the
 # modules below run, and the first test outside them waits for it. With a warm cache the child only
-# loads the kernels. Tests of cold-cache behaviour use cache directories of their own and are
-# unaffected. These modules neither fly nor start a process that does (checked with a fresh cache:
-# running them alone writes no flight kernel), nor analyse music.
+# loads the kernels. Tests of cold-cache behaviour use cache directories of their own, except that the
+# compile-vs-load test takes the warm-up as its cold process when the warm-up met a cold cache (it flies
+# that test's flight first, tests/kernel_witness.py): a fresh clone then compiles the kernel once, not
+# twice. These modules neither fly nor start a process that does (checked with a fresh cache: running
+# them alone writes no flight kernel), nor analyse music.
 KERNEL_FREE_MODULES = frozenset({
-    "test_api_store", "test_architecture", "test_assignment_scale", "test_editor_static",
-    "test_exports_crazyswarm", "test_exports_moving", "test_exports_qgc", "test_exports_skybrush_readers",
-    "test_exports_trajectories", "test_formations_closest_pair", "test_formations_filled",
-    "test_formations_image_svg", "test_formations_shapes", "test_formations_strokes_text",
-    "test_formations_transforms", "test_geometry_closest_pair", "test_launch", "test_launch_exports",
-    "test_light_effects", "test_plan_assignment", "test_plan_blend", "test_plan_cache", "test_plan_quintic",
-    "test_plan_schedule", "test_plan_show", "test_plan_timelaw", "test_plan_trajectory", "test_plan_verify",
-    "test_show_file", "test_verify_bounds", "test_verify_downwash", "test_verify_exact", "test_verify_sweep",
-    "test_viewer_export",
+    "test_api_formations", "test_api_lights", "test_api_locs", "test_api_store", "test_architecture",
+    "test_assignment_scale", "test_bench_cli", "test_editor_js_units", "test_editor_static",
+    "test_exports_crazyswarm", "test_exports_frames", "test_exports_moving", "test_exports_qgc",
+    "test_exports_qgc_safety", "test_exports_skybrush_readers", "test_exports_skyc_cues",
+    "test_exports_trajectories", "test_formations_closest_pair", "test_formations_demo_cli",
+    "test_formations_filled", "test_formations_image_svg", "test_formations_mesh", "test_formations_shapes",
+    "test_formations_strokes_text", "test_formations_transforms", "test_geometry_closest_pair", "test_launch",
+    "test_launch_api", "test_launch_exports", "test_light_effects", "test_light_preview_parity",
+    "test_plan_assignment", "test_plan_blend", "test_plan_cache", "test_plan_cues", "test_plan_groups",
+    "test_plan_motion", "test_plan_quintic", "test_plan_schedule", "test_plan_show", "test_plan_timelaw",
+    "test_plan_trajectory", "test_plan_verify", "test_show_file", "test_verify_bounds", "test_verify_downwash",
+    "test_verify_exact", "test_verify_sweep", "test_viewer_export", "test_viewer_lights_preview",
+    "test_viewer_marks",
 })
 #: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
 #: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.
