@@ -90,7 +90,7 @@ def _run(tmp_path, *, kills: int, writers: int, drones: int, max_up_s: float, fo
         stop.set()
         for t in threads:
             t.join(timeout=30)
-        server.close() if isinstance(server, ForkedServerProcess) else server.stop()
+        server.stop()
     acked = [a for t in threads for a in t.acked]
     unexpected = [u for t in threads for u in t.unexpected]
     assert unexpected == [], unexpected[:5]
@@ -120,8 +120,8 @@ def _verify(db_path, acked: list[tuple[str, int, str]]) -> None:
 
 
 def test_sigkill_50_times_loses_no_acknowledged_write(tmp_path):
-    # Each server is forked from a process that imported the server's code (ForkedServerProcess): 50 starts
-    # that each imported it again took most of this test's time. The soak below starts every server afresh.
+    # Each server is forked from a process that imported the server's code once (ForkedServerProcess): 50
+    # starts that each imported it again took most of this test's time. The soak below starts each afresh.
     figures = _run(tmp_path, kills=50, writers=4, drones=100, max_up_s=0.4, forked=True)
     print(json.dumps(figures))
     assert figures["acked"] >= 100  # the writers really wrote between the crashes
