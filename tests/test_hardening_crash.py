@@ -4,7 +4,9 @@ Afterwards every write the server acknowledged (201/200) is in the store with th
 content it was acknowledged with, every stored show parses and matches its hash
 (nothing half-written), the revision history has no gaps, and SQLite's
 ``PRAGMA integrity_check`` says ``ok``. The default run kills the server 50 times
-over well under a minute; the slow one 200 times with larger shows.
+over well under a minute, each server forked from a process that has imported the
+server's code (``ForkedServerProcess``); the slow one 200 times with larger shows,
+each server started afresh as ``swarmshow serve``.
 """
 
 from __future__ import annotations
