@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 from typing import IO
 
 import numpy as np
 import pytest
 
 from formations import ShowFile, parse_show
+
+_ROOT = Path(__file__).resolve().parents[1]
 
 
 def fibonacci_sphere(n: int, radius_m: float, center=(0.0, 0.0, 50.0)) -> np.ndarray:
@@ -90,6 +94,41 @@ def plan12():
     from sim import plan_show
 
     return plan_show(ring_to_sphere(12, 10.0, 8.0, 2.0))
+
+
+def app_client(name: str, **settings):
+    """A module-scoped ``client`` fixture: the app (``create_app(AppSettings(**settings))``) on a fresh data
+    directory named after ``name``, under FastAPI's TestClient on a loopback base URL (its job pools start and
+    stop with the module). Use it at module level as ``client = app_client("data", workers=1)``."""
+
+    @pytest.fixture(scope="module", name="client")
+    def _client(tmp_path_factory: pytest.TempPathFactory):
+        from fastapi.testclient import TestClient
+
+        from app.server import create_app
+        from app.settings import AppSettings
+
+        app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp(name), **settings))
+        with TestClient(app, base_url="http://127.0.0.1") as c:
+            yield c
+
+    return _client
+
+
+def fleet_off_its_circles(n: int, seed: int, *, velocity_sd_mps: float, rate_sd_rad_s: float | None = None):
+    """``n`` drones on circles (4 m, 0.8 rad/s) round random centres in a 60 m cube 50 m up, started 4 m off
+    them at hover attitude with random velocities (and body rates): ``(ref, start)``, the flight-engine
+    tests' busy start. Draws from ``default_rng(seed)``: the centres, the velocities, then the rates."""
+    from sim.flight import TrackingReference, hover_state
+
+    rng = np.random.default_rng(seed)
+    centers = rng.uniform(-30.0, 30.0, (n, 3)) + [0.0, 0.0, 50.0]
+    ref = TrackingReference.circle(centers, radius_m=4.0, omega_rad_s=0.8)
+    start = hover_state(centers + [4.0, 0.0, 0.0])
+    start[:, 6:9] = rng.normal(scale=velocity_sd_mps, size=(n, 3))
+    if rate_sd_rad_s is not None:
+        start[:, 9:12] = rng.normal(scale=rate_sd_rad_s, size=(n, 3))
+    return ref, start
 
 
 class StaggeredLegs:
@@ -230,19 +269,25 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # idled. So a child process compiles both variants into that same cache (``warm_up``, which compiles
 # through numba's cache exactly as a first flight would, see ``_cached_machine_code``) while the
 # modules below run, and the first test outside them waits for it. With a warm cache the child only
-# loads the kernels. Tests of cold-cache behaviour use cache directories of their own and are
-# unaffected. These modules neither fly nor start a process that does (checked with a fresh cache:
-# running them alone writes no flight kernel), nor analyse music.
+# loads the kernels. Tests of cold-cache behaviour use cache directories of their own, except that the
+# compile-vs-load test takes the warm-up as its cold process when the warm-up met a cold cache (it flies
+# that test's flight first, tests/kernel_witness.py): a fresh clone then compiles the kernel once, not
+# twice. These modules neither fly nor start a process that does (checked with a fresh cache: running
+# them alone writes no flight kernel), nor analyse music.
 KERNEL_FREE_MODULES = frozenset({
-    "test_api_store", "test_architecture", "test_assignment_scale", "test_editor_static",
-    "test_exports_crazyswarm", "test_exports_moving", "test_exports_qgc", "test_exports_skybrush_readers",
-    "test_exports_trajectories", "test_formations_closest_pair", "test_formations_filled",
-    "test_formations_image_svg", "test_formations_shapes", "test_formations_strokes_text",
-    "test_formations_transforms", "test_geometry_closest_pair", "test_launch", "test_launch_exports",
-    "test_light_effects", "test_plan_assignment", "test_plan_blend", "test_plan_cache", "test_plan_quintic",
-    "test_plan_schedule", "test_plan_show", "test_plan_timelaw", "test_plan_trajectory", "test_plan_verify",
-    "test_show_file", "test_verify_bounds", "test_verify_downwash", "test_verify_exact", "test_verify_sweep",
-    "test_viewer_export",
+    "test_api_formations", "test_api_lights", "test_api_locs", "test_api_store", "test_architecture",
+    "test_assignment_scale", "test_bench_cli", "test_editor_js_units", "test_editor_static",
+    "test_exports_crazyswarm", "test_exports_frames", "test_exports_moving", "test_exports_qgc",
+    "test_exports_qgc_safety", "test_exports_skybrush_readers", "test_exports_skyc_cues",
+    "test_exports_trajectories", "test_formations_closest_pair", "test_formations_demo_cli",
+    "test_formations_filled", "test_formations_image_svg", "test_formations_mesh", "test_formations_shapes",
+    "test_formations_strokes_text", "test_formations_transforms", "test_geometry_closest_pair", "test_launch",
+    "test_launch_api", "test_launch_exports", "test_light_effects", "test_light_preview_parity",
+    "test_plan_assignment", "test_plan_blend", "test_plan_cache", "test_plan_cues", "test_plan_groups",
+    "test_plan_motion", "test_plan_quintic", "test_plan_schedule", "test_plan_show", "test_plan_timelaw",
+    "test_plan_trajectory", "test_plan_verify", "test_show_file", "test_verify_bounds", "test_verify_downwash",
+    "test_verify_exact", "test_verify_sweep", "test_viewer_export", "test_viewer_lights_preview",
+    "test_viewer_marks",
 })
 #: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
 #: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.
@@ -269,12 +314,26 @@ class _WarmUp:
         self.t0 = self.took_s = self.waited_s = 0.0
         self.error = ""
         self.done = False
+        self.witness_dir: Path | None = None
 
     def start(self) -> None:
+        from tests.kernel_witness import WITNESS_IN_WARM_UP
+
         self.log = tempfile.TemporaryFile()  # its stderr (a pipe could fill up and stall it)
-        self.proc = subprocess.Popen([sys.executable, "-c", _WARM_UP_CODE], stdout=subprocess.DEVNULL,
-                                     stderr=self.log, start_new_session=True)
+        self.witness_dir = Path(tempfile.mkdtemp(prefix="swarmshow-warm-up-"))
+        # First the compile-vs-load test's cold flight (tests/kernel_witness.py), then the warm-up.
+        code = f"import sys; sys.path.insert(0, {str(_ROOT)!r})\n{WITNESS_IN_WARM_UP}\n{_WARM_UP_CODE}"
+        self.proc = subprocess.Popen([sys.executable, "-c", code, str(self.witness_dir)],
+                                     stdout=subprocess.DEVNULL, stderr=self.log, start_new_session=True)
         self.t0 = time.monotonic()
+
+    def cold_flight(self) -> Path | None:
+        """Positions of tests/kernel_witness.py's flight by the warm-up child on a cold cache (it compiled
+        the kernel), once the warm-up is done; None if there is none (no warm-up, or the cache was warm)."""
+        self.wait()
+        if self.witness_dir is None or not (self.witness_dir / "cold.ok").exists():
+            return None
+        return self.witness_dir / "cold.npy"
 
     def wait(self) -> None:
         if self.proc is None or self.done:
@@ -294,6 +353,8 @@ class _WarmUp:
         if self.proc is not None and self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGKILL)  # its compiling grandchild too
             self.proc.wait()
+        if self.witness_dir is not None:
+            shutil.rmtree(self.witness_dir, ignore_errors=True)
 
 
 _warm_up = _WarmUp()
@@ -315,6 +376,13 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     _warm_up.stop()
+
+
+@pytest.fixture(scope="session")
+def cold_kernel_flight() -> Path | None:
+    """The compile-vs-load test's cold witness from the session's warm-up, if it has one
+    (:meth:`_WarmUp.cold_flight`, tests/kernel_witness.py)."""
+    return _warm_up.cold_flight()
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:

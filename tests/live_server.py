@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import json
 import os
 import shutil
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -134,10 +137,128 @@ class ServerProcess:
         self.crash()
 
 
+#: The fork server of :class:`ForkedServerProcess`: imports the code ``swarmshow serve`` imports, then
+#: answers one JSON command a line on stdin: ``["start", argv, log, env]`` forks a child that runs the CLI
+#: with ``argv`` and the environment ``env`` in a session of its own, its output appended to ``log``
+#: (answers its pid); ``["poll", pid]`` answers its exit status or null while it runs; ``["wait", pid]`` its
+#: exit status. The child's modules were imported under the fork server's environment (the test session's):
+#: the server reads its own settings (``SWARMSHOW_*``) when it starts, not on import.
+_FORK_SERVER = """
+import json, os, sys
+import uvicorn
+import app.cli, app.cli._serve, app.server, app.server._exposure, app.server._http
+app.cli.build_parser(["serve"])
+for line in sys.stdin:
+    cmd = json.loads(line)
+    if cmd[0] == "start":
+        sys.stdout.flush()
+        pid = os.fork()
+        if pid == 0:
+            os.setsid()
+            out = os.open(cmd[2], os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+            os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+            os.dup2(out, 1)
+            os.dup2(out, 2)
+            sys.stdout.reconfigure(line_buffering=True)
+            os.environ.clear()
+            os.environ.update(cmd[3])
+            sys.exit(app.cli.main(cmd[1]))
+        answer = pid
+    else:
+        done, status = os.waitpid(cmd[1], os.WNOHANG if cmd[0] == "poll" else 0)
+        answer = os.waitstatus_to_exitcode(status) if done else None
+    print(json.dumps(answer), flush=True)
+"""
+
+
+class _ForkServer:
+    """The test session's one fork server (:data:`_FORK_SERVER`), started on first use, ended at exit."""
+
+    def __init__(self) -> None:
+        self.proc: subprocess.Popen[str] | None = None
+        self.lock = threading.Lock()
+
+    def ask(self, *cmd: Any) -> Any:
+        with self.lock:
+            if self.proc is None:
+                self.proc = subprocess.Popen([sys.executable, "-c", _FORK_SERVER], stdin=subprocess.PIPE,
+                                             stdout=subprocess.PIPE, text=True)
+                atexit.register(self.close)
+            assert self.proc.stdin is not None and self.proc.stdout is not None
+            self.proc.stdin.write(json.dumps(cmd) + "\n")
+            self.proc.stdin.flush()
+            line = self.proc.stdout.readline()
+            if not line:
+                raise AssertionError(f"the fork server exited ({self.proc.wait()})")
+            return json.loads(line)
+
+    def close(self) -> None:
+        with self.lock:
+            if self.proc is None:
+                return
+            if self.proc.stdin is not None:
+                self.proc.stdin.close()
+            try:
+                self.proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+            self.proc = None
+
+
+_fork_server = _ForkServer()
+
+
+class _ForkedChild:
+    """A server forked by the fork server: the part of :class:`subprocess.Popen` that ServerProcess uses."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            self.returncode = _fork_server.ask("poll", self.pid)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        if deadline is None and self.returncode is None:
+            self.returncode = _fork_server.ask("wait", self.pid)
+        while self.poll() is None:
+            if deadline is not None and time.monotonic() > deadline:
+                raise subprocess.TimeoutExpired("swarmshow serve", timeout or 0.0)
+            time.sleep(0.02)
+        return self.returncode  # type: ignore[return-value]
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            os.kill(self.pid, sig)
+
+
+class ForkedServerProcess(ServerProcess):
+    """:class:`ServerProcess` whose servers are forked from one process that has imported the server's code
+    (the fork server, :data:`_FORK_SERVER`), so that a start costs the server's own start-up (store, worker
+    pools, port) but not the seconds of importing its Python modules again. For tests of what a running server
+    does (browser tests, a server crashed and restarted 50 times); the real ``swarmshow serve`` start-up is
+    what :class:`ServerProcess` runs. The forked server runs the CLI's ``main(["serve", ...])`` with this
+    object's environment, in a session of its own (:meth:`crash` kills it with its worker processes)."""
+
+    def start(self, *, wait: bool = True, timeout_s: float = 60.0) -> float:
+        t0 = time.monotonic()
+        argv = ["serve", "--port", str(self.port), "--data-dir", str(self.data_dir), "--workers", str(self.workers)]
+        self.proc = _ForkedChild(_fork_server.ask("start", argv, str(self.log), self.env))  # type: ignore[assignment]
+        if not wait:
+            return 0.0
+        self.wait_ready(timeout_s=timeout_s)
+        return time.monotonic() - t0
+
+
 @contextlib.contextmanager
-def running_server(data_dir: Path, **kwargs: Any) -> Iterator[str]:
-    """A started :class:`ServerProcess` (keyword arguments as its constructor's); yields its base URL."""
-    srv = ServerProcess(data_dir, **kwargs)
+def running_server(data_dir: Path, *, forked: bool = False, **kwargs: Any) -> Iterator[str]:
+    """A started :class:`ServerProcess` (keyword arguments as its constructor's; ``forked``: a
+    :class:`ForkedServerProcess`); yields its base URL."""
+    srv = (ForkedServerProcess if forked else ServerProcess)(data_dir, **kwargs)
     srv.start()
     try:
         yield srv.base
@@ -148,11 +269,13 @@ def running_server(data_dir: Path, **kwargs: Any) -> Iterator[str]:
 def server_for(name: str, **kwargs: Any) -> Any:
     """A module-scoped ``server`` fixture for a browser test module: :func:`running_server` (keyword
     arguments as :class:`ServerProcess`'s) on a fresh data directory of its own, named after ``name``;
-    its value is the base URL. Use it at module level as ``server = server_for("x-data", viewer=True)``."""
+    its value is the base URL. Use it at module level as ``server = server_for("x-data", viewer=True)``.
+    The server is forked (:class:`ForkedServerProcess`): the browser tests test the running server, and
+    each module's start no longer imports the server's code again."""
 
     @pytest.fixture(scope="module", name="server")
     def _server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-        with running_server(tmp_path_factory.mktemp(name), **kwargs) as base:
+        with running_server(tmp_path_factory.mktemp(name), forked=True, **kwargs) as base:
             yield base
 
     return _server

@@ -15,6 +15,7 @@ from app.server import create_app
 from app.settings import AppSettings
 from app.store import MIGRATIONS, SCHEMA_VERSION, ShowData, ShowStore
 from formations import ShowValidationError, parse_show, plain_path
+from tests.conftest import app_client
 from tests.test_api_shows import show_doc, stored
 
 
@@ -25,11 +26,7 @@ def _too_close(doc: dict) -> dict:
     return bad
 
 
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("drafts"), workers=1))
-    with TestClient(app, base_url="http://127.0.0.1") as c:
-        yield c
+client = app_client("drafts", workers=1)
 
 
 def _strict_problems(doc: dict) -> list[dict]:

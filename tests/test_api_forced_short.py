@@ -8,12 +8,10 @@ from __future__ import annotations
 import time
 
 import pytest
-from fastapi.testclient import TestClient
 
-from app.server import create_app
-from app.settings import AppSettings
 from formations import parse_show
 from sim import PlanError, check_plan, plan_show
+from tests.conftest import app_client
 from tests.test_api_jobs import read_events
 from tests.test_api_shows import show_doc
 
@@ -29,11 +27,7 @@ def forced_doc(name: str = "forced short") -> dict:
     return doc
 
 
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=1))
-    with TestClient(app, base_url="http://127.0.0.1") as c:
-        yield c
+client = app_client("data", workers=1)
 
 
 @pytest.fixture(scope="module")

@@ -7,19 +7,12 @@ import io
 from html.parser import HTMLParser
 
 import pytest
-from fastapi.testclient import TestClient
 
 from app.api.models import MAX_MONTECARLO_RUNS
-from app.server import create_app
-from app.settings import AppSettings
+from tests.conftest import app_client
 from tests.test_api_jobs import _show_id, read_events, show_doc, wait_for
 
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    app = create_app(AppSettings(data_dir=tmp_path_factory.mktemp("data"), workers=2))
-    with TestClient(app, base_url="http://127.0.0.1") as c:
-        yield c
+client = app_client("data", workers=2)
 
 
 @pytest.fixture(scope="module")

@@ -111,16 +111,11 @@ def test_the_paper_controller_keeps_the_plain_clip():
 def test_engines_agree_while_the_allocation_desaturates():
     """A weak vehicle (thrust-to-weight 1.3) started tilted off its circles saturates its rotors for much of a
     second; both engines fly it alike (the kernel's select-only allocation is the numpy step's)."""
-    from sim.flight import TrackingReference, hover_state, simulate
+    from sim.flight import simulate
     from sim.flight.engines._state import TELEMETRY_FIELDS
+    from tests.conftest import fleet_off_its_circles
 
-    rng = np.random.default_rng(11)
-    n = 16
-    centers = rng.uniform(-30.0, 30.0, (n, 3)) + [0.0, 0.0, 50.0]
-    ref = TrackingReference.circle(centers, radius_m=4.0, omega_rad_s=0.8)
-    start = hover_state(centers + [4.0, 0.0, 0.0])
-    start[:, 6:9] = rng.normal(scale=0.3, size=(n, 3))
-    start[:, 9:12] = rng.normal(scale=1.0, size=(n, 3))
+    ref, start = fleet_off_its_circles(16, 11, velocity_sd_mps=0.3, rate_sd_rad_s=1.0)
     kw = dict(duration_s=1.0, initial_state=start, params=QuadrotorParams(thrust_to_weight=1.3), output_every=5,
               telemetry=True, chunk_steps=300)
     a = simulate(ref, engine="numba", **kw)

@@ -23,16 +23,13 @@ from sim.flight.engines._numba import run_chunk_numba
 from sim.flight.engines._numpy import init_controller
 from sim.flight.engines._numpy import run_chunk_numpy as _run_chunk_numpy
 from sim.flight.engines._state import C_ROTOR, STATS_SIZE, TEL_SIZE
+from tests.conftest import fleet_off_its_circles
+from tests.kernel_witness import FLY_AND_SAVE, FLY_LOADED
 
 
 @pytest.mark.parametrize("disturbance", ["none", "wind", "paper"])
 def test_engines_agree_over_one_second(disturbance):
-    rng = np.random.default_rng(3)
-    n = 24
-    centers = rng.uniform(-30.0, 30.0, (n, 3)) + [0.0, 0.0, 50.0]
-    ref = TrackingReference.circle(centers, radius_m=4.0, omega_rad_s=0.8)
-    start = hover_state(centers + [4.0, 0.0, 0.0])
-    start[:, 6:9] = rng.normal(scale=0.02, size=(n, 3))
+    ref, start = fleet_off_its_circles(24, 3, velocity_sd_mps=0.02)
     kw = dict(duration_s=1.0, initial_state=start, disturbance=disturbance, output_every=25, telemetry=True,
               chunk_steps=300)
     a = simulate(ref, engine="numba", **kw)
@@ -176,26 +173,23 @@ def test_a_few_remaining_steps_ride_with_the_last_chunk_and_change_nothing():
         assert np.array_equal(runs[chunk_steps][0].final_state, runs[1000][0].final_state)
 
 
-_FLY_AND_SAVE = """
-import sys, numpy as np
-from sim.flight import TrackingReference, simulate
-rng = np.random.default_rng(0)
-ref = TrackingReference.circle(rng.uniform(-20.0, 20.0, (24, 3)) + [0.0, 0.0, 30.0], radius_m=3.0, omega_rad_s=0.5)
-np.save(sys.argv[1], simulate(ref, duration_s=1.0, engine="numba").positions_m)
-"""
-
-
-def test_a_process_that_compiles_the_kernel_matches_one_that_loads_it(tmp_path):
+def test_a_process_that_compiles_the_kernel_matches_one_that_loads_it(tmp_path, cold_kernel_flight):
     # numba's in-process JIT and its cached object code of the parallel kernel differ in the
     # last bit; a process that compiled the kernel used to disagree with every process that
     # loaded it (a Dask worker, the next run). Both now run the cached code: a cold cache
-    # (this process compiles) and then a warm one (it loads) give the same bits.
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    outs = []
-    for run in ("cold", "warm"):
-        out = tmp_path / f"{run}.npy"
-        subprocess.run([sys.executable, "-c", _FLY_AND_SAVE, str(out)], env=env, check=True, timeout=1200)
-        outs.append(np.load(out))
+    # (this process compiles) and then a warm one (it loads) give the same bits. The cold
+    # process is the session's warm-up when it met a cold cache (a fresh clone; it flew the
+    # same flight, tests/kernel_witness.py), else one of ours on a fresh cache of our own.
+    if cold_kernel_flight is not None:
+        env, outs = dict(os.environ), [np.load(cold_kernel_flight)]
+    else:
+        env, outs = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache")), []
+        subprocess.run([sys.executable, "-c", FLY_AND_SAVE, str(tmp_path / "cold.npy")], env=env, check=True,
+                       timeout=1200)
+        outs.append(np.load(tmp_path / "cold.npy"))
+    subprocess.run([sys.executable, "-c", FLY_LOADED, str(tmp_path / "warm.npy")], env=env, check=True, timeout=1200,
+                   cwd=Path(__file__).resolve().parents[1])
+    outs.append(np.load(tmp_path / "warm.npy"))
     assert np.array_equal(outs[0], outs[1])
 
 
