@@ -427,8 +427,9 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         other = int(others[j[i]])
         x, y, z = (float(v) for v in waiting[j[i]])
         who = f"group {f.drones.group!r}" if isinstance(f.drones, DronesFromGroup) else f"the {len(drones)} drones"
-        does = {"hold": "holds", "land": "waits to land"}.get(f.others, "parks")
-        where = {"hold": "where it was", "land": "over its home"}.get(f.others, "behind the formation")
+        mode = f.others or "hold"
+        does = {"hold": "holds", "land": "waits to land"}.get(mode, "parks")
+        where = {"hold": "where it was", "land": "over its home"}.get(mode, "behind the formation")
         raise PlanError(
             f"formations[{k}].points[{point}]: point {point} of formation {f.name!r} (flown by {who}) is "
             f"{float(near_m[i]):.3f} m from drone {other}, which {does} {where} at ({x:.2f}, {y:.2f}, {z:.2f}) m; "
@@ -495,7 +496,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             layered = subset_plan(True)
             if not layered.unresolved:
                 tp = layered
-        if tp.unresolved and duration is None and f.others != "hold" and len(others):
+        if tp.unresolved and duration is None and f.others in ("park", "land") and len(others):
             # The formation drawn through the previous one: the flyers cross the others on their way out.
             # Clear the stage first (others to the park or over their homes, then the flyers), kept when it
             # leaves fewer conflicts.
