@@ -136,3 +136,16 @@ def test_plan_movers_keeps_still_drones_still_and_clear():
         path = leg.a_m[movers][:, None] + s[None, :, None] * (leg.b_m[movers] - leg.a_m[movers])[:, None]
         d = np.linalg.norm(path[:, :, None, :] - a[still][None, None], axis=-1)
         assert d.min() >= MIN_D - 1e-6
+
+
+def test_api_check_is_a_problem_naming_the_point():
+    """The check task (POST /api/shows/{id}/check) turns the refusal into a 422 problem with its loc and path."""
+    from app import tasks
+
+    with pytest.raises(tasks.TaskFailure) as info:
+        tasks.check_task(json.dumps(_doc("hold")))
+    assert info.value.kind == tasks.FailureKind.INVALID
+    (problem,) = info.value.detail
+    assert problem["path"].startswith("formations[2].points[")
+    assert problem["loc"][:4] == ["show", "formations", 2, "points"]
+    assert "from drone" in problem["msg"] and "holds" in problem["msg"]
