@@ -149,3 +149,15 @@ def test_api_check_is_a_problem_naming_the_point():
     assert problem["path"].startswith("formations[2].points[")
     assert problem["loc"][:4] == ["show", "formations", 2, "points"]
     assert "from drone" in problem["msg"] and "holds" in problem["msg"]
+
+
+def test_staged_transition_meets_a_cue():
+    """The staged window (several legs over every drone) is stretched to an ``arrive_at_s`` like any other."""
+    doc = _doc("park")
+    doc["formations"][2]["arrive_at_s"] = 125.0
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == "line")
+    assert into.start_s + into.duration_s == pytest.approx(125.0, abs=1e-6)
+    assert into.unresolved == ()
+    assert check_plan(plan).ok
+    assert _dense_window_min(plan, into.start_s, 125.0) >= MIN_D - 1e-3
