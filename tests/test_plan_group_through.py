@@ -161,3 +161,22 @@ def test_staged_transition_meets_a_cue():
     assert into.unresolved == ()
     assert check_plan(plan).ok
     assert _dense_window_min(plan, into.start_s, 125.0) >= MIN_D - 1e-3
+
+
+def test_forced_window_names_the_waiting_drone_not_wider_formations():
+    """With a forced transition_s the planner may not stage the window: the conflicts with parking drones
+    say so and name the field to free (the QA report: 'space the formations wider' did not help)."""
+    doc = _doc("park")
+    doc["formations"][2]["transition_s"] = 15.0
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == "line")
+    assert into.unresolved
+    waiting = [u for u in into.unresolved if any(d >= 40 for d in u.drones)]
+    assert waiting
+    for u in waiting:
+        assert "wider" not in u.fix and "remove formations[2].transition_s" in u.fix
+        assert any(f"drone {d} parks" in u.fix for d in u.drones if d >= 40)
+    # ... and the advice is right: without the forced duration the same show is safe (test above).
+    report = check_plan(plan)
+    assert not report.ok
+    assert "remove formations[2].transition_s, so that the planner can clear" in json.dumps(report.to_json())

@@ -437,6 +437,30 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             "so no plan can keep it: move the formation's points away from the waiting drones, or let the others "
             "park ('others': 'park')", path=f"formations[{k}].points[{point}]")
 
+    def explain_waiting(tp: TransitionPlan, k: int, flying: np.ndarray, forced_s: bool) -> TransitionPlan:
+        """Subset formation k's conflicts with a drone that does not fly it: say so, and what helps (spacing
+        the formations wider does not: that drone waits in the way, or the forced duration kept the planner
+        from clearing the others first)."""
+        f = show.formations[k]
+        mode = f.others or "hold"
+        does = {"hold": "holds where it was", "land": "flies home to land"}.get(mode, "parks")
+        if forced_s and mode != "hold":
+            helps = (f"remove formations[{k}].transition_s, so that the planner can clear the others first "
+                     "and then fly the formation's drones")
+        else:
+            helps = ("let the others park ('others': 'park') or move the formation's points so that its drones "
+                     "need not pass the waiting ones")
+
+        def fix(u: UnresolvedConflict) -> UnresolvedConflict:
+            idle = [d for d in u.drones if not flying[d]]
+            if not idle:
+                return u
+            return replace(u, fix=f"drone {idle[0]} {does} (others: {mode!r}) in the way of formation {f.name!r}'s "
+                                  f"drones: {helps}")
+
+        return replace(tp, legs=tuple(replace(leg, unresolved=tuple(fix(u) for u in leg.unresolved))
+                                      for leg in tp.legs))
+
     def prepare_formation(k: int, start: np.ndarray, from_name: str
                           ) -> tuple[TransitionPlan, np.ndarray, np.ndarray, Schedule | None]:
         """The transition into formation k from ``start``: (plan, its goal points, which drones fly it,
@@ -507,6 +531,8 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             if len(staged.unresolved) < len(tp.unresolved):
                 tp = staged
                 goals = np.concatenate([pts, parked])
+        if tp.unresolved:
+            tp = explain_waiting(tp, k, flying, duration is not None)
         descent = None
         if f.others == "land" and len(others):
             descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")
