@@ -524,13 +524,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             # The formation drawn through the previous one: the flyers cross the others on their way out.
             # Clear the stage first (others to the park or over their homes, then the flyers), kept when it
             # leaves fewer conflicts.
-            staged, parked = staged_subset(start, pts, drones, slots if f.others == "park" else waiting, lim,
-                                           min_distance_m=s.min_distance_m, ceiling_m=s.max_altitude_m,
-                                           floor_m=s.min_altitude_m, label=label, sync_s=tp.sync_s,
-                                           own=f.others == "land")
-            if len(staged.unresolved) < len(tp.unresolved):
-                tp = staged
-                goals = np.concatenate([pts, parked])
+            # Landing others may have homes on either side of the formation: both orders, the safer kept.
+            for flyers_first in (False, True) if f.others == "land" else (False,):
+                staged, parked = staged_subset(start, pts, drones, slots if f.others == "park" else waiting, lim,
+                                               min_distance_m=s.min_distance_m, ceiling_m=s.max_altitude_m,
+                                               floor_m=s.min_altitude_m, label=label, sync_s=tp.sync_s,
+                                               own=f.others == "land", flyers_first=flyers_first)
+                if len(staged.unresolved) < len(tp.unresolved):
+                    tp = staged
+                    goals = np.concatenate([pts, parked])
+                if not tp.unresolved:
+                    break
         if tp.unresolved:
             tp = explain_waiting(tp, k, flying, duration is not None)
         descent = None

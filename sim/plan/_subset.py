@@ -129,7 +129,7 @@ def plan_movers(a_m: np.ndarray, goals_m: np.ndarray, movers: np.ndarray, lim: L
 
 def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slots_m: np.ndarray, lim: Limits, *,
                   min_distance_m: float, ceiling_m: float, floor_m: float, label: str,
-                  sync_s: float, own: bool = False) -> tuple[TransitionPlan, np.ndarray]:
+                  sync_s: float, own: bool = False, flyers_first: bool = False) -> tuple[TransitionPlan, np.ndarray]:
     """Into a subset formation whose others park (or land), in two stages: the others fly to the park slots
     (or over their homes) while the formation's drones wait where they are, then the formation's drones fly
     to their points while the others wait there (each stage :func:`plan_movers`).
@@ -143,6 +143,8 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
         slots_m: (N - n, 3) park slots for the others (any of them), or with ``own`` each other's own
             waiting point (in the order of the others), metres.
         sync_s: the single-window synchronised minimum, seconds (for the plan's stagger).
+        flyers_first: after the others' step back, the formation's drones fly first and the others then go
+            to their slots (e.g. homes in front of the formation, which the others would reach through it).
 
     Returns:
         (the plan over all N drones, resolution "layers", its goal index into ``points_m`` then the
@@ -158,14 +160,22 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     back = a_m.copy()
     back[others, 1] = max(float(slots_m[:, 1].max()), float(a_m[:, 1].max()) + PARK_OFFSET_FACTOR * min_distance_m)
     step = schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)
-    park_legs, parked, slot_of = plan_movers(back, slots_m, others, lim, min_distance_m=min_distance_m,
-                                             ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
-    fly_legs, _, point_of = plan_movers(parked, points_m, drones, lim, min_distance_m=min_distance_m,
-                                        ceiling_m=ceiling_m, floor_m=floor_m, label=label)
+    if flyers_first:
+        fly_legs, flown, point_of = plan_movers(back, points_m, drones, lim, min_distance_m=min_distance_m,
+                                                ceiling_m=ceiling_m, floor_m=floor_m, label=label)
+        park_legs, _, slot_of = plan_movers(flown, slots_m, others, lim, min_distance_m=min_distance_m,
+                                            ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        stages = (step, *fly_legs, *park_legs)
+    else:
+        park_legs, parked, slot_of = plan_movers(back, slots_m, others, lim, min_distance_m=min_distance_m,
+                                                 ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        fly_legs, _, point_of = plan_movers(parked, points_m, drones, lim, min_distance_m=min_distance_m,
+                                            ceiling_m=ceiling_m, floor_m=floor_m, label=label)
+        stages = (step, *park_legs, *fly_legs)
     goal_index = np.empty(n, dtype=np.int64)
     goal_index[drones] = point_of
     goal_index[others] = len(points_m) + np.arange(len(others))
-    legs = tuple(leg for leg in (step, *park_legs, *fly_legs) if np.any(leg.a_m != leg.b_m))
+    legs = tuple(leg for leg in stages if np.any(leg.a_m != leg.b_m))
     return TransitionPlan(legs, goal_index, "layers", sync_s), np.asarray(slots_m[slot_of], dtype=np.float64)
 
 
