@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, load_show_arg, print_json, progress_bar
+from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,11 +20,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from sim import check_show
+    from sim import PlanError, check_show
 
     show = load_show_arg(args.show)
-    with progress_bar("check") as update:
-        report = check_show(show, progress=update)
+    try:
+        with progress_bar("check") as update:
+            report = check_show(show, progress=update)
+    except PlanError as exc:  # the show cannot be planned as drawn: one line naming the field (exit 2)
+        raise CliError(f"{args.show}: {exc}") from exc
     if args.json:
         print_json(report.to_json())
     else:

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from formations import HomeFromBoxes, Settings, ShowFile
+from formations import DronesFromGroup, HomeFromBoxes, Settings, ShowFile
 from sim.plan._assignment import assign, assignment_cost
 from sim.plan._blend import blended_pieces
 from sim.plan._cues import earliest_window, fit_transition
@@ -56,7 +56,7 @@ from sim.plan._schedule import (
     sync_min_duration,
     synchronised,
 )
-from sim.plan._subset import choose_drones, park_slots
+from sim.plan._subset import choose_drones, park_slots, staged_subset
 from sim.plan._trajectory import Trajectories, TrajectoryBuilder, rest_to_rest_quintic_coeffs
 from sim.plan._waves import Waves, home_waves, layer_heights, plan_waves, takeoff_waves, wave_gap
 
@@ -411,6 +411,56 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         end[drones, 2] = z_m
         return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
 
+    def overlap(k: int, flyer_goals: np.ndarray, drones: np.ndarray, waiting: np.ndarray, others: np.ndarray) -> None:
+        """Refuse subset formation k when one of its drones' points (``flyer_goals`` (n, 3) of ``drones``) lies
+        closer than min_distance_m to where one of the ``others`` waits (``waiting``): no plan can be safe then,
+        the designer must move the points (or park the others)."""
+        if not len(others) or not len(drones):
+            return
+        f = show.formations[k]
+        near_m, j = cKDTree(waiting).query(flyer_goals)
+        bad = np.flatnonzero(near_m < s.min_distance_m * (1.0 - 1e-9))
+        if not len(bad):
+            return
+        i = int(bad[np.argmin(near_m[bad])])
+        point = int(np.flatnonzero(np.all(f.points_m == flyer_goals[i], axis=1))[0])
+        other = int(others[j[i]])
+        x, y, z = (float(v) for v in waiting[j[i]])
+        who = f"group {f.drones.group!r}" if isinstance(f.drones, DronesFromGroup) else f"the {len(drones)} drones"
+        mode = f.others or "hold"
+        does = {"hold": "holds", "land": "waits to land"}.get(mode, "parks")
+        where = {"hold": "where it was", "land": "over its home"}.get(mode, "behind the formation")
+        raise PlanError(
+            f"formations[{k}].points[{point}]: point {point} of formation {f.name!r} (flown by {who}) is "
+            f"{float(near_m[i]):.3f} m from drone {other}, which {does} {where} at ({x:.2f}, {y:.2f}, {z:.2f}) m; "
+            f"the minimum distance is {s.min_distance_m:g} m ({len(bad)} of the formation's points are that close), "
+            "so no plan can keep it: move the formation's points away from the waiting drones, or let the others "
+            "park ('others': 'park')", path=f"formations[{k}].points[{point}]")
+
+    def explain_waiting(tp: TransitionPlan, k: int, flying: np.ndarray, forced_s: bool) -> TransitionPlan:
+        """Subset formation k's conflicts with a drone that does not fly it: say so, and what helps (spacing
+        the formations wider does not: that drone waits in the way, or the forced duration kept the planner
+        from clearing the others first)."""
+        f = show.formations[k]
+        mode = f.others or "hold"
+        does = {"hold": "holds where it was", "land": "flies home to land"}.get(mode, "parks")
+        if forced_s and mode != "hold":
+            helps = (f"remove formations[{k}].transition_s, so that the planner can clear the others first "
+                     "and then fly the formation's drones")
+        else:
+            helps = ("let the others park ('others': 'park') or move the formation's points so that its drones "
+                     "need not pass the waiting ones")
+
+        def fix(u: UnresolvedConflict) -> UnresolvedConflict:
+            idle = [d for d in u.drones if not flying[d]]
+            if not idle:
+                return u
+            return replace(u, fix=f"drone {idle[0]} {does} (others: {mode!r}) in the way of formation {f.name!r}'s "
+                                  f"drones: {helps}")
+
+        return replace(tp, legs=tuple(replace(leg, unresolved=tuple(fix(u) for u in leg.unresolved))
+                                      for leg in tp.legs))
+
     def prepare_formation(k: int, start: np.ndarray, from_name: str
                           ) -> tuple[TransitionPlan, np.ndarray, np.ndarray, Schedule | None]:
         """The transition into formation k from ``start``: (plan, its goal points, which drones fly it,
@@ -440,6 +490,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         flying[:] = False
         flying[drones] = True
         others = np.flatnonzero(~flying)
+        slots = np.empty((0, 3))
         if f.others == "park":
             slots = park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
                                ceiling_m=s.max_altitude_m)
@@ -448,6 +499,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             waiting = home[others] + lift
         else:
             waiting = start[others]
+        overlap(k, pts[point_index], drones, waiting, others)
         goals = np.concatenate([pts, waiting])
         goal_index = np.empty(len(start), dtype=np.int64)
         goal_index[drones] = point_index
@@ -468,6 +520,23 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             layered = subset_plan(True)
             if not layered.unresolved:
                 tp = layered
+        if tp.unresolved and duration is None and f.others in ("park", "land") and len(others):
+            # The formation drawn through the previous one: the flyers cross the others on their way out.
+            # Clear the stage first (others to the park or over their homes, then the flyers), kept when it
+            # leaves fewer conflicts.
+            # Landing others may have homes on either side of the formation: both orders, the safer kept.
+            for flyers_first in (False, True) if f.others == "land" else (False,):
+                staged, parked = staged_subset(start, pts, drones, slots if f.others == "park" else waiting, lim,
+                                               min_distance_m=s.min_distance_m, ceiling_m=s.max_altitude_m,
+                                               floor_m=s.min_altitude_m, label=label, sync_s=tp.sync_s,
+                                               own=f.others == "land", flyers_first=flyers_first)
+                if len(staged.unresolved) < len(tp.unresolved):
+                    tp = staged
+                    goals = np.concatenate([pts, parked])
+                if not tp.unresolved:
+                    break
+        if tp.unresolved:
+            tp = explain_waiting(tp, k, flying, duration is not None)
         descent = None
         if f.others == "land" and len(others):
             descent = vertical_leg(tp.legs[-1].b_m, others, home[others, 2], f"landing the others of {f.name!r}")

@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
 from sim.plan._assignment import assign
+from sim.plan._schedule import Limits, Schedule, TransitionPlan, plan_transition, schedule_transition
 
 #: Largest drones x (points + staying) cost matrix built for an exact count selection (32 MB of float64).
 DENSE_SELECT_MAX_CELLS = 4_000_000
@@ -90,4 +91,92 @@ def park_slots(points_m: np.ndarray, count: int, *, min_distance_m: float, floor
     return np.asarray(slots[np.sort(keep)], dtype=np.float64)
 
 
-__all__ = ["choose_drones", "park_slots"]
+def plan_movers(a_m: np.ndarray, goals_m: np.ndarray, movers: np.ndarray, lim: Limits, *, min_distance_m: float,
+                ceiling_m: float, floor_m: float, label: str, own: bool = False
+                ) -> tuple[tuple[Schedule, ...], np.ndarray, np.ndarray]:
+    """Fly only ``movers`` to the points ``goals_m`` while every other drone stays put.
+
+    The movers' transition is planned on their own (:func:`plan_transition`: CAPT, delays or spread
+    layers among themselves, which cannot move the still drones); each of its legs is then flown over
+    *every* drone by :func:`schedule_transition`, with the still drones as fixed obstacles it keeps
+    clear of (what it cannot is in the legs' ``unresolved``). The sub-plan's blended overlaps are
+    dropped: the legs follow one another.
+
+    Args:
+        a_m: (N, 3) every drone's position, metres.
+        goals_m: (M, 3) the movers' goal points (M >= n), metres.
+        movers: (n,) indices of the drones that move.
+        own: mover k must end on ``goals_m[k]`` (e.g. over its own home); else CAPT's assignment.
+
+    Returns:
+        (legs over all N drones, (N, 3) where every drone ends, (n,) the goal point of each mover).
+    """
+    start = a_m[movers]
+    first = None if own else assign(start, goals_m)
+    goal_index = np.arange(len(movers)) if first is None else first.goal_index
+    sub = plan_transition(start, goals_m, goal_index, lim, min_distance_m=min_distance_m, ceiling_m=ceiling_m,
+                          floor_m=floor_m, label=label, fixed_assignment=own, warm=first)
+    legs: list[Schedule] = []
+    at = a_m.copy()
+    for leg in sub.legs:
+        a_leg = at.copy()
+        a_leg[movers] = leg.a_m
+        at = a_leg.copy()
+        at[movers] = leg.b_m
+        legs.append(schedule_transition(a_leg, at, lim, min_distance_m=min_distance_m, label=label))
+    return tuple(legs), at, sub.goal_index
+
+
+def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slots_m: np.ndarray, lim: Limits, *,
+                  min_distance_m: float, ceiling_m: float, floor_m: float, label: str,
+                  sync_s: float, own: bool = False, flyers_first: bool = False) -> tuple[TransitionPlan, np.ndarray]:
+    """Into a subset formation whose others park (or land), in two stages: the others fly to the park slots
+    (or over their homes) while the formation's drones wait where they are, then the formation's drones fly
+    to their points while the others wait there (each stage :func:`plan_movers`).
+
+    Clearing the stage first keeps the formation's drones from crossing the others on their way out
+    (one shared window over every drone cannot, when the formation is drawn through the previous one).
+
+    Args:
+        a_m: (N, 3) start positions, metres.
+        points_m: (M, 3) the formation's points; ``drones`` (n,) the drones that fly it.
+        slots_m: (N - n, 3) park slots for the others (any of them), or with ``own`` each other's own
+            waiting point (in the order of the others), metres.
+        sync_s: the single-window synchronised minimum, seconds (for the plan's stagger).
+        flyers_first: after the others' step back, the formation's drones fly first and the others then go
+            to their slots (e.g. homes in front of the formation, which the others would reach through it).
+
+    Returns:
+        (the plan over all N drones, resolution "layers", its goal index into ``points_m`` then the
+        others' slots in the order of the others; (N - n, 3) where each of the others parks).
+    """
+    n = len(a_m)
+    flying = np.zeros(n, dtype=bool)
+    flying[drones] = True
+    others = np.flatnonzero(~flying)
+    # First straight back (+y, away from the audience) to the park layer's depth, at least PARK_OFFSET_FACTOR
+    # x min_distance_m behind every drone: leaving a flat x-z formation along its normal only moves a drone
+    # away from the ones that stay in it (its distance to each grows as sqrt(d² + y²)); then within the layer.
+    back = a_m.copy()
+    back[others, 1] = max(float(slots_m[:, 1].max()), float(a_m[:, 1].max()) + PARK_OFFSET_FACTOR * min_distance_m)
+    step = schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)
+    if flyers_first:
+        fly_legs, flown, point_of = plan_movers(back, points_m, drones, lim, min_distance_m=min_distance_m,
+                                                ceiling_m=ceiling_m, floor_m=floor_m, label=label)
+        park_legs, _, slot_of = plan_movers(flown, slots_m, others, lim, min_distance_m=min_distance_m,
+                                            ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        stages = (step, *fly_legs, *park_legs)
+    else:
+        park_legs, parked, slot_of = plan_movers(back, slots_m, others, lim, min_distance_m=min_distance_m,
+                                                 ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        fly_legs, _, point_of = plan_movers(parked, points_m, drones, lim, min_distance_m=min_distance_m,
+                                            ceiling_m=ceiling_m, floor_m=floor_m, label=label)
+        stages = (step, *park_legs, *fly_legs)
+    goal_index = np.empty(n, dtype=np.int64)
+    goal_index[drones] = point_of
+    goal_index[others] = len(points_m) + np.arange(len(others))
+    legs = tuple(leg for leg in stages if np.any(leg.a_m != leg.b_m))
+    return TransitionPlan(legs, goal_index, "layers", sync_s), np.asarray(slots_m[slot_of], dtype=np.float64)
+
+
+__all__ = ["choose_drones", "park_slots", "plan_movers", "staged_subset"]
