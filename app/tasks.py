@@ -442,7 +442,7 @@ def montecarlo_task(
             "msg": f"{plan.drone_count} drones x {plan.duration_s:g} s x {runs} runs = {work:.3g} drone-seconds "
                    f"exceeds the limit of {MAX_MONTECARLO_DRONE_S:g}; use runs <= {most}"}])
     base = FlightOptions(engine=options.get("engine", "numba"), controller=options.get("controller", "ismc"),
-                         scheduler=options.get("scheduler"))
+                         scheduler=options.get("scheduler"), precision=options.get("precision", "float64"))
     try:
         result = monte_carlo(
             plan, options_for_preset(options["preset"], base), runs=runs, seed0=int(options.get("seed0", 0)),
@@ -690,7 +690,8 @@ def montecarlo_run_options(options: dict[str, Any], run: int) -> Any:
     """
     from sim.flight import FlightOptions, options_for_preset
 
-    base = FlightOptions(controller=options.get("controller", "ismc"), seed=int(options.get("seed0", 0)) + int(run))
+    base = FlightOptions(controller=options.get("controller", "ismc"), seed=int(options.get("seed0", 0)) + int(run),
+                         precision=options.get("precision", "float64"))
     return options_for_preset(options["preset"], base)
 
 

@@ -56,6 +56,7 @@ from sim.flight.control._ismc import IsmcGains as IsmcGains
 from sim.flight.control._ismc import PositionGains as PositionGains
 from sim.flight.control._ismc import sig as sig
 from sim.flight.control._ismc import unit as unit
+from sim.flight.engines import PRECISIONS as PRECISIONS
 from sim.flight.engines import SimResult as SimResult
 from sim.flight.engines import TrackingReference as TrackingReference
 from sim.flight.engines import hover_state as hover_state
@@ -69,6 +70,7 @@ from sim.flight.scenarios._paper import run_paper_scenario as run_paper_scenario
 __all__ = [
     "CONTROLLERS",
     "DEFAULT_COLLISION_DISTANCE_M",
+    "PRECISIONS",
     "PRESETS",
     "MonteCarloResult",
     "RunStats",
