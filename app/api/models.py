@@ -201,7 +201,7 @@ class SimulateOptions(BaseModel):
     output_hz: float = Field(25.0, gt=0, le=1000, description="Rate of the recorded trajectory, Hz.")
     precision: PrecisionName = Field(
         "float64", description="The numba kernel's arithmetic: float64 (default; agrees with the numpy reference "
-        "to 1e-9) or float32 control laws (~1.4x faster, results differ at the rounding level).")
+        "to 1e-9) or float32 control laws (1.3-1.4x faster kernel, results differ at the rounding level).")
 
     @model_validator(mode="after")
     def _precision_needs_numba(self) -> SimulateOptions:

@@ -92,7 +92,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="external disturbance for a show flight (default none)")
     p.add_argument("--precision", choices=PRECISIONS, default="float64",
                    help="the numba kernel's arithmetic: float64 (default; agrees with the numpy reference to "
-                        "1e-9) or float32 control laws (~1.4x faster kernel, results differ at the rounding level)")
+                        "1e-9) or float32 control laws (1.3-1.4x faster kernel, results differ at the rounding level)")
     p.add_argument("--output-hz", type=float, default=25.0, help="rate of recorded frames, Hz (default 25)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")

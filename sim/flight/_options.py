@@ -76,7 +76,7 @@ class FlightOptions:
             False leaves them ``(0, N, 3)``: the Monte-Carlo runs never read them, and
             evaluating them cost 4-7 % of a run (issue 20).
         precision: the numba kernel's arithmetic, ``"float64"`` (default) or ``"float32"``
-            (control laws in single precision, ~1.4x faster; see :func:`sim.flight.simulate`).
+            (control laws in single precision, 1.3-1.4x faster kernel; see :func:`sim.flight.simulate`).
 
     Raises:
         ValueError: a field out of its range, naming the field (the API maps it to 422).

@@ -109,7 +109,7 @@ def simulate(
             ground, for free-space references (the paper scenario's p_ref dips to z = -1 m);
             a flown show passes its own (``sim.flight._runner.fly_local``).
         precision: ``"float64"`` (default) or, with the numba engine, ``"float32"``: the control
-            laws in single precision (:mod:`sim.flight.engines._numba_f32`; ~1.4x the kernel's
+            laws in single precision (:mod:`sim.flight.engines._numba_f32`; 1.3-1.4x the kernel's
             speed; the plant and every integrated state stay float64). Only float64 keeps the
             1e-9 agreement with the numpy reference and the bit-exact hover.
 

@@ -9,15 +9,16 @@ square roots, the exp/log of the laws' ``sig`` and the attitude's asin/atan2 are
 ``vdivps``/``vsqrtps`` have lower latency than their double forms on Zen 4), and 8 drones of
 float32 fill a ymm register instead of a zmm one. LLVM still vectorises the lane loop 8 drones
 wide (the widest type in the loop, float64, sets its factor), so the float32 arithmetic runs in
-ymm (packed-single ``...ps`` instructions; ``benchmarks/bench_sim.py`` checks it).
+ymm (packed-single ``...ps`` instructions; ``benchmarks/bench_precision.py`` checks it).
 
-Measured (``/work/s5/abin.py``-style alternating single-thread rounds in one process, kernel CPU
-time, 4,000 drones, gusty-rtk, 301 steps): 1.41x the float64 kernel (median of 8 rounds, range
-1.39-1.48). Also measured and not kept: 16 lanes per block, 1.39x; 16 lanes with LLVM forced to
-vectorise 16 wide (``-force-vector-width=16``, a process-global LLVM option, set only in the
-compiling child: f32 in zmm, f64 in zmm pairs; 3,213 instructions per 16 drones against 2,051
-per 8, a third of them stack spills): 1.49x (range 1.36-1.55), but it needs that global option
-at compile time.
+Measured (``benchmarks/bench_precision.py``: alternating single-thread rounds in one process,
+kernel CPU time, 4,000 drones, gusty-rtk, 301 steps; medians of 8 rounds in four runs): 1.30x the
+float64 kernel on a quiet machine, 1.37-1.41x under load (the float64 kernel's rate falls more with
+the machine's load). Also measured and not kept: 16 lanes per block, 1.34-1.39x; 16 lanes with
+LLVM forced to vectorise 16 wide (``-force-vector-width=16``, a process-global LLVM option, set
+only in the compiling child: float32 in zmm, float64 in zmm pairs; 3,213 instructions per 16
+drones against 2,051 per 8, a third of them stack spills): 1.46-1.49x, but a process that
+compiled without the option would run other machine code (see ``_cached_machine_code``).
 
 What stays float64 and why (per quantity):
 
