@@ -45,11 +45,12 @@ def _f32_kernel_asm() -> str:
 def test_f32_kernel_lane_loop_is_packed_single(record_result) -> None:
     """The control laws compile to packed single-precision arithmetic (a float64 literal would promote
     them to ``...pd``); the float64 plant and integrators stay packed double."""
-    body = "\n".join(_lane_loop_body(_f32_kernel_asm()))
+    asm = _f32_kernel_asm()
+    body = "\n".join(_lane_loop_body(asm))
     ps, pd = len(_PACKED_PS.findall(body)), len(_PACKED_PD.findall(body))
     cvt = len(re.findall(r"vcvt(?:pd2ps|ps2pd)", body))
     fig = {"packed_single_arith": ps, "packed_double_arith": pd, "float_conversions": cvt,
-           "lane_loop_profile": lane_loop_profile("\n".join(["x:"] + ["\t" + x for x in body.splitlines()]))}
+           "lane_loop_profile": lane_loop_profile(asm)}
     record_result(fig)
     assert ps >= 500 and ps > pd, fig
     assert cvt < 200, fig  # conversions only where float64 and float32 meet (~90 per 8 drones)

@@ -58,6 +58,15 @@ def test_float32_demo_show_flown_separation_within_a_millimetre():
     b = fly_show(plan, opts.with_(precision="float32"))
     assert abs(a.flown_min_distance_m - b.flown_min_distance_m) < 1 * MM  # measured 0.1 mm
     assert a.summary()["diverged"] == b.summary()["diverged"] == []
+    assert not np.array_equal(a.positions_m, b.positions_m)  # the option reached the kernel
+    # The Monte-Carlo runner flies its runs with the options' precision (one run, same seed).
+    from sim.flight import fly_run
+
+    run32 = fly_run(plan, opts.with_(precision="float32"), run=0, seed=5)
+    run64 = fly_run(plan, opts, run=0, seed=5)
+    assert abs(run32.min_distance_m - b.flown_min_distance_m) < 1e-6
+    assert abs(run64.min_distance_m - a.flown_min_distance_m) < 1e-6
+    assert run32.min_distance_m != run64.min_distance_m
 
 
 def test_precision_is_checked_and_needs_the_numba_engine():
