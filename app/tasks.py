@@ -422,7 +422,8 @@ def single_flight_options(options: dict[str, Any]) -> Any:
 
     disturbance = options.get("disturbance", "none")
     preset = options.get("preset") or ("ideal" if disturbance != "none" else DEFAULT_FLIGHT_PRESET)
-    kwargs = {k: options[k] for k in ("engine", "controller", "output_hz", "scheduler") if k in options}
+    kwargs = {k: options[k] for k in ("engine", "controller", "output_hz", "scheduler", "precision")
+              if k in options}
     try:
         return resolve(preset, FlightOptions(**kwargs, disturbance=disturbance, seed=int(options.get("seed", 0))))
     except ValueError as exc:
@@ -476,7 +477,7 @@ def montecarlo_task(
             "msg": f"{plan.drone_count} drones x {plan.duration_s:g} s x {runs} runs = {work:.3g} drone-seconds "
                    f"exceeds the limit of {MAX_MONTECARLO_DRONE_S:g}; use runs <= {most}"}])
     base = FlightOptions(engine=options.get("engine", "numba"), controller=options.get("controller", "ismc"),
-                         scheduler=options.get("scheduler"))
+                         scheduler=options.get("scheduler"), precision=options.get("precision", "float64"))
     try:
         result = monte_carlo(
             plan, options_for_preset(options["preset"], base), runs=runs, seed0=int(options.get("seed0", 0)),
@@ -727,7 +728,8 @@ def montecarlo_run_options(options: dict[str, Any], run: int) -> Any:
     """
     from sim.flight import FlightOptions, options_for_preset
 
-    base = FlightOptions(controller=options.get("controller", "ismc"), seed=int(options.get("seed0", 0)) + int(run))
+    base = FlightOptions(controller=options.get("controller", "ismc"), seed=int(options.get("seed0", 0)) + int(run),
+                         precision=options.get("precision", "float64"))
     return options_for_preset(options["preset"], base)
 
 

@@ -62,6 +62,7 @@ from sim.flight.control._ismc import IsmcGains as IsmcGains
 from sim.flight.control._ismc import PositionGains as PositionGains
 from sim.flight.control._ismc import sig as sig
 from sim.flight.control._ismc import unit as unit
+from sim.flight.engines import PRECISIONS as PRECISIONS
 from sim.flight.engines import SimResult as SimResult
 from sim.flight.engines import TrackingReference as TrackingReference
 from sim.flight.engines import hover_state as hover_state
@@ -76,6 +77,7 @@ __all__ = [
     "CONTROLLERS",
     "DEFAULT_COLLISION_DISTANCE_M",
     "DEFAULT_FLIGHT_PRESET",
+    "PRECISIONS",
     "PRESETS",
     "MonteCarloResult",
     "RunStats",

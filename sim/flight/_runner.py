@@ -121,7 +121,7 @@ def fly_local(
         gains=gains, disturbance=dist, seed=seed, dt_s=dt_s, output_every=every, engine=engine,
         divergence_limit_m=divergence_limit_m, chunk_steps=max(int(round(chunk_s / dt_s)), 1),
         progress=progress, frames_out=positions, on_chunk=on_chunk if flown_distance else None,
-        errors=options.errors, drone_ids=ids, ground_m=ground_m,
+        errors=options.errors, drone_ids=ids, ground_m=ground_m, precision=options.precision,
     )
     wall = time.perf_counter() - start
 

@@ -98,6 +98,10 @@ attitude's state-only part (sin/cos, W, its ``sig`` factors) ahead of the positi
 the source, so that it could fill the window while the position chain waits: 0.97x (LLVM's
 scheduler reorders the block anyway).
 
+Single precision: :mod:`sim.flight.engines._numba_f32` is this step with the control laws in
+float32 (``precision="float32"``, opt-in): 1.30-1.41x this kernel, within 1 mm of its flights,
+without the 1e-9 agreement with the reference (measurements and the per-quantity choice there).
+
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
 without disturbances), from arbitrary states for a few steps, and with the error models
@@ -1041,6 +1045,21 @@ def run_chunk_numba(
             as in the numpy engine.
         tables: The chunk's GNSS and wind tables (None: ideal).
     """
+    args = _kernel_args(state, ctrl, stats, dstep, dreason, ref=ref, chunk=chunk, dist=dist, step0=step0,
+                        times=times, every=every, frames=frames, tel=tel, opts=opts, tables=tables)
+    _cached_machine_code(_kernel, args)
+    _kernel(*args)
+
+
+
+def _kernel_args(
+    state: np.ndarray, ctrl: np.ndarray, stats: np.ndarray, dstep: np.ndarray,
+    dreason: np.ndarray, *, ref: TrackingReference, chunk: RefChunk, dist: np.ndarray,
+    step0: int, times: np.ndarray, every: int, frames: np.ndarray, tel: np.ndarray | None,
+    opts: dict[str, Any], tables: ChunkTables | None = None,
+) -> tuple[Any, ...]:
+    """The lane kernel's arguments for one chunk (checked); shared with the float32 kernel
+    (:mod:`sim.flight.engines._numba_f32`, same signature). Arguments as :func:`run_chunk_numba`."""
     sw: ErrorSwitches = opts.get("switches") or ErrorSwitches()
     drone = opts.get("drone")
     if drone is None:
@@ -1060,7 +1079,7 @@ def run_chunk_numba(
     # Each drone's piece at the chunk's first step (one search per chunk); the kernel
     # advances from there.
     cursor0 = _rw(motion.piece_index(chunk.times[:1])[0], np.int64)
-    args = (
+    return (
         state, ctrl, stats, dstep, dreason, _rw(motion.breaks_s), _rw(motion.coeffs_m), cursor0,
         _rw(chunk.times), _rw(chunk.offset), _rw(chunk.yaw), _rw(dist), int(step0), int(every),
         frames, tel_arr, use_tel, _rw(opts["params"].as_vector()), _rw(opts["plant"].as_vector()),
@@ -1073,8 +1092,6 @@ def run_chunk_numba(
         float(sw.gate_h_m), float(sw.gate_v_m), float(sw.gate_epochs), float(sw.reset_mps),
         float(opts.get("ground_strike_z_m", -math.inf)), float(sw.battery_end_s),
     )
-    _cached_machine_code(_kernel, args)
-    _kernel(*args)
 
 
 def _rw(a: Any, dtype: type = np.float64) -> np.ndarray:
