@@ -287,7 +287,7 @@ KERNEL_FREE_MODULES = frozenset({
     "test_plan_motion", "test_plan_quintic", "test_plan_schedule", "test_plan_show", "test_plan_timelaw",
     "test_plan_trajectory", "test_plan_verify", "test_show_file", "test_verify_bounds", "test_verify_downwash",
     "test_verify_exact", "test_verify_sweep", "test_viewer_export", "test_viewer_lights_preview",
-    "test_viewer_marks",
+    "test_viewer_marks", "test_plan_group_through", "test_flight_vmath32",
 })
 #: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
 #: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.
@@ -302,6 +302,9 @@ from app.media._beats import detect_beats
 clicks = np.zeros(4 * 22_050, np.float32)
 clicks[::11_025] = 1.0
 detect_beats(clicks, 22_050)
+# Last, the opt-in float32 kernel (tests/test_flight_precision.py), so that the compile of both variants
+# runs beside the tests instead of on the test thread.
+warm_up(precisions=("float32",))
 """
 
 
@@ -387,7 +390,7 @@ def cold_kernel_flight() -> Path | None:
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     if _warm_up.done:
-        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker): {_warm_up.took_s:.1f} s beside "
+        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker, float32 kernel): {_warm_up.took_s:.1f} s beside "
                                     f"the first tests, then waited {_warm_up.waited_s:.1f} s for it")
     if _warm_up.error:
         terminalreporter.write_line(f"numba warm-up failed (the tests compiled on first use):\n{_warm_up.error}")

@@ -229,13 +229,20 @@ def simulate(
     )
 
 
-def warm_up() -> None:
+def warm_up(precisions: tuple[str, ...] = ("float64",)) -> None:
     """Compile (or load from the on-disk cache) both numba kernel variants on a tiny problem.
 
     One variant records float64 frames (``simulate``), the other float32 frames
     (``fly_show``); call this at image build or server start to move the first-run
-    compile time (several seconds each) out of the first request.
+    compile time (several seconds each) out of the first request. ``precisions``: the
+    kernels to warm; the opt-in float32 one is left out by default (a server that never
+    flies it should not pay its compile at every start on a cold cache).
     """
+    for precision in precisions:
+        if precision not in PRECISIONS:
+            raise ValueError(f"precisions: unknown {precision!r} (one of {', '.join(PRECISIONS)})")
     ref = TrackingReference.hover(np.zeros((1, 3)))
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1)
-    simulate(ref, duration_s=0.002, engine="numba", output_every=1, frames_out=np.zeros((3, 1, 3), np.float32))
+    for precision in precisions:
+        simulate(ref, duration_s=0.002, engine="numba", output_every=1, precision=precision)
+        simulate(ref, duration_s=0.002, engine="numba", output_every=1, precision=precision,
+                 frames_out=np.zeros((3, 1, 3), np.float32))
