@@ -390,8 +390,9 @@ def cold_kernel_flight() -> Path | None:
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     if _warm_up.done:
-        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker, float32 kernel): {_warm_up.took_s:.1f} s beside "
-                                    f"the first tests, then waited {_warm_up.waited_s:.1f} s for it")
+        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker, float32 kernel): "
+                                    f"{_warm_up.took_s:.1f} s beside the first tests, then waited "
+                                    f"{_warm_up.waited_s:.1f} s for it")
     if _warm_up.error:
         terminalreporter.write_line(f"numba warm-up failed (the tests compiled on first use):\n{_warm_up.error}")
 
