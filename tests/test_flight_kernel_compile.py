@@ -65,7 +65,7 @@ def stand_in(x, y):
 """
 
 
-def _fresh_stand_in(tmp_path: Path) -> Any:
+def _fresh_stand_in(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Any:
     """A new dispatcher (nothing compiled in memory) for the stand-in's one source file."""
     mod = tmp_path / "kernel_stand_in.py"
     if not mod.exists():
@@ -73,7 +73,7 @@ def _fresh_stand_in(tmp_path: Path) -> Any:
     spec = importlib.util.spec_from_file_location("kernel_stand_in", mod)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    sys.modules["kernel_stand_in"] = module  # the compiling child imports it by this name
+    monkeypatch.setitem(sys.modules, "kernel_stand_in", module)  # the compiling child imports it by this name
     spec.loader.exec_module(module)
     return module.stand_in
 
@@ -87,7 +87,6 @@ def test_a_cold_cache_compile_says_so_once_and_a_warm_cache_says_nothing(tmp_pat
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))  # read when a dispatcher is made
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))  # the compiling child's
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.delitem(sys.modules, "kernel_stand_in", raising=False)
     show_library_notes()
     note = f"swarmshow: {K.COMPILE_NOTE}"
     args = (2.0, 3.0)
@@ -101,20 +100,20 @@ def test_a_cold_cache_compile_says_so_once_and_a_warm_cache_says_nothing(tmp_pat
     def indexes() -> list[Path]:
         return list(cache.rglob("*stand_in*.nbi"))
 
-    cold = _fresh_stand_in(tmp_path)
+    cold = _fresh_stand_in(tmp_path, monkeypatch)
     sig = tuple(cold.typeof_pyval(a) for a in args)
     assert not K._in_disk_cache(cold, sig) and not indexes()
     assert run(cold).count(note) == 1
     assert indexes(), "the child did not compile into the cache"
 
-    warm = _fresh_stand_in(tmp_path)
+    warm = _fresh_stand_in(tmp_path, monkeypatch)
     assert K._in_disk_cache(warm, sig)
     assert note not in run(warm)
 
     # Without the index files numba has no entry for the signature: a compile again, and its note.
     for index in indexes():
         index.unlink()
-    again = _fresh_stand_in(tmp_path)
+    again = _fresh_stand_in(tmp_path, monkeypatch)
     assert not K._in_disk_cache(again, sig)
     assert run(again).count(note) == 1
 
