@@ -132,3 +132,38 @@ def test_cli_bench_sim_on_a_cold_cache_says_it_compiles(tmp_path):
         walls.append(time.perf_counter() - t0)
         assert out.stderr.count(note) == (1 if len(walls) == 1 else 0), out.stderr
     print(f"cold {walls[0]:.1f} s, warm {walls[1]:.1f} s wall")
+
+
+def test_a_jobs_compile_note_reaches_its_status_and_clears_when_it_moves_on():
+    # The worker side: while a task flies, sim's warnings go to its job as a "note" event.
+    import logging
+    import queue
+    import threading
+    import types
+
+    from app.api.errors import job_body
+    from app.api.models import JobOut
+    from app.jobs import Job, JobManager
+    from app.tasks import Progress, library_notes
+
+    events: queue.Queue[Any] = queue.Queue()
+    progress = Progress("j1", events, threading.Event())
+    log = logging.getLogger(K.__name__)
+    with library_notes(progress):
+        log.warning(K.COMPILE_NOTE)
+    log.warning("after the task: not the job's")
+    assert events.get_nowait() == ("j1", "note", K.COMPILE_NOTE) and events.empty()
+
+    # The server side: the relay puts it on the job (its snapshot, so the API and the event stream),
+    # and the next progress clears it.
+    job = Job(id="j1", kind="simulate", content_hash="h", options={})
+    relay = types.SimpleNamespace(_events=events, _lock=threading.Lock(), _jobs={"j1": job}, _closed=False,
+                                  _save=lambda j: None)
+    for item in [("j1", "running", 0.0), ("j1", "progress", 0.1), ("j1", "note", K.COMPILE_NOTE), None]:
+        events.put(item)
+    JobManager._relay_loop(relay)  # type: ignore[arg-type]
+    assert JobOut(**job_body(job.snapshot())).note == K.COMPILE_NOTE
+    for item in [("j1", "progress", 0.5), None]:
+        events.put(item)
+    JobManager._relay_loop(relay)  # type: ignore[arg-type]
+    assert JobOut(**job_body(job.snapshot())).note == "" and job.progress == 0.5
