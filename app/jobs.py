@@ -15,7 +15,8 @@
 * **Errors.** A failed job's ``error`` carries a ``kind`` (:class:`ErrorKind`, or a
   :class:`app.tasks.FailureKind` the task gave); the API maps kinds to HTTP statuses,
   this module knows none. Interactive tasks raise :class:`TaskError` likewise.
-* **Progress.** Workers put ``(job_id, "running" | "progress", fraction)`` on one
+* **Progress.** Workers put ``(job_id, "running" | "progress", fraction)`` (or ``"note"``, a line
+  of text until the next progress, e.g. that the flight kernel compiles) on one
   queue owned by a :mod:`multiprocessing` manager; a relay thread in the server
   applies them to the jobs. Every change bumps ``Job.version``, which is what the
   server-sent event stream watches.
@@ -139,6 +140,7 @@ class Job:
     version: int = 0
     cache_key: str = ""
     client: str = ""
+    note: str = ""
     persisted_at: float = field(default=0.0, repr=False)
     future: Future | None = field(default=None, repr=False)
     cancel_event: Any = field(default=None, repr=False)
@@ -165,6 +167,7 @@ class Job:
             "finished_at": _iso(self.finished_at),
             "result": self.result if with_result else None,
             "error": self.error,
+            "note": self.note,
         }
 
 
@@ -425,7 +428,13 @@ class JobManager:
                 was = job.state
                 if what == "running" and job.state == JobState.QUEUED:
                     job.state, job.started_at = JobState.RUNNING, time.time()
+                elif what == "note":
+                    job.note = str(value)[:200]
                 elif what == "progress":
+                    # A note says what holds the progress up (a kernel compile): it holds until the
+                    # task moves on.
+                    if float(value) > job.progress:
+                        job.note = ""
                     job.progress = max(job.progress, min(float(value), 1.0))
                     if job.state == JobState.QUEUED:
                         job.state, job.started_at = JobState.RUNNING, time.time()

@@ -17,9 +17,12 @@ their client has gone.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
@@ -178,9 +181,41 @@ class Progress:
             self._sent, self._sent_at = f, now
             self._queue.put((self.job_id, "progress", f))
 
+    def note(self, text: str) -> None:
+        """Tell the server a one-line note for the job's status (``JobOut.note``)."""
+        self._queue.put((self.job_id, "note", str(text)))
+
     def scaled(self, start: float, stop: float) -> Any:
         """A callback mapping [0, 1] onto [start, stop] of this job."""
         return lambda f: self(start + (stop - start) * float(f))
+
+
+class _NoteHandler(logging.Handler):
+    """Passes the ``sim`` packages' warnings to the job (the flight kernel's cold-cache compile note)."""
+
+    def __init__(self, progress: Progress) -> None:
+        super().__init__(logging.WARNING)
+        self._progress = progress
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self._progress.note(record.getMessage())
+        except Exception:  # logging's contract: a failing handler must not raise
+            self.handleError(record)
+
+
+@contextmanager
+def library_notes(progress: Progress) -> Iterator[None]:
+    """While a task runs, the ``sim`` packages' warnings become its job's note: a first flight on a
+    cold numba cache compiles the flight kernel for minutes, and the job says so instead of sitting
+    silent (``sim.flight.engines._numba.COMPILE_NOTE``)."""
+    handler = _NoteHandler(progress)
+    logger = logging.getLogger("sim")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
 
 
 #: Scheduling niceness of the worker processes: jobs are batch work, and the event loop's requests
@@ -381,7 +416,8 @@ def simulate_task(show_text: str, options: dict[str, Any], job_id: str, queue: A
     fly_show = _fly_show()
     flight_options = single_flight_options(options)
     try:
-        result = fly_show(plan, flight_options, progress=progress.scaled(PLAN_SHARE, 1.0))
+        with library_notes(progress):
+            result = fly_show(plan, flight_options, progress=progress.scaled(PLAN_SHARE, 1.0))
     except TaskCancelled:
         raise
     except ConnectionError as exc:
@@ -479,12 +515,13 @@ def montecarlo_task(
     base = FlightOptions(engine=options.get("engine", "numba"), controller=options.get("controller", "ismc"),
                          scheduler=options.get("scheduler"), precision=options.get("precision", "float64"))
     try:
-        result = monte_carlo(
-            plan, options_for_preset(options["preset"], base), runs=runs, seed0=int(options.get("seed0", 0)),
-            confidence=float(options.get("confidence", 0.99)),
-            collision_distance_m=float(options.get("collision_distance_m", 1.0)), preset=options["preset"],
-            progress=progress.scaled(PLAN_SHARE, 1.0),
-        )
+        with library_notes(progress):
+            result = monte_carlo(
+                plan, options_for_preset(options["preset"], base), runs=runs, seed0=int(options.get("seed0", 0)),
+                confidence=float(options.get("confidence", 0.99)),
+                collision_distance_m=float(options.get("collision_distance_m", 1.0)), preset=options["preset"],
+                progress=progress.scaled(PLAN_SHARE, 1.0),
+            )
     except TaskCancelled:
         raise
     except ConnectionError as exc:

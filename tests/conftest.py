@@ -287,7 +287,7 @@ KERNEL_FREE_MODULES = frozenset({
     "test_plan_motion", "test_plan_quintic", "test_plan_schedule", "test_plan_show", "test_plan_timelaw",
     "test_plan_trajectory", "test_plan_verify", "test_show_file", "test_verify_bounds", "test_verify_downwash",
     "test_verify_exact", "test_verify_sweep", "test_viewer_export", "test_viewer_lights_preview",
-    "test_viewer_marks", "test_plan_group_through", "test_flight_vmath32",
+    "test_viewer_marks", "test_plan_group_through", "test_flight_vmath32", "test_flight_kernel_compile",
 })
 #: Fewer kernel-free tests than this to overlap with, and the warm-up is not worth its compile of a
 #: variant the selected tests may not need (e.g. one test file run alone): they compile on first use.

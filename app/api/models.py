@@ -286,6 +286,8 @@ class JobOut(BaseModel):
     finished_at: str | None
     result: dict[str, Any] | None = Field(description="When done: the plan summary and the flight summary.")
     error: JobError | None = Field(description="When failed or cancelled: why.")
+    note: str = Field("", description="A one-line note from the running task, e.g. that the first flight on "
+                      "this machine compiles the flight kernel (a minute or two of CPU, cached afterwards).")
 
 
 class JobList(BaseModel):

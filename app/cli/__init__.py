@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from app.cli._common import CliError
+from app.cli._common import CliError, show_library_notes
 
 # Order is the order shown by ``swarmshow --help``.
 _COMMAND_MODULES: tuple[str, ...] = (
@@ -89,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns (and exits with) the process exit code."""
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    show_library_notes()
     if sys.stdout is None:  # started with stdout closed (``>&-``): results must not vanish silently
         sys.stdout = _ClosedStdout()
     try:

@@ -43,10 +43,16 @@ def _bench_sim(args: argparse.Namespace) -> dict:
     centers = np.c_[3.0 * grid, np.full(n, 30.0)]
     ref = TrackingReference.circle(centers, radius_m=2.0, omega_rad_s=1.0)
 
+    # float32 frames, as a flown show records them (sim.flight._runner.fly_local): the frames' dtype
+    # is part of the kernel's numba signature, and float64 frames made this command compile (minutes
+    # of CPU on a cache that show flights had filled) a specialisation no show flight runs.
+    def frames(seconds: float, drones: int) -> np.ndarray:
+        return np.zeros(((int(round(seconds / 1e-3))) // 40 + 1, drones, 3), np.float32)
+
     def rate(engine: str, seconds: float) -> dict:
         steps = int(round(seconds / 1e-3)) + 1
         start, cpu0 = time.perf_counter(), time.process_time()
-        res = simulate(ref, duration_s=seconds, engine=engine, output_every=40)
+        res = simulate(ref, duration_s=seconds, engine=engine, output_every=40, frames_out=frames(seconds, n))
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu0
         # Per CPU-second (all threads) as well: on a shared machine the wall-clock
         # rate drops with the other load, the CPU-time rate shows the code's own cost.
@@ -55,7 +61,8 @@ def _bench_sim(args: argparse.Namespace) -> dict:
                 "diverged": len(res.diverged())}
 
     t0 = time.perf_counter()
-    simulate(ref.subset(slice(0, 1)), duration_s=0.002, engine="numba")  # compile or load the cache
+    # Compile or load the cache (the kernel show flights run).
+    simulate(ref.subset(slice(0, 1)), duration_s=0.002, engine="numba", frames_out=frames(0.002, 1))
     compile_s = time.perf_counter() - t0
     fast = rate("numba", float(args.seconds))
     ref_run = rate("numpy", np_seconds)

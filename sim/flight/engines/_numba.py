@@ -128,6 +128,7 @@ not depend on the block or lane it runs in (lanes never mix).
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import pickle
@@ -191,7 +192,13 @@ from sim.flight.engines._state import (
 from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables, ideal_drone_constants
 from sim.flight.engines._vmath import vasin, vatan2, vexp, vlog, vsincos
 
-__all__ = ["LANES", "run_chunk_numba"]
+__all__ = ["COMPILE_NOTE", "LANES", "run_chunk_numba"]
+
+#: Logged (``WARNING``, this module's logger, a child of ``sim``) once per process and kernel
+#: specialisation before a compile that the disk cache cannot spare: a first run sat silent for
+#: minutes otherwise. The CLI prints ``sim``'s warnings on stderr (``app.cli``).
+COMPILE_NOTE = "compiling the flight kernel for this machine (first run, ~1-2 min of CPU; cached afterwards)"
+_log = logging.getLogger(__name__)
 
 #: Drones per block: the lane loop's trip count (one AVX-512 or two AVX2 vectors of float64). Eight,
 #: not sixteen: a block's scratch is ~205 fields x LANES x 8 bytes, 26 KB at sixteen lanes, which with
@@ -1125,7 +1132,8 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         if sig in dispatcher.overloads:
             return
-        if dispatcher._cache.load_overload(sig, dispatcher.targetctx) is None:
+        if not _in_disk_cache(dispatcher, sig):
+            _log.warning(COMPILE_NOTE)
             func = dispatcher.py_func
             code = ("import pickle, sys, importlib; "
                     f"f = getattr(importlib.import_module({func.__module__!r}), {func.__qualname__!r}); "
@@ -1139,3 +1147,13 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
     except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
         return
     dispatcher.compile(sig)  # from the cache when the child wrote it
+
+
+def _in_disk_cache(dispatcher: Any, sig: tuple[Any, ...]) -> bool:
+    """Whether numba's disk cache holds ``dispatcher``'s machine code for the argument types ``sig``.
+
+    It loads the code (the index file names the signature, target machine and source stamp; the
+    data file holds the object code), so a stale or foreign entry counts as missing, as it does
+    for numba. Uses numba's dispatcher internals (``_cache``), like :func:`_cached_machine_code`.
+    """
+    return bool(dispatcher._cache.load_overload(sig, dispatcher.targetctx) is not None)
