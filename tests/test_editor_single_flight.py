@@ -10,6 +10,8 @@ Chromium against a live server on loopback (the helpers of test_editor_browser):
 
 from __future__ import annotations
 
+import json
+
 import httpx
 import pytest
 
@@ -181,3 +183,28 @@ def test_drones_blown_off_in_a_single_flight_are_named_with_their_reason(ui: Pag
     rows = _rows(ui)
     assert rows["Diverged"] == ("2 overpowered (drones 0, 1)", "bad-value"), rows
     expect(page.locator("#sim-body .sim-reasons")).to_contain_text("blown off (wind beyond its authority)")
+
+
+def test_a_compile_note_of_the_job_shows_beside_the_progress(ui: Page):
+    """The server says when a job waits for the flight kernel's compile (a cold numba cache: a minute or
+    two with the progress still); the editor shows that note, and drops it when the job moves on. The
+    job's answers are routed here (a real cold compile costs minutes), in the shape the API gives."""
+    page = ui.page
+    _open(ui, show_doc("Compile note", hold_s=2.0))
+    note = "compiling the flight kernel for this machine (first run, ~1-2 min of CPU; cached afterwards)"
+    job = {"id": "jnote", "kind": "simulate", "state": "running", "progress": 0.05, "note": note}
+    later = {**job, "progress": 0.4, "note": ""}
+    page.route("**/simulate", lambda route: route.fulfill(status=202, json=job))
+    # The token-less editor follows the job by server-sent events: one progress event without the note.
+    page.route("**/api/jobs/jnote/events", lambda route: route.fulfill(
+        status=200, headers={"content-type": "text/event-stream"},
+        body=f"event: progress\ndata: {json.dumps(later)}\n\n"))
+    page.route("**/api/jobs/jnote", lambda route: route.fulfill(status=200, json=later))
+    page.evaluate("() => { window.__seen = []; new MutationObserver(() => window.__seen.push("
+                  "document.querySelector('#sim-body').textContent)).observe(document.querySelector('#sim-body'),"
+                  " {childList: true, subtree: true, characterData: true}); }")
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-body")).to_contain_text("40%")
+    seen = page.evaluate("() => window.__seen")
+    assert any("5%" in t and note in t for t in seen), seen
+    assert note not in page.locator("#sim-body").text_content()

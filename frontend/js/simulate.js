@@ -200,7 +200,10 @@ export class SimulatePanel {
     if (job.state === "queued") this._progress(p, "queued");
     else if (job.state === "running") {
       this._progress(p);
-      this._message("muted", `${this.job.kind === "montecarlo" ? "Flying the runs" : "Flying"}… ${Math.round(p * 100)}%`);
+      // A note says what holds the progress up (the server compiling the flight kernel on a cold cache).
+      const note = job.note ? ` (${job.note})` : "";
+      this._message("muted",
+        `${this.job.kind === "montecarlo" ? "Flying the runs" : "Flying"}… ${Math.round(p * 100)}%${note}`);
     } else if (job.state === "done" && this.job.kind === "montecarlo") {
       this._progress(1, "100%");
       this.cancelBtn.hidden = true;
