@@ -302,10 +302,15 @@ from app.media._beats import detect_beats
 clicks = np.zeros(4 * 22_050, np.float32)
 clicks[::11_025] = 1.0
 detect_beats(clicks, 22_050)
-# Last, the opt-in float32 kernel (tests/test_flight_precision.py), so that the compile of both variants
-# runs beside the tests instead of on the test thread.
+# The tests that fly float64 may start now; the opt-in float32 kernel (FLOAT32_MODULES) compiles last,
+# still beside the tests instead of on the test thread.
+import pathlib
+(pathlib.Path(sys.argv[1]) / "phase1.ok").touch()
 warm_up(precisions=("float32",))
 """
+#: Modules that fly the opt-in float32 kernel: they wait for the whole warm-up, the others only for its
+#: float64 kernels and the beat tracker (a fresh clone's tests waited 149 s for the float32 compile).
+FLOAT32_MODULES = frozenset({"test_flight_precision"})
 
 
 class _WarmUp:
@@ -317,6 +322,8 @@ class _WarmUp:
         self.t0 = self.took_s = self.waited_s = 0.0
         self.error = ""
         self.done = False
+        self.first_s = self.first_waited_s = 0.0
+        self.first_done = False
         self.witness_dir: Path | None = None
 
     def start(self) -> None:
@@ -333,14 +340,30 @@ class _WarmUp:
     def cold_flight(self) -> Path | None:
         """Positions of tests/kernel_witness.py's flight by the warm-up child on a cold cache (it compiled
         the kernel), once the warm-up is done; None if there is none (no warm-up, or the cache was warm)."""
-        self.wait()
+        self.wait_first()
         if self.witness_dir is None or not (self.witness_dir / "cold.ok").exists():
             return None
         return self.witness_dir / "cold.npy"
 
+    def wait_first(self) -> None:
+        """Until the float64 kernels and the beat tracker are in the cache (or the child ended)."""
+        if self.proc is None or self.first_done or self.done:
+            return
+        t = time.monotonic()
+        assert self.witness_dir is not None
+        while self.proc.poll() is None and not (self.witness_dir / "phase1.ok").exists():
+            if time.monotonic() - t > 1800:  # then the tests compile on first use
+                self.stop()
+                break
+            time.sleep(0.2)
+        self.first_done = True
+        self.first_waited_s, self.first_s = time.monotonic() - t, time.monotonic() - self.t0
+
     def wait(self) -> None:
+        """Until the whole warm-up (the float32 kernel too) is done."""
         if self.proc is None or self.done:
             return
+        self.wait_first()
         t = time.monotonic()
         try:
             self.proc.wait(timeout=1800)
@@ -373,8 +396,10 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
-    if _module(item) not in KERNEL_FREE_MODULES:
+    if _module(item) in FLOAT32_MODULES:
         _warm_up.wait()
+    elif _module(item) not in KERNEL_FREE_MODULES:
+        _warm_up.wait_first()
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
@@ -389,10 +414,12 @@ def cold_kernel_flight() -> Path | None:
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if _warm_up.first_done:
+        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker): {_warm_up.first_s:.1f} s beside "
+                                    f"the first tests, then waited {_warm_up.first_waited_s:.1f} s for it")
     if _warm_up.done:
-        terminalreporter.write_line(f"numba warm-up (flight kernel, beat tracker, float32 kernel): "
-                                    f"{_warm_up.took_s:.1f} s beside the first tests, then waited "
-                                    f"{_warm_up.waited_s:.1f} s for it")
+        terminalreporter.write_line(f"numba warm-up of the float32 kernel: done {_warm_up.took_s:.1f} s after the "
+                                    f"start, waited {_warm_up.waited_s:.1f} s for it")
     if _warm_up.error:
         terminalreporter.write_line(f"numba warm-up failed (the tests compiled on first use):\n{_warm_up.error}")
 
