@@ -219,14 +219,22 @@ def _report_format(path: str) -> str | None:
     return {".html": "html", ".htm": "html", ".pdf": "pdf"}.get(suffix)
 
 
-def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
-    """The run's FlightOptions: engine, controller, output rate, seed and the error preset (if any)."""
-    from sim.flight import FlightOptions, options_for_preset
+def _base_options(args: argparse.Namespace, dask: dict) -> Any:
+    """The FlightOptions the flags give (engine, controller, disturbance, output rate, seed, precision,
+    Dask), before any error preset."""
+    from sim.flight import FlightOptions
 
-    options = FlightOptions(
+    return FlightOptions(
         engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
         output_hz=args.output_hz, seed=args.seed, precision=args.precision, **dask,
     )
+
+
+def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
+    """A Monte-Carlo run's FlightOptions: :func:`_base_options` and the error preset (if any)."""
+    from sim.flight import options_for_preset
+
+    options = _base_options(args, dask)
     return options if args.preset is None else options_for_preset(args.preset, options)
 
 
@@ -342,16 +350,14 @@ def _engine(args: argparse.Namespace) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from sim.flight import FlightOptions, fly_show, planned_closest, single_flight_options
+    from sim.flight import fly_show, planned_closest, single_flight_options
 
     if args.seed < 0:
         raise CliError(f"--seed must be >= 0, got {args.seed}")
     dask = _dask_options(args)
     preset = single_preset(args)
     try:
-        options = single_flight_options(preset, FlightOptions(
-            engine=_engine(args), controller=args.controller, disturbance=args.disturbance,
-            output_hz=args.output_hz, seed=args.seed, precision=args.precision, **dask))
+        options = single_flight_options(preset, _base_options(args, dask))
     except ValueError as exc:
         raise CliError(f"--disturbance {args.disturbance} goes only with --preset ideal (--preset {preset} "
                        "brings its own wind field)" if "disturbance" in str(exc) else str(exc)) from None
@@ -365,8 +371,7 @@ def _show(args: argparse.Namespace) -> int:
         # positions (and 4-7 % of the time).
         options = options.with_(colors=False)
         with progress_bar("simulate") as update:
-            result = fly_show(plan, options.with_(scheduler=dask.get("scheduler")) if dask else options,
-                              progress=update)
+            result = fly_show(plan, options, progress=update)  # the scheduler is in the options already
     summary = result.summary()
     summary["show"] = show.name
     summary["preset"], summary["seed"] = preset, args.seed

@@ -411,19 +411,19 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         end[drones, 2] = z_m
         return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
 
-    def overlap(k: int, flyer_goals: np.ndarray, drones: np.ndarray, waiting: np.ndarray, others: np.ndarray) -> None:
-        """Refuse subset formation k when one of its drones' points (``flyer_goals`` (n, 3) of ``drones``) lies
+    def overlap(k: int, point_index: np.ndarray, drones: np.ndarray, waiting: np.ndarray, others: np.ndarray) -> None:
+        """Refuse subset formation k when one of its drones' points (``point_index`` (n,) of ``drones``) lies
         closer than min_distance_m to where one of the ``others`` waits (``waiting``): no plan can be safe then,
         the designer must move the points (or park the others)."""
         if not len(others) or not len(drones):
             return
         f = show.formations[k]
-        near_m, j = cKDTree(waiting).query(flyer_goals)
+        near_m, j = cKDTree(waiting).query(f.points_m[point_index])
         bad = np.flatnonzero(near_m < s.min_distance_m * (1.0 - 1e-9))
         if not len(bad):
             return
         i = int(bad[np.argmin(near_m[bad])])
-        point = int(np.flatnonzero(np.all(f.points_m == flyer_goals[i], axis=1))[0])
+        point = int(point_index[i])
         other = int(others[j[i]])
         x, y, z = (float(v) for v in waiting[j[i]])
         who = f"group {f.drones.group!r}" if isinstance(f.drones, DronesFromGroup) else f"the {len(drones)} drones"
@@ -499,7 +499,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
             waiting = home[others] + lift
         else:
             waiting = start[others]
-        overlap(k, pts[point_index], drones, waiting, others)
+        overlap(k, point_index, drones, waiting, others)
         goals = np.concatenate([pts, waiting])
         goal_index = np.empty(len(start), dtype=np.int64)
         goal_index[drones] = point_index
