@@ -219,6 +219,7 @@ class JobManager:
         self._started = threading.Event()
         self.timeout_s = settings.job_timeout_s
         self._watchdog: threading.Thread | None = None
+        self._recovered = False  # the earlier server's unfinished jobs marked interrupted (recover)
         # Interactive tasks: one slot each (its cancel flag and budget); free slots are the admission limit.
         slots = settings.max_interactive_tasks
         self._flags: Any = None
@@ -230,9 +231,9 @@ class JobManager:
     # -- life cycle -------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Mark jobs a previous server left unfinished as interrupted; start the manager process, the
-        pools (warming every worker up) and the relay and watchdog threads."""
-        self._mark_interrupted()
+        """Mark jobs a previous server left unfinished as interrupted (unless :meth:`recover` did); start
+        the manager process, the pools (warming every worker up) and the relay and watchdog threads."""
+        self.recover()
         self._manager = SyncManager(ctx=self._ctx)
         self._manager.start(initializer=tasks.die_with_parent)
         self._events = self._manager.Queue()
@@ -368,6 +369,18 @@ class JobManager:
             self.store.put_job(job_id, record[0], state=record[1], keep=self.max_jobs_kept)
         except Exception as exc:  # a full disk must not fail the job itself
             log.warning("job %s: record not written: %s", job_id, exc)
+
+    def recover(self) -> None:
+        """Mark the jobs a previous server left queued or running as failed (``interrupted``), once.
+
+        The server calls this before it answers its first request and starts the pools in the
+        background afterwards: a job id asked for in between must already read ``interrupted``, since
+        a record still ``running`` is not shown (it could be this server's own job a moment before it
+        is in memory) and would answer 404.
+        """
+        if not self._recovered:
+            self._recovered = True
+            self._mark_interrupted()
 
     def _mark_interrupted(self) -> None:
         try:

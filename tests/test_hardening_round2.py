@@ -560,6 +560,42 @@ def test_job_ids_answer_after_a_crash_marked_interrupted(tmp_path):
         server.stop()
 
 
+def test_an_interrupted_job_answers_before_the_pools_are_up(tmp_path, monkeypatch):
+    # The live test above failed once under load: the restarted server answered the job's id before its
+    # background start had marked the earlier server's records interrupted, and a record still "running"
+    # is not shown (404). Here the pools' start is held until the request has been answered.
+    import threading
+
+    from app.jobs import JobManager
+    from app.store import ShowStore
+
+    store = ShowStore(AppSettings(data_dir=tmp_path).db_path)
+    record = {"id": "j-was-running", "kind": "simulate", "content_hash": "h", "options": {}, "show_id": "s1",
+              "show_revision": 1, "state": "running", "progress": 0.4, "error": None, "cached": False,
+              "created_at": "2026-11-30T00:00:00Z", "started_at": "2026-11-30T00:00:01Z", "finished_at": None}
+    store.put_job("j-was-running", json.dumps(record), state="running")
+    store.close()
+    release = threading.Event()
+    start = JobManager.start
+
+    def held_start(self):
+        release.wait(30)
+        start(self)
+
+    monkeypatch.setattr(JobManager, "start", held_start)
+    app = create_app(AppSettings(data_dir=tmp_path, workers=1, viewer=False))
+    try:
+        with TestClient(app, base_url=LOOPBACK) as c:
+            r = c.get("/api/jobs/j-was-running")
+            release.set()
+            assert r.status_code == 200, r.text
+            body = r.json()
+            assert body["state"] == "failed" and body["error"]["kind"] == "interrupted"
+            assert body["show_id"] == "s1"
+    finally:
+        release.set()
+
+
 # -- 5. the CLI keeps its exit-code promise: one line on stderr, exit 2, no hang, no truncated file ----
 
 

@@ -73,8 +73,10 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: AppSettings = app.state.settings
     store = await asyncio.to_thread(ShowStore, settings.db_path, keep_revisions=settings.keep_revisions)
     manager = JobManager(store=store, settings=settings)
-    # The pool starts in the background: the API answers (and the store serves) a few hundred ms
-    # sooner after a restart; the first job waits for it (JobManager.wait_started).
+    # An earlier server's unfinished jobs read "interrupted" before the first request is answered (a few
+    # ms of SQLite); the pool starts in the background: the API answers (and the store serves) a few
+    # hundred ms sooner after a restart; the first job waits for it (JobManager.wait_started).
+    await asyncio.to_thread(manager.recover)
     starting = asyncio.get_running_loop().run_in_executor(None, manager.start)
     writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="swarmshow-store")
     app.state.store, app.state.jobs, app.state.store_writer = store, manager, writer
