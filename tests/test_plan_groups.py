@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from formations import ShowValidationError, parse_show
-from sim import check_plan, plan_show
+from sim import PlanError, check_plan, plan_show
 from sim.plan._subset import choose_drones, park_slots
 from tests.conftest import ring
 
@@ -445,3 +445,35 @@ def test_a_moving_formation_cannot_be_a_subset():
     with pytest.raises(ShowValidationError) as info:
         parse_show(doc)
     assert info.value.errors[0]["path"] == "formations[1].motion"
+
+
+def _swap_doc(points: list[list[float]]) -> dict:
+    """Ring (all 9), group a = 0, 2, 4, 6 on a line (the others land), then group b = 0, 2 on ``points`` (others
+    land): drones 4 and 6 land in the swap while 1, 3, 5, 7 and 8 stay landed (the prepare-swap path)."""
+    return _doc([
+        {"name": "ring", "hold_s": 1.0, "points": _pts(ring(9, 12.0, (0, 0, 30))), "color": "#ff0000"},
+        {"name": "a", "hold_s": 1.0, "points": _pts(_line(4, y=-20.0)), "drones": {"group": "a"}, "others": "land"},
+        {"name": "b", "hold_s": 1.0, "points": points, "drones": {"group": "b"}, "others": "land"},
+    ], groups={"a": [0, 2, 4, 6], "b": [0, 2]})
+
+
+@pytest.mark.parametrize("who, aloft, near, words", [(4, True, [1.0, 0.0, 0.0], "waits to land over its home"),
+                                                      (5, False, [0.0, 0.0, 2.6], "stays landed on its home")])
+def test_swap_points_on_waiting_or_landed_drones_are_refused_naming_the_point(who, aloft, near, words):
+    """In the swap, a point of the formation 1 m beside where lander 4 waits over its home (takeoff altitude),
+    or 2.6 m above drone 5 standing on its home, cannot be kept: refused naming the point, as for other
+    subset formations (before: planned, unsafe)."""
+    show0 = parse_show(_swap_doc([[0.0, -30.0, 30.0], [10.0, -30.0, 30.0]]))
+    home = np.asarray(show0.home_positions_m)
+    waits = home[who] + [0.0, 0.0, show0.settings.takeoff_altitude_m if aloft else 0.0]
+    bad = waits + np.asarray(near)
+    doc = _swap_doc(_pts(np.array([[0.0, -30.0, 30.0], bad])))
+    with pytest.raises(PlanError) as err:
+        plan_show(parse_show(doc))
+    assert err.value.path == "formations[2].points[1]"
+    assert f"from drone {who}" in str(err.value) and words in str(err.value)
+    # Independently: the point is closer than the minimum distance to that drone's waiting place.
+    assert f"{np.linalg.norm(near):.3f} m" in str(err.value)
+    # ... and the same formation 15 m away is planned and safe.
+    ok = plan_show(parse_show(_swap_doc(_pts(np.array([[0.0, -30.0, 30.0], bad + [0.0, -15.0, 20.0]])))))
+    assert check_plan(ok).ok

@@ -411,10 +411,12 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         end[drones, 2] = z_m
         return schedule_transition(start, end, lim, min_distance_m=s.min_distance_m, label=label)
 
-    def overlap(k: int, point_index: np.ndarray, drones: np.ndarray, waiting: np.ndarray, others: np.ndarray) -> None:
+    def overlap(k: int, point_index: np.ndarray, drones: np.ndarray, waiting: np.ndarray, others: np.ndarray, *,
+                landed: bool = False) -> None:
         """Refuse subset formation k when one of its drones' points (``point_index`` (n,) of ``drones``) lies
-        closer than min_distance_m to where one of the ``others`` waits (``waiting``): no plan can be safe then,
-        the designer must move the points (or park the others)."""
+        closer than min_distance_m to where one of the ``others`` waits (``waiting``; ``landed``: they stay on
+        their homes, landed for an earlier formation): no plan can be safe then, the designer must move the
+        points (or park the others)."""
         if not len(others) or not len(drones):
             return
         f = show.formations[k]
@@ -430,12 +432,34 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         mode = f.others or "hold"
         does = {"hold": "holds", "land": "waits to land"}.get(mode, "parks")
         where = {"hold": "where it was", "land": "over its home"}.get(mode, "behind the formation")
+        if landed:
+            does, where = "stays landed", "on its home"
         raise PlanError(
             f"formations[{k}].points[{point}]: point {point} of formation {f.name!r} (flown by {who}) is "
             f"{float(near_m[i]):.3f} m from drone {other}, which {does} {where} at ({x:.2f}, {y:.2f}, {z:.2f}) m; "
             f"the minimum distance is {s.min_distance_m:g} m ({len(bad)} of the formation's points are that close), "
             "so no plan can keep it: move the formation's points away from the waiting drones, or let the others "
             "park ('others': 'park')", path=f"formations[{k}].points[{point}]")
+
+    def staged(tp: TransitionPlan, start: np.ndarray, pts: np.ndarray, drones: np.ndarray, others: np.ndarray,
+               slots: np.ndarray, label: str, *, land: bool) -> tuple[TransitionPlan, np.ndarray | None]:
+        """``tp`` (a subset window with conflicts) cleared in stages (:func:`sim.plan._subset.staged_subset`):
+        ``others`` (k,) first out of the stage to ``slots`` (k, 3) (park slots, any; landing: each over its own
+        home, stepping out on its home's side), then ``drones`` to ``pts``; drones in neither set stay put.
+        Landing others also in the other order after the step out (the formation's drones first), and the
+        plan with fewer conflicts than ``tp`` is kept. Returns (the plan kept, where the others end (k, 3);
+        None when ``tp`` is kept)."""
+        ends = None
+        for flyers_first in (False, True) if land else (False,):
+            cand, parked = staged_subset(start, pts, drones, slots, lim, min_distance_m=s.min_distance_m,
+                                         ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
+                                         sync_s=tp.sync_s, own=land, sides=land, flyers_first=flyers_first,
+                                         others=others)
+            if len(cand.unresolved) < len(tp.unresolved):
+                tp, ends = cand, parked
+            if not tp.unresolved:
+                break
+        return tp, ends
 
     def explain_waiting(tp: TransitionPlan, k: int, flying: np.ndarray, forced_s: bool) -> TransitionPlan:
         """Subset formation k's conflicts with a drone that does not fly it: say so, and what helps (spacing
@@ -522,19 +546,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                 tp = layered
         if tp.unresolved and duration is None and f.others in ("park", "land") and len(others):
             # The formation drawn through the previous one: the flyers cross the others on their way out.
-            # Clear the stage first (others to the park or over their homes, then the flyers), kept when it
-            # leaves fewer conflicts.
-            # Landing others may have homes on either side of the formation: both orders, the safer kept.
-            for flyers_first in (False, True) if f.others == "land" else (False,):
-                staged, parked = staged_subset(start, pts, drones, slots if f.others == "park" else waiting, lim,
-                                               min_distance_m=s.min_distance_m, ceiling_m=s.max_altitude_m,
-                                               floor_m=s.min_altitude_m, label=label, sync_s=tp.sync_s,
-                                               own=f.others == "land", flyers_first=flyers_first)
-                if len(staged.unresolved) < len(tp.unresolved):
-                    tp = staged
-                    goals = np.concatenate([pts, parked])
-                if not tp.unresolved:
-                    break
+            tp, parked = staged(tp, start, pts, drones, others, slots if f.others == "park" else waiting, label,
+                                land=f.others == "land")
+            if parked is not None:
+                goals = np.concatenate([pts, parked])
         if tp.unresolved:
             tp = explain_waiting(tp, k, flying, duration is not None)
         descent = None
@@ -764,8 +779,23 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
                                    allow_layers=False, fixed_assignment=True)
 
         leaving = np.flatnonzero(~down_now)  # airborne: fly to their points, or home to land
+        aloft = leaving[flying[leaving]]  # the airborne drones of the formation
+        # No plan can be safe with a point of the airborne flyers where a lander waits over its home (they arrive
+        # together), nor with any point on a drone that stays landed: refused naming the point (as for others).
+        overlap(k, point_of[aloft], aloft, home[landers] + lift, landers)
+        stayers = np.flatnonzero(~flying & down_now)
+        overlap(k, point_of[drones], drones, home[stayers], stayers, landed=True)
         targets = np.where(flying[leaving, None], pts[np.maximum(point_of[leaving], 0)], home[leaving] + lift)
         first = stay_but(leaving, start, targets)
+        if first.unresolved and len(landers) and len(aloft):
+            # The airborne flyers cross the landers on their way home (a formation drawn through the previous
+            # one): the landers clear the stage first, as for any landing others (the landed drones stay put).
+            sub = point_of[aloft]
+            first, ends = staged(first, start, pts[sub], aloft, landers, home[landers] + lift, label, land=True)
+            if ends is not None:
+                point_of[aloft] = sub[first.goal_index[aloft]]
+        if first.unresolved:
+            first = explain_waiting(first, k, flying, False)
         stages: list[Stage] = [first]
         at = first.legs[-1].b_m
         t_down = t_up = first.window_s

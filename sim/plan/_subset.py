@@ -129,50 +129,90 @@ def plan_movers(a_m: np.ndarray, goals_m: np.ndarray, movers: np.ndarray, lim: L
 
 def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slots_m: np.ndarray, lim: Limits, *,
                   min_distance_m: float, ceiling_m: float, floor_m: float, label: str,
-                  sync_s: float, own: bool = False, flyers_first: bool = False) -> tuple[TransitionPlan, np.ndarray]:
-    """Into a subset formation whose others park (or land), in two stages: the others fly to the park slots
-    (or over their homes) while the formation's drones wait where they are, then the formation's drones fly
-    to their points while the others wait there (each stage :func:`plan_movers`).
+                  sync_s: float, own: bool = False, flyers_first: bool = False, others: np.ndarray | None = None,
+                  sides: bool = False) -> tuple[TransitionPlan, np.ndarray]:
+    """Into a subset formation whose others park (or land), in stages: the others step out of the stage, then
+    fly to the park slots (or over their homes) while the formation's drones wait where they are, then the
+    formation's drones fly to their points while the others wait there (each stage :func:`plan_movers`).
 
     Clearing the stage first keeps the formation's drones from crossing the others on their way out
     (one shared window over every drone cannot, when the formation is drawn through the previous one).
 
+    The step out is straight along y, to ``PARK_OFFSET_FACTOR`` x min_distance_m beyond every moving drone: leaving a
+    flat x-z formation along its normal only moves a drone away from the ones that stay in it (its distance to
+    each grows as sqrt(d² + y²)). Parking drones step back (+y, away from the audience) to the park layer's
+    depth and then move within it. With ``sides`` (landing others, each over its own home) every drone steps
+    out on its home's side of the stage (the homes in front of its middle y to the front, the others to the
+    back: stepping back from a formation and then flying to a home in front of it crosses the formation), flies
+    within that clear region to its home *shifted out along y* as far as its side's homes must be to lie
+    beyond the stage, descending there, and only then slides in at its home's altitude to over its home (a
+    translation shared by its side, so the drones of a side keep their distances, under a formation that
+    stays above it).
+
     Args:
         a_m: (N, 3) start positions, metres.
-        points_m: (M, 3) the formation's points; ``drones`` (n,) the drones that fly it.
-        slots_m: (N - n, 3) park slots for the others (any of them), or with ``own`` each other's own
-            waiting point (in the order of the others), metres.
+        points_m: (M, 3) the formation's points; ``drones`` (n,) the drones that fly it (CAPT among them).
+        slots_m: (len(others), 3) park slots for the others (any of them), or with ``own`` each other's own
+            waiting point (in the order of ``others``), metres.
         sync_s: the single-window synchronised minimum, seconds (for the plan's stagger).
-        flyers_first: after the others' step back, the formation's drones fly first and the others then go
+        flyers_first: after the others' step out, the formation's drones fly first and the others then go
             to their slots (e.g. homes in front of the formation, which the others would reach through it).
+        others: (k,) the drones that go to ``slots_m`` (default: every drone not in ``drones``); any drone in
+            neither stays where it is throughout (e.g. one landed on its home), a fixed obstacle.
+        sides: step out towards each other's own waiting point (needs ``own``), see above.
 
     Returns:
         (the plan over all N drones, resolution "layers", its goal index into ``points_m`` then the
-        others' slots in the order of the others; (N - n, 3) where each of the others parks).
+        others' slots in the order of the others, -1 for a drone in neither; (len(others), 3) where each of
+        the others ends).
     """
+    if sides and not own:
+        raise ValueError("sides needs own waiting points")
     n = len(a_m)
-    flying = np.zeros(n, dtype=bool)
-    flying[drones] = True
-    others = np.flatnonzero(~flying)
-    # First straight back (+y, away from the audience) to the park layer's depth, at least PARK_OFFSET_FACTOR
-    # x min_distance_m behind every drone: leaving a flat x-z formation along its normal only moves a drone
-    # away from the ones that stay in it (its distance to each grows as sqrt(d² + y²)); then within the layer.
+    if others is None:
+        others = np.setdiff1d(np.arange(n), drones)
+    gap_m = PARK_OFFSET_FACTOR * min_distance_m
+    # The stage is where the moving drones are (a drone in neither set, e.g. landed, is an obstacle on the ground).
+    moving = np.concatenate([drones, others])
+    y_lo, y_hi = float(a_m[moving, 1].min()), float(a_m[moving, 1].max())
+    slide = np.zeros(len(others))
+    if sides:
+        front = slots_m[:, 1] < 0.5 * (y_lo + y_hi)
+        depth = np.where(front, y_lo - gap_m, y_hi + gap_m)
+        # How far each side's waiting points move out along y so that the nearest lies at the step's depth.
+        if front.any():
+            slide[front] = min(0.0, y_lo - gap_m - float(slots_m[front, 1].max()))
+        if (~front).any():
+            slide[~front] = max(0.0, y_hi + gap_m - float(slots_m[~front, 1].min()))
+    else:
+        depth = np.full(len(others), max(float(slots_m[:, 1].max()), y_hi + gap_m))
+    approach = slots_m.copy()
+    approach[:, 1] += slide
     back = a_m.copy()
-    back[others, 1] = max(float(slots_m[:, 1].max()), float(a_m[:, 1].max()) + PARK_OFFSET_FACTOR * min_distance_m)
+    back[others, 1] = depth
     step = schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)
+
+    def clear_stage(at: np.ndarray) -> tuple[list[Schedule], np.ndarray, np.ndarray]:
+        """The others from ``at`` to their slots (via the shifted approach points, then the slide in)."""
+        legs, there, slot_of = plan_movers(at, approach, others, lim, min_distance_m=min_distance_m,
+                                           ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        if not np.any(slide != 0.0):
+            return list(legs), there, slot_of
+        end = there.copy()
+        end[others] = slots_m[slot_of]
+        return [*legs, schedule_transition(there, end, lim, min_distance_m=min_distance_m, label=label)], end, slot_of
+
     if flyers_first:
         fly_legs, flown, point_of = plan_movers(back, points_m, drones, lim, min_distance_m=min_distance_m,
                                                 ceiling_m=ceiling_m, floor_m=floor_m, label=label)
-        park_legs, _, slot_of = plan_movers(flown, slots_m, others, lim, min_distance_m=min_distance_m,
-                                            ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        park_legs, _, slot_of = clear_stage(flown)
         stages = (step, *fly_legs, *park_legs)
     else:
-        park_legs, parked, slot_of = plan_movers(back, slots_m, others, lim, min_distance_m=min_distance_m,
-                                                 ceiling_m=ceiling_m, floor_m=floor_m, label=label, own=own)
+        park_legs, parked, slot_of = clear_stage(back)
         fly_legs, _, point_of = plan_movers(parked, points_m, drones, lim, min_distance_m=min_distance_m,
                                             ceiling_m=ceiling_m, floor_m=floor_m, label=label)
         stages = (step, *park_legs, *fly_legs)
-    goal_index = np.empty(n, dtype=np.int64)
+    goal_index = np.full(n, -1, dtype=np.int64)
     goal_index[drones] = point_of
     goal_index[others] = len(points_m) + np.arange(len(others))
     legs = tuple(leg for leg in stages if np.any(leg.a_m != leg.b_m))
