@@ -446,14 +446,17 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         """``tp`` (a subset window with conflicts) cleared in stages (:func:`sim.plan._subset.staged_subset`):
         ``others`` (k,) first out of the stage to ``slots`` (k, 3) (park slots, any; landing: each over its own
         home, stepping out on its home's side), then ``drones`` to ``pts``; drones in neither set stay put.
-        Landing others also in the other order after the step out (the formation's drones first), and the
-        plan with fewer conflicts than ``tp`` is kept. Returns (the plan kept, where the others end (k, 3);
-        None when ``tp`` is kept)."""
+        Landing others also in the other order after the step out (the formation's drones first), and then
+        all stepping back (+y) whatever their home's side (the others' own paths to their homes may cross
+        on one route and not on the other); the first safe plan, else the one with fewest conflicts, is kept
+        when it has fewer than ``tp``. Returns (the plan kept, where the others end (k, 3); None when ``tp``
+        is kept)."""
         ends = None
-        for flyers_first in (False, True) if land else (False,):
+        ways = ((True, False), (True, True), (False, False), (False, True)) if land else ((False, False),)
+        for sides, flyers_first in ways:
             cand, parked = staged_subset(start, pts, drones, slots, lim, min_distance_m=s.min_distance_m,
                                          ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
-                                         sync_s=tp.sync_s, own=land, sides=land, flyers_first=flyers_first,
+                                         sync_s=tp.sync_s, own=land, sides=sides, flyers_first=flyers_first,
                                          others=others)
             if len(cand.unresolved) < len(tp.unresolved):
                 tp, ends = cand, parked
