@@ -23,6 +23,7 @@ from formations import parse_show
 from sim import PlanError, check_plan, plan_show
 from sim.plan._schedule import Limits
 from sim.plan._subset import plan_movers
+from tests.conftest import fibonacci_sphere
 
 FIXTURE = Path(__file__).parent / "data" / "group_line_through_text.json"
 MIN_D = 3.0
@@ -261,3 +262,28 @@ def test_swap_through_the_previous_formation_is_made_safe(seed):
     assert np.allclose(np.sort(np.linalg.norm(p[back, None] - pts[None], axis=-1).min(axis=1)), 0.0, atol=1e-6)
     rest = np.setdiff1d(np.arange(90), back)
     np.testing.assert_allclose(p[rest], np.asarray(show.home_positions_m)[rest], atol=1e-6)
+
+
+def test_landing_others_leave_a_sphere_without_collapsing_it():
+    """A random group of 60 drones on a sphere (r 15 m) flies a tilted ring through it, the others land (homes on
+    both sides): the one-window plan and its spread fallback leave conflicts, so the window is staged. Stepping
+    the others out onto one plane brought drones behind one another together (2 conflicts left, failed before);
+    each side now steps out by one translation, and a drone whose way out on its home's side is blocked by a
+    drone of the group steps out on the other side. Safe by the exact check and dense sampling."""
+    rng = np.random.default_rng(1)
+    m = int(rng.integers(10, 26))
+    a = np.linspace(0, 2 * np.pi, m, endpoint=False)
+    tilt = float(rng.uniform(-0.6, 0.6))
+    ring = np.column_stack([12 * np.cos(a), 12 * np.sin(a) * np.sin(tilt), 12 * np.sin(a) * np.cos(tilt) + 35])
+    sphere = fibonacci_sphere(60, 15.0, (0, 0, 35)).round(6).tolist()
+    doc = {"format": "swarmshow/1", "name": "sphere", "drones": 60,
+           "home": {"grid": {"rows": 6, "cols": 10, "spacing_m": 4.0}}, "settings": {"min_distance_m": MIN_D},
+           "groups": {"g": sorted(rng.choice(60, m, replace=False).tolist())},
+           "formations": [{"name": "s", "hold_s": 2, "points": sphere},
+                          {"name": "ring", "hold_s": 2, "points": ring.round(6).tolist(), "drones": {"group": "g"},
+                           "others": "land"}]}
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == "ring")
+    assert into.resolution == "layers" and into.unresolved == ()
+    assert check_plan(plan).ok
+    assert _dense_window_min(plan, into.start_s, into.start_s + into.duration_s) >= MIN_D - 1e-3

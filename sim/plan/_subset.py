@@ -127,6 +127,21 @@ def plan_movers(a_m: np.ndarray, goals_m: np.ndarray, movers: np.ndarray, lim: L
     return tuple(legs), at, sub.goal_index
 
 
+def _step_sides(a_m: np.ndarray, others: np.ndarray, still: np.ndarray, front: np.ndarray,
+                min_distance_m: float) -> np.ndarray:
+    """(k,) which of ``others`` step out to the front (-y): ``front`` (their homes' side), except where a drone
+    that stays during the step (``still``) stands in the way on that side and not on the other (closer than
+    min_distance_m to the straight line along y, e.g. inside a 3-D formation): stepping out cannot pass it."""
+    if not len(still):
+        return front
+    near = cdist(a_m[others][:, [0, 2]], a_m[still][:, [0, 2]]) < min_distance_m
+    dy_m = a_m[still, 1][None, :] - a_m[others, 1][:, None]  # > 0: the still drone lies behind (+y) the other
+    blocked_front = np.any(near & (dy_m < 0.0), axis=1)
+    blocked_back = np.any(near & (dy_m > 0.0), axis=1)
+    flip = np.where(front, blocked_front & ~blocked_back, blocked_back & ~blocked_front)
+    return np.asarray(front ^ flip, dtype=bool)
+
+
 def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slots_m: np.ndarray, lim: Limits, *,
                   min_distance_m: float, ceiling_m: float, floor_m: float, label: str,
                   sync_s: float, own: bool = False, flyers_first: bool = False, others: np.ndarray | None = None,
@@ -138,12 +153,15 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     Clearing the stage first keeps the formation's drones from crossing the others on their way out
     (one shared window over every drone cannot, when the formation is drawn through the previous one).
 
-    The step out is straight along y, to ``PARK_OFFSET_FACTOR`` x min_distance_m beyond every moving drone: leaving a
-    flat x-z formation along its normal only moves a drone away from the ones that stay in it (its distance to
-    each grows as sqrt(d² + y²)). Parking drones step back (+y, away from the audience) to the park layer's
-    depth and then move within it. With ``sides`` (landing others, each over its own home) every drone steps
+    The step out is straight along y, one translation for all the drones of a side (so they keep their
+    distances; projecting a 3-D formation onto one plane would bring drones behind one another together), until
+    the nearest is ``PARK_OFFSET_FACTOR`` x min_distance_m beyond every moving drone: leaving a flat x-z
+    formation along its normal only moves a drone away from the ones that stay in it (its distance to each
+    grows as sqrt(d² + y²)). Parking drones step back (+y, away from the audience), at least to the park
+    layer's depth, and then move to it. With ``sides`` (landing others, each over its own home) every drone steps
     out on its home's side of the stage (the homes in front of its middle y to the front, the others to the
-    back: stepping back from a formation and then flying to a home in front of it crosses the formation), flies
+    back: stepping back from a formation and then flying to a home in front of it crosses the formation; the
+    other side when a drone that stays stands in the way on its home's side and not on the other), flies
     within that clear region to its home *shifted out along y* as far as its side's homes must be to lie
     beyond the stage, descending there, and only then slides in at its home's altitude to over its home (a
     translation shared by its side, so the drones of a side keep their distances, under a formation that
@@ -177,15 +195,25 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     y_lo, y_hi = float(a_m[moving, 1].min()), float(a_m[moving, 1].max())
     slide = np.zeros(len(others))
     if sides:
-        front = slots_m[:, 1] < 0.5 * (y_lo + y_hi)
-        depth = np.where(front, y_lo - gap_m, y_hi + gap_m)
+        front = _step_sides(a_m, others, np.setdiff1d(np.arange(n), others), slots_m[:, 1] < 0.5 * (y_lo + y_hi),
+                            min_distance_m)
+        reach_front, reach_back = y_lo - gap_m, y_hi + gap_m
         # How far each side's waiting points move out along y so that the nearest lies at the step's depth.
         if front.any():
-            slide[front] = min(0.0, y_lo - gap_m - float(slots_m[front, 1].max()))
+            slide[front] = min(0.0, reach_front - float(slots_m[front, 1].max()))
         if (~front).any():
-            slide[~front] = max(0.0, y_hi + gap_m - float(slots_m[~front, 1].min()))
+            slide[~front] = max(0.0, reach_back - float(slots_m[~front, 1].min()))
     else:
-        depth = np.full(len(others), max(float(slots_m[:, 1].max()), y_hi + gap_m))
+        front = np.zeros(len(others), dtype=bool)
+        reach_front, reach_back = y_lo - gap_m, max(float(slots_m[:, 1].max()), y_hi + gap_m)
+    # One translation per side, so that the side's drones keep their distances (projecting a 3-D formation onto
+    # one plane would bring drones behind one another together), until the nearest reaches the step's depth.
+    y_m = a_m[others, 1]
+    depth = y_m.copy()
+    if front.any():
+        depth[front] += reach_front - float(y_m[front].max())
+    if (~front).any():
+        depth[~front] += reach_back - float(y_m[~front].min())
     approach = slots_m.copy()
     approach[:, 1] += slide
     back = a_m.copy()
