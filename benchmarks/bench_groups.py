@@ -5,18 +5,30 @@
 * A 400-drone show whose middle formation is flown by 200 drones (others hold, park or land): planned and
   checked exactly; planning time against the same show with every drone flying a 400-point formation
   there (ratio, same run).
+* Random groups of 10-40 drones drawn through the previous formation (tests/test_plan_group_through.py's
+  ``random_group_doc``: others park, land with homes on both sides, or "swap", landing while some are down),
+  checked by ``swarmshow check --json``: shows safe / total with the staged plan, and what the staging costs:
+  the transition's length against the one-window plan it replaces (unsafe, so the planner stages it) on the
+  same shows in the same run, alternating.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from app.cli import main as cli_main
 from formations import parse_show
 from sim import check_plan, plan_show
-from sim.plan import _subset
+from sim.plan import _plan, _subset, clear_plan_cache
+from tests.test_plan_group_through import random_group_doc
 
 pytestmark = pytest.mark.slow
 
@@ -78,3 +90,46 @@ def test_bench_subset_show_400(others: str, record_result) -> None:
                    "resolutions": [t.resolution for t in plan.transitions],
                    "subset_over_all_plan_time": subset_s / everyone_s})
     assert report.ok, report.violations[:3]
+
+
+def _check(doc: dict, path: Path) -> dict:
+    """``swarmshow check --json`` on ``doc`` (written to ``path``): its report."""
+    path.write_text(json.dumps(doc))
+    clear_plan_cache()
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert cli_main(["check", "--json", str(path)]) in (0, 1)
+    return dict(json.loads(out.getvalue()))
+
+
+@pytest.mark.parametrize("others", ["park", "land", "swap"])
+def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkeypatch) -> None:
+    seeds = range(24)
+    into = "again" if others == "swap" else "line"  # the swap: the prepare-swap transition
+    safe = {"show": 0, "into": 0, "into_one_window": 0}
+    staged_s: list[float] = []
+    single_s: list[float] = []
+    unsafe_seeds = []
+    for seed in seeds:
+        doc = random_group_doc(others, seed)
+        report = _check(doc, tmp_path / "show.json")
+        with monkeypatch.context() as m:  # the one-window plan: staging never kept
+            m.setattr(_plan, "staged_subset", lambda *a, **k: (SimpleNamespace(unresolved=range(10**9)), None))
+            single = _check(doc, tmp_path / "show.json")
+        (ours,) = [b for b in report["by_transition"] if b["kind"] == "transition" and b["to"] == into]
+        (theirs,) = [b for b in single["by_transition"] if b["kind"] == "transition" and b["to"] == into]
+        safe["show"] += bool(report["ok"])
+        safe["into"] += bool(ours["ok"] and not ours["unresolved"])
+        safe["into_one_window"] += bool(theirs["ok"] and not theirs["unresolved"])
+        if not report["ok"]:
+            unsafe_seeds.append(seed)
+        staged_s.append(ours["duration_s"])
+        single_s.append(theirs["duration_s"])
+    ratio = np.asarray(staged_s) / np.asarray(single_s)
+    record_result({"others": others, "drones": 90, "group": "10-40 random", "seeds": len(seeds), "transition": into,
+                   "safe_shows": safe["show"], "safe_transitions": safe["into"],
+                   "safe_transitions_one_window": safe["into_one_window"], "unsafe_seeds": unsafe_seeds,
+                   "transition_s_mean": float(np.mean(staged_s)),
+                   "transition_s_one_window_mean": float(np.mean(single_s)),
+                   "over_one_window_median": float(np.median(ratio)), "over_one_window_max": float(ratio.max())})
+    assert safe["show"] == len(seeds)
