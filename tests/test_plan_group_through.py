@@ -287,3 +287,22 @@ def test_landing_others_leave_a_sphere_without_collapsing_it():
     assert into.resolution == "layers" and into.unresolved == ()
     assert check_plan(plan).ok
     assert _dense_window_min(plan, into.start_s, into.start_s + into.duration_s) >= MIN_D - 1e-3
+
+
+@pytest.mark.parametrize("others, name", [("land", "line"), ("swap", "again")])
+def test_staged_landing_and_swap_meet_a_cue(others, name):
+    """The staged windows of landing others and of the swap (stages before the arriving transition) end at an
+    ``arrive_at_s`` 7 s after their natural end, safe (exact check and dense sampling over the window)."""
+    doc = random_group_doc(others, 0)
+    plan0 = plan_show(parse_show(doc))
+    into0 = next(t for t in plan0.transitions if t.to_name == name)
+    cue_s = round(into0.start_s + into0.duration_s + 7.0, 1)
+    k = next(i for i, f in enumerate(doc["formations"]) if f["name"] == name)
+    doc["formations"][k]["arrive_at_s"] = cue_s
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == name)
+    hold = next(s for s in plan.segments if s.kind == "hold" and s.label == name)
+    assert hold.start_s == pytest.approx(cue_s, abs=1e-6)
+    assert into.unresolved == ()
+    assert check_plan(plan).ok
+    assert _dense_window_min(plan, into.start_s, hold.start_s) >= MIN_D - 1e-3

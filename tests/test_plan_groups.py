@@ -459,7 +459,8 @@ def _swap_doc(points: list[list[float]]) -> dict:
 
 @pytest.mark.parametrize("who, aloft, near, words", [(4, True, [1.0, 0.0, 0.0], "waits to land over its home"),
                                                       (5, False, [0.0, 0.0, 2.6], "stays landed on its home")])
-def test_swap_points_on_waiting_or_landed_drones_are_refused_naming_the_point(who, aloft, near, words):
+def test_swap_points_on_waiting_or_landed_drones_are_refused_naming_the_point(who, aloft, near, words, tmp_path,
+                                                                              capsys):
     """In the swap, a point of the formation 1 m beside where lander 4 waits over its home (takeoff altitude),
     or 2.6 m above drone 5 standing on its home, cannot be kept: refused naming the point, as for other
     subset formations (before: planned, unsafe)."""
@@ -474,6 +475,19 @@ def test_swap_points_on_waiting_or_landed_drones_are_refused_naming_the_point(wh
     assert f"from drone {who}" in str(err.value) and words in str(err.value)
     # Independently: the point is closer than the minimum distance to that drone's waiting place.
     assert f"{np.linalg.norm(near):.3f} m" in str(err.value)
+    # `swarmshow check`: one line naming the point, exit 2; the API's check task: a 422 problem at that loc.
+    from app import tasks
+    from app.cli import main as cli_main
+
+    path = tmp_path / "swap.json"
+    path.write_text(json.dumps(doc))
+    assert cli_main(["check", str(path)]) == 2
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("swarmshow: error:")]
+    assert len(lines) == 1 and "formations[2].points[1]" in lines[0]
+    with pytest.raises(tasks.TaskFailure) as info:
+        tasks.check_task(json.dumps(doc))
+    (problem,) = info.value.detail
+    assert problem["loc"][:5] == ["show", "formations", 2, "points", 1]
     # ... and the same formation 15 m away is planned and safe.
     ok = plan_show(parse_show(_swap_doc(_pts(np.array([[0.0, -30.0, 30.0], bad + [0.0, -15.0, 20.0]])))))
     assert check_plan(ok).ok
