@@ -306,3 +306,58 @@ def test_staged_landing_and_swap_meet_a_cue(others, name):
     assert into.unresolved == ()
     assert check_plan(plan).ok
     assert _dense_window_min(plan, into.start_s, hold.start_s) >= MIN_D - 1e-3
+
+
+def _ring_sphere_swap_doc(seed: int) -> dict:
+    """60 drones on a sphere (r 15 m), a random group on a ring tilted towards the audience (others land), then a
+    second random group on random sphere points (others land): the swap starts from the tilted ring."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(10, 26))
+    a = np.linspace(0, 2 * np.pi, m, endpoint=False)
+    tilt = float(rng.uniform(-0.6, 0.6))
+    ring = np.column_stack([12 * np.cos(a), 12 * np.sin(a) * np.sin(tilt), 12 * np.sin(a) * np.cos(tilt) + 35])
+    sphere = fibonacci_sphere(60, 15.0, (0, 0, 35)).round(6)
+    groups = {"g": sorted(rng.choice(60, m, replace=False).tolist())}
+    h = int(rng.integers(10, 26))
+    groups["h"] = sorted(rng.choice(60, h, replace=False).tolist())
+    pick = sorted(rng.choice(60, h, replace=False).tolist())
+    return {"format": "swarmshow/1", "name": "sphere", "drones": 60,
+            "home": {"grid": {"rows": 6, "cols": 10, "spacing_m": 4.0}}, "settings": {"min_distance_m": MIN_D},
+            "groups": groups,
+            "formations": [{"name": "s", "hold_s": 2, "points": sphere.tolist()},
+                           {"name": "ring", "hold_s": 2, "points": ring.round(6).tolist(), "drones": {"group": "g"},
+                            "others": "land"},
+                           {"name": "ring2", "hold_s": 2, "points": sphere[pick].tolist(), "drones": {"group": "h"},
+                            "others": "land"}]}
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_swap_from_a_tilted_ring_steps_out_along_its_normal(seed):
+    """The swap starts from a ring tilted 0.48 or 0.58 rad towards the audience: stepping out along y passed the ring's
+    neighbours within 3 m (1-5 conflicts, failed before); along the ring's normal every distance to the ring
+    grows. Safe by the exact check and dense sampling."""
+    plan = plan_show(parse_show(_ring_sphere_swap_doc(seed)))
+    into = next(t for t in plan.transitions if t.to_name == "ring2")
+    assert into.unresolved == ()
+    assert check_plan(plan).ok
+    assert _dense_window_min(plan, into.start_s, into.start_s + into.duration_s) >= MIN_D - 1e-3
+
+
+def test_step_direction_is_a_flat_formations_normal_facing_y():
+    """Independent normals: a disc in the plane spanned by two known vectors steps out along their cross product
+    (towards +y); a sphere, a horizontal disc and a plane turned more than 60 degrees from y step out along y."""
+    from sim.plan._subset import step_direction
+
+    rng = np.random.default_rng(3)
+    uv = rng.uniform(-10, 10, (30, 2))
+    for tilt in (0.0, 0.4, -0.9):
+        u = np.array([1.0, 0.0, 0.0])
+        v = np.array([0.0, np.sin(tilt), np.cos(tilt)])
+        pts = uv[:, :1] * u + uv[:, 1:] * v + [3.0, -2.0, 40.0]
+        n = np.cross(u, v)
+        n *= np.sign(n[1])
+        np.testing.assert_allclose(step_direction(pts), n, atol=1e-9)
+    flat = np.column_stack([uv, np.full(30, 40.0)])
+    steep = uv[:, :1] * [1.0, 0.0, 0.0] + uv[:, 1:] * [0.0, np.sin(1.2), np.cos(1.2)]  # normal 1.2 rad from y
+    for pts in (fibonacci_sphere(40, 10.0), flat, steep):
+        np.testing.assert_array_equal(step_direction(pts), [0.0, 1.0, 0.0])

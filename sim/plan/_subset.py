@@ -127,17 +127,36 @@ def plan_movers(a_m: np.ndarray, goals_m: np.ndarray, movers: np.ndarray, lim: L
     return tuple(legs), at, sub.goal_index
 
 
-def _step_sides(a_m: np.ndarray, others: np.ndarray, still: np.ndarray, front: np.ndarray,
-                min_distance_m: float) -> np.ndarray:
-    """(k,) which of ``others`` step out to the front (-y): ``front`` (their homes' side), except where a drone
-    that stays during the step (``still``) stands in the way on that side and not on the other (closer than
-    min_distance_m to the straight line along y, e.g. inside a 3-D formation): stepping out cannot pass it."""
+#: A flat formation is left along its normal when the normal is at least this close to y (|n_y|), else along y.
+STEP_NORMAL_MIN_Y = 0.5
+#: Points within this distance of their best-fit plane make a flat formation, metres.
+FLAT_TOLERANCE_M = 1e-3
+
+
+def step_direction(points_m: np.ndarray) -> np.ndarray:
+    """(3,) unit direction, towards +y, in which drones step out of the formation ``points_m`` (n, 3): its normal
+    when it is flat and faces the audience enough (``STEP_NORMAL_MIN_Y``; along the normal every distance to a
+    drone in the plane grows, a tilted ring too), else +y."""
+    if len(points_m) >= 3:
+        centred = points_m - points_m.mean(axis=0)
+        normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+        if abs(normal[1]) >= STEP_NORMAL_MIN_Y and float(np.abs(centred @ normal).max()) <= FLAT_TOLERANCE_M:
+            return np.asarray(normal * np.sign(normal[1]), dtype=np.float64)
+    return np.array([0.0, 1.0, 0.0])
+
+
+def _step_sides(a_m: np.ndarray, others: np.ndarray, still: np.ndarray, front: np.ndarray, min_distance_m: float,
+                dir_m: np.ndarray) -> np.ndarray:
+    """(k,) which of ``others`` step out to the front (-``dir_m``): ``front`` (their homes' side), except where a
+    drone that stays during the step (``still``) stands in the way on that side and not on the other (closer than
+    min_distance_m to the straight line along ``dir_m``, e.g. inside a 3-D formation): stepping cannot pass it."""
     if not len(still):
         return front
-    near = cdist(a_m[others][:, [0, 2]], a_m[still][:, [0, 2]]) < min_distance_m
-    dy_m = a_m[still, 1][None, :] - a_m[others, 1][:, None]  # > 0: the still drone lies behind (+y) the other
-    blocked_front = np.any(near & (dy_m < 0.0), axis=1)
-    blocked_back = np.any(near & (dy_m > 0.0), axis=1)
+    rel = a_m[still][None, :, :] - a_m[others][:, None, :]  # (k, m, 3)
+    along = rel @ dir_m  # > 0: the still drone lies behind (+dir) the other
+    near = np.linalg.norm(rel - along[..., None] * dir_m, axis=-1) < min_distance_m
+    blocked_front = np.any(near & (along < 0.0), axis=1)
+    blocked_back = np.any(near & (along > 0.0), axis=1)
     flip = np.where(front, blocked_front & ~blocked_back, blocked_back & ~blocked_front)
     return np.asarray(front ^ flip, dtype=bool)
 
@@ -155,11 +174,14 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
 
     The step out is straight along y, one translation for all the drones of a side (so they keep their
     distances; projecting a 3-D formation onto one plane would bring drones behind one another together), until
-    the nearest is ``PARK_OFFSET_FACTOR`` x min_distance_m beyond every moving drone: leaving a flat x-z
+    the nearest is ``PARK_OFFSET_FACTOR`` x min_distance_m beyond every moving drone in y: leaving a flat
     formation along its normal only moves a drone away from the ones that stay in it (its distance to each
-    grows as sqrt(d² + y²)). Parking drones step back (+y, away from the audience), at least to the park
-    layer's depth, and then move to it. With ``sides`` (landing others, each over its own home) every drone steps
-    out on its home's side of the stage (the homes in front of its middle y to the front, the others to the
+    grows as sqrt(d² + s²)), so a flat formation tilted towards the audience is left along its normal
+    (:func:`step_direction`; along y when that would leave the altitude band). Parking drones step back (+y,
+    away from the audience), at least to the park layer's depth, and then move to it.
+
+    With ``sides`` (landing others, each over its own home) every drone steps out on its home's side of the
+    stage (the homes in front of its middle y to the front, the others to the
     back: stepping back from a formation and then flying to a home in front of it crosses the formation; the
     other side when a drone that stays stands in the way on its home's side and not on the other), flies
     within that clear region to its home *shifted out along y* as far as its side's homes must be to lie
@@ -193,31 +215,36 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     # The stage is where the moving drones are (a drone in neither set, e.g. landed, is an obstacle on the ground).
     moving = np.concatenate([drones, others])
     y_lo, y_hi = float(a_m[moving, 1].min()), float(a_m[moving, 1].max())
-    slide = np.zeros(len(others))
-    if sides:
-        front = _step_sides(a_m, others, np.setdiff1d(np.arange(n), others), slots_m[:, 1] < 0.5 * (y_lo + y_hi),
-                            min_distance_m)
-        reach_front, reach_back = y_lo - gap_m, y_hi + gap_m
-        # How far each side's waiting points move out along y so that the nearest lies at the step's depth.
-        if front.any():
-            slide[front] = min(0.0, reach_front - float(slots_m[front, 1].max()))
-        if (~front).any():
-            slide[~front] = max(0.0, reach_back - float(slots_m[~front, 1].min()))
-    else:
-        front = np.zeros(len(others), dtype=bool)
-        reach_front, reach_back = y_lo - gap_m, max(float(slots_m[:, 1].max()), y_hi + gap_m)
-    # One translation per side, so that the side's drones keep their distances (projecting a 3-D formation onto
-    # one plane would bring drones behind one another together), until the nearest reaches the step's depth.
     y_m = a_m[others, 1]
-    depth = y_m.copy()
-    if front.any():
-        depth[front] += reach_front - float(y_m[front].max())
-    if (~front).any():
-        depth[~front] += reach_back - float(y_m[~front].min())
+    home_front = slots_m[:, 1] < 0.5 * (y_lo + y_hi)
+    still = np.setdiff1d(np.arange(n), others)
+    for dir_m in (step_direction(a_m[moving]), np.array([0.0, 1.0, 0.0])):
+        slide = np.zeros(len(others))
+        if sides:
+            front = _step_sides(a_m, others, still, home_front, min_distance_m, dir_m)
+            reach_front, reach_back = y_lo - gap_m, y_hi + gap_m
+            # How far each side's waiting points move out along y so that the nearest lies at the step's depth.
+            if front.any():
+                slide[front] = min(0.0, reach_front - float(slots_m[front, 1].max()))
+            if (~front).any():
+                slide[~front] = max(0.0, reach_back - float(slots_m[~front, 1].min()))
+        else:
+            front = np.zeros(len(others), dtype=bool)
+            reach_front, reach_back = y_lo - gap_m, max(float(slots_m[:, 1].max()), y_hi + gap_m)
+        # One translation per side (along dir_m), so that the side's drones keep their distances (projecting a
+        # 3-D formation onto one plane would bring drones behind one another together), until the nearest
+        # reaches the step's depth in y.
+        shift_y = np.zeros(len(others))
+        if front.any():
+            shift_y[front] = reach_front - float(y_m[front].max())
+        if (~front).any():
+            shift_y[~front] = reach_back - float(y_m[~front].min())
+        back = a_m.copy()
+        back[others] += (shift_y / dir_m[1])[:, None] * dir_m[None, :]
+        if floor_m <= float(back[others, 2].min()) and float(back[others, 2].max()) <= ceiling_m:
+            break  # else straight along y (a tilted formation's normal would leave the altitude band)
     approach = slots_m.copy()
     approach[:, 1] += slide
-    back = a_m.copy()
-    back[others, 1] = depth
     step = schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)
 
     def clear_stage(at: np.ndarray) -> tuple[list[Schedule], np.ndarray, np.ndarray]:
@@ -247,4 +274,4 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     return TransitionPlan(legs, goal_index, "layers", sync_s), np.asarray(slots_m[slot_of], dtype=np.float64)
 
 
-__all__ = ["choose_drones", "park_slots", "plan_movers", "staged_subset"]
+__all__ = ["choose_drones", "park_slots", "plan_movers", "staged_subset", "step_direction"]
