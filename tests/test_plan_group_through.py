@@ -361,3 +361,31 @@ def test_step_direction_is_a_flat_formations_normal_facing_y():
     steep = uv[:, :1] * [1.0, 0.0, 0.0] + uv[:, 1:] * [0.0, np.sin(1.2), np.cos(1.2)]  # normal 1.2 rad from y
     for pts in (fibonacci_sphere(40, 10.0), flat, steep):
         np.testing.assert_array_equal(step_direction(pts), [0.0, 1.0, 0.0])
+
+
+def test_step_sides_flips_exactly_the_drones_blocked_on_their_side_only():
+    """Which landing others step out on the other side: brute force over every (other, still) pair, the point-line
+    distance to the other's line along the step direction and which side of it the still drone lies on."""
+    from sim.plan._subset import _step_sides
+
+    rng = np.random.default_rng(5)
+    for case in range(100):
+        a = rng.uniform(-10, 10, (50, 3))
+        others = rng.choice(50, 25, replace=False)
+        still = np.setdiff1d(np.arange(50), others)
+        d = np.array([0.0, 1.0, 0.0]) if case % 3 == 0 else rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        front = rng.random(25) < 0.5
+        want = front.copy()
+        for k, i in enumerate(others):
+            ahead = behind = False
+            for j in still:
+                r = a[j] - a[i]
+                s = float(r @ d)
+                if np.linalg.norm(r - s * d) < MIN_D:
+                    ahead |= s > 0
+                    behind |= s < 0
+            blocked_mine, blocked_other = (behind, ahead) if front[k] else (ahead, behind)
+            if blocked_mine and not blocked_other:
+                want[k] = not front[k]
+        np.testing.assert_array_equal(_step_sides(a, others, still, front, MIN_D, d), want)

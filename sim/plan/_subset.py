@@ -150,13 +150,19 @@ def _step_sides(a_m: np.ndarray, others: np.ndarray, still: np.ndarray, front: n
     """(k,) which of ``others`` step out to the front (-``dir_m``): ``front`` (their homes' side), except where a
     drone that stays during the step (``still``) stands in the way on that side and not on the other (closer than
     min_distance_m to the straight line along ``dir_m``, e.g. inside a 3-D formation): stepping cannot pass it."""
-    if not len(still):
+    if not len(still) or not len(others):
         return front
-    rel = a_m[still][None, :, :] - a_m[others][:, None, :]  # (k, m, 3)
-    along = rel @ dir_m  # > 0: the still drone lies behind (+dir) the other
-    near = np.linalg.norm(rel - along[..., None] * dir_m, axis=-1) < min_distance_m
-    blocked_front = np.any(near & (along < 0.0), axis=1)
-    blocked_back = np.any(near & (along > 0.0), axis=1)
+    # Pairs closer than min_distance_m across the line: a k-d tree in the plane normal to dir_m (no k x m matrix).
+    e1 = np.cross(dir_m, [1.0, 0.0, 0.0] if abs(dir_m[0]) < 0.9 else [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    plane = np.column_stack([e1, np.cross(dir_m, e1)])  # (3, 2)
+    near = cKDTree(a_m[others] @ plane).sparse_distance_matrix(cKDTree(a_m[still] @ plane), min_distance_m,
+                                                                output_type="ndarray")
+    near = near[near["v"] < min_distance_m]
+    i, j = near["i"], near["j"]
+    along = (a_m[still[j]] - a_m[others[i]]) @ dir_m  # > 0: the still drone lies behind (+dir) the other
+    blocked_front = np.bincount(i[along < 0.0], minlength=len(others)) > 0
+    blocked_back = np.bincount(i[along > 0.0], minlength=len(others)) > 0
     flip = np.where(front, blocked_front & ~blocked_back, blocked_back & ~blocked_front)
     return np.asarray(front ^ flip, dtype=bool)
 
