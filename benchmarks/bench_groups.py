@@ -6,7 +6,8 @@
   checked exactly; planning time against the same show with every drone flying a 400-point formation
   there (ratio, same run).
 * Random groups of 10-40 drones drawn through the previous formation (tests/test_plan_group_through.py's
-  ``random_group_doc``: others park, land with homes on both sides, or "swap", landing while some are down),
+  ``random_group_doc``: others park, land with homes on both sides, or "swap", landing while some are down;
+  "sphere-swap": 60 drones, groups of 10-25 through a sphere, the swap from a ring tilted towards the audience),
   checked by ``swarmshow check --json``: shows safe / total with the staged plan, and what the staging costs:
   the transition's length against the one-window plan it replaces (unsafe, so the planner stages it) on the
   same shows in the same run, alternating.
@@ -28,7 +29,7 @@ from app.cli import main as cli_main
 from formations import parse_show
 from sim import check_plan, plan_show
 from sim.plan import _plan, _subset, clear_plan_cache
-from tests.test_plan_group_through import random_group_doc
+from tests.test_plan_group_through import _ring_sphere_swap_doc, random_group_doc
 
 pytestmark = pytest.mark.slow
 
@@ -102,16 +103,18 @@ def _check(doc: dict, path: Path) -> dict:
     return dict(json.loads(out.getvalue()))
 
 
-@pytest.mark.parametrize("others", ["park", "land", "swap"])
+@pytest.mark.parametrize("others", ["park", "land", "swap", "sphere-swap"])
 def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkeypatch) -> None:
     seeds = range(24)
-    into = "again" if others == "swap" else "line"  # the swap: the prepare-swap transition
+    # The swap: the prepare-swap transition; "sphere-swap": 60 drones, a sphere, a random group on a tilted ring
+    # (others land), a second random group on sphere points (the swap, from the tilted ring).
+    into = {"swap": "again", "sphere-swap": "ring2"}.get(others, "line")
     safe = {"show": 0, "into": 0, "into_one_window": 0}
     staged_s: list[float] = []
     single_s: list[float] = []
     unsafe_seeds = []
     for seed in seeds:
-        doc = random_group_doc(others, seed)
+        doc = _ring_sphere_swap_doc(seed) if others == "sphere-swap" else random_group_doc(others, seed)
         report = _check(doc, tmp_path / "show.json")
         with monkeypatch.context() as m:  # the one-window plan: staging never kept
             m.setattr(_plan, "staged_subset", lambda *a, **k: (SimpleNamespace(unresolved=range(10**9)), None))
@@ -126,7 +129,9 @@ def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkey
         staged_s.append(ours["duration_s"])
         single_s.append(theirs["duration_s"])
     ratio = np.asarray(staged_s) / np.asarray(single_s)
-    record_result({"others": others, "drones": 90, "group": "10-40 random", "seeds": len(seeds), "transition": into,
+    record_result({"others": others, "drones": len(doc["formations"][0]["points"]),
+                   "group": "10-25 random" if others == "sphere-swap" else "10-40 random", "seeds": len(seeds),
+                   "transition": into,
                    "safe_shows": safe["show"], "safe_transitions": safe["into"],
                    "safe_transitions_one_window": safe["into_one_window"], "unsafe_seeds": unsafe_seeds,
                    "transition_s_mean": float(np.mean(staged_s)),
