@@ -103,18 +103,29 @@ def _check(doc: dict, path: Path) -> dict:
     return dict(json.loads(out.getvalue()))
 
 
-@pytest.mark.parametrize("others", ["park", "land", "swap", "sphere-swap"])
+def _sphere_park_doc(seed: int) -> dict:
+    """The sphere-swap show up to its ring, the others parking (a known weakness: the step back passes drones of
+    the group inside the sphere)."""
+    doc = _ring_sphere_swap_doc(seed)
+    doc["formations"] = doc["formations"][:2]
+    doc["formations"][1]["others"] = "park"
+    return doc
+
+
+@pytest.mark.parametrize("others", ["park", "land", "swap", "sphere-swap", "sphere-park"])
 def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkeypatch) -> None:
     seeds = range(24)
     # The swap: the prepare-swap transition; "sphere-swap": 60 drones, a sphere, a random group on a tilted ring
     # (others land), a second random group on sphere points (the swap, from the tilted ring).
-    into = {"swap": "again", "sphere-swap": "ring2"}.get(others, "line")
+    into = {"swap": "again", "sphere-swap": "ring2", "sphere-park": "ring"}.get(others, "line")
+    docs = {"sphere-swap": _ring_sphere_swap_doc, "sphere-park": _sphere_park_doc}.get(
+        others, lambda seed: random_group_doc(others, seed))
     safe = {"show": 0, "into": 0, "into_one_window": 0}
     staged_s: list[float] = []
     single_s: list[float] = []
     unsafe_seeds = []
     for seed in seeds:
-        doc = _ring_sphere_swap_doc(seed) if others == "sphere-swap" else random_group_doc(others, seed)
+        doc = docs(seed)
         report = _check(doc, tmp_path / "show.json")
         with monkeypatch.context() as m:  # the one-window plan: staging never kept
             m.setattr(_plan, "staged_subset", lambda *a, **k: (SimpleNamespace(unresolved=range(10**9)), None))
@@ -130,11 +141,12 @@ def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkey
         single_s.append(theirs["duration_s"])
     ratio = np.asarray(staged_s) / np.asarray(single_s)
     record_result({"others": others, "drones": len(doc["formations"][0]["points"]),
-                   "group": "10-25 random" if others == "sphere-swap" else "10-40 random", "seeds": len(seeds),
+                   "group": "10-25 random" if others.startswith("sphere") else "10-40 random", "seeds": len(seeds),
                    "transition": into,
                    "safe_shows": safe["show"], "safe_transitions": safe["into"],
                    "safe_transitions_one_window": safe["into_one_window"], "unsafe_seeds": unsafe_seeds,
                    "transition_s_mean": float(np.mean(staged_s)),
                    "transition_s_one_window_mean": float(np.mean(single_s)),
                    "over_one_window_median": float(np.median(ratio)), "over_one_window_max": float(ratio.max())})
-    assert safe["show"] == len(seeds)
+    if others != "sphere-park":  # not solved yet (README)
+        assert safe["show"] == len(seeds)
