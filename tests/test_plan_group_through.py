@@ -389,3 +389,26 @@ def test_step_sides_flips_exactly_the_drones_blocked_on_their_side_only():
             if blocked_mine and not blocked_other:
                 want[k] = not front[k]
         np.testing.assert_array_equal(_step_sides(a, others, still, front, MIN_D, d), want)
+
+
+def test_swap_respects_a_forced_transition_s():
+    """A transition_s on the swap's formation was ignored (the window kept its natural length, failed before):
+    longer than needed it is flown exactly and safe; shorter than the stages allow it is refused naming the field
+    with the minimum, which is itself feasible (planned exactly at that length)."""
+    doc = random_group_doc("swap", 1)
+    natural = next(t for t in plan_show(parse_show(doc)).transitions if t.to_name == "again").duration_s
+    doc["formations"][3]["transition_s"] = round(natural + 6.0, 1)
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == "again")
+    assert into.duration_s == pytest.approx(natural + 6.0, abs=1e-6) and into.unresolved == ()
+    assert check_plan(plan).ok
+    assert _dense_window_min(plan, into.start_s, into.start_s + into.duration_s) >= MIN_D - 1e-3
+    doc["formations"][3]["transition_s"] = 10.0
+    for enforce in (True, False):
+        with pytest.raises(PlanError) as err:
+            plan_show(parse_show(doc), enforce_limits=enforce)
+        assert err.value.path == "formations[3].transition_s"
+        assert err.value.minimum_s is not None and 10.0 < err.value.minimum_s <= natural + 1e-6
+    doc["formations"][3]["transition_s"] = err.value.minimum_s
+    at_min = next(t for t in plan_show(parse_show(doc)).transitions if t.to_name == "again")
+    assert at_min.duration_s == pytest.approx(err.value.minimum_s, abs=1e-6)

@@ -820,6 +820,26 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         return (replace(arrive, goal_index=goal_index), goals, flying, tuple(stages), landers, climbers, t_down,
                 t_up)
 
+    def swap_duration(tp: TransitionPlan, k: int, pre_s: float) -> TransitionPlan:
+        """The swap into formation k (``tp`` its arriving transition after ``pre_s`` of stages) lasting the
+        formation's ``transition_s``: the arrival re-timed to fill what the stages leave. Shorter than the stages
+        and the arrival allow is refused naming the field, whether or not limits are enforced: the sequence of
+        stages cannot be flown faster as a whole."""
+        f = show.formations[k]
+        if f.transition_s is None:
+            return tp
+        label = f"into {f.name!r}"
+        left_s = f.transition_s - pre_s
+        fitted = fit_transition(tp, left_s, lim, min_distance_m=s.min_distance_m, label=label) if left_s > 0 else None
+        if fitted is not None:
+            return fitted
+        earliest = pre_s + earliest_window(tp, lim, min_distance_m=s.min_distance_m, label=label)
+        where = f"formations[{k}].transition_s"
+        raise PlanError(
+            f"{where} = {f.transition_s:g} s is shorter than the {earliest:.1f} s that formation {f.name!r} needs: "
+            "its others land while some of its drones are down, so its airborne drones fly and the others land "
+            "before the landed ones take off and fly to their points", path=where, minimum_s=earliest)
+
     previous = "takeoff"
     homes_up = np.array(show.all_home_positions_m) + lift
     own = np.arange(len(home)) if s.landing == "own_home" else None
@@ -830,6 +850,7 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         down_now = np.flatnonzero(~np.isnan(down_since))
         if k > 0 and len(down_now) and f.others == "land" and show.formation_drones(k) is not None:
             tp, goals, flying, pre, landers, climbers, t_down, t_up = prepare_swap(k, positions[-1], previous)
+            tp = swap_duration(tp, k, sum(x.window_s for x in pre))
             tp = pin_arrival(tp, k, t_start + sum(x.window_s for x in pre))
             end, info = commit(tp, previous, f.name, goals, pre)
             if len(climbers):
