@@ -187,13 +187,12 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     away from the audience), at least to the park layer's depth, and then move to it.
 
     With ``sides`` (landing others, each over its own home) every drone steps out on its home's side of the
-    stage (the homes in front of its middle y to the front, the others to the
-    back: stepping back from a formation and then flying to a home in front of it crosses the formation; the
-    other side when a drone that stays stands in the way on its home's side and not on the other), flies
-    within that clear region to its home *shifted out along y* as far as its side's homes must be to lie
-    beyond the stage, descending there, and only then slides in at its home's altitude to over its home (a
-    translation shared by its side, so the drones of a side keep their distances, under a formation that
-    stays above it).
+    stage (the homes in front of its middle y to the front, the others to the back: stepping back from a
+    formation and then flying to a home in front of it crosses the formation; the other side when a drone
+    that stays stands in the way on its home's side and not on the other, :func:`_step_sides`), flies within
+    that clear region to its home *shifted out along y* as far as its side's homes must be to lie beyond the
+    stage, descending there, and only then slides in at its home's altitude to over its home (a translation
+    shared by its side, so the drones of a side keep their distances, under a formation that stays above it).
 
     Args:
         a_m: (N, 3) start positions, metres.
