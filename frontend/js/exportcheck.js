@@ -41,3 +41,38 @@ export function exportProblem(format, geo) {
   }
   return "";
 }
+
+/** Formats that apply the scale and offset (indoor flying), and formats that can hold the flown trajectories
+ * (app.exports SCALING_FORMATS / FLOWN_FORMATS; a test keeps them equal). The server refuses an option a format
+ * does not take, so the editor sends it only where it is used. */
+export const SCALING_FORMATS = ["crazyswarm"];
+export const FLOWN_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
+
+/**
+ * The query options of an export of `format`: the export fields the format takes (blank and default ones left
+ * out) and, for the flown trajectories, the simulation panel's preset and seed, so that the file holds the
+ * single flight the designer chose (the server flies the same one: sim.flight.single_flight_options).
+ * @param {string} format
+ * @param {{fps?: string, source?: string, scale?: string, offset?: string}} fields the export options' text
+ * @param {{preset?: string, seed?: string}} flight the simulation panel's `#sim-preset` and `#sim-seed`
+ * @returns {Record<string, string>}
+ */
+export function exportQuery(format, fields, flight = {}) {
+  /** @type {Record<string, string>} */
+  const out = {};
+  const text = (/** @type {string|undefined} */ v) => String(v ?? "").trim().replace(/\s+/g, "");
+  if (text(fields.fps) !== "") out.fps = text(fields.fps);
+  // A format that exports the exact plan refuses "simulated" (the server says so beside the menu).
+  if (text(fields.source) === "simulated") {
+    out.source = "simulated";
+    if (FLOWN_FORMATS.includes(format)) {
+      if (text(flight.preset) !== "") out.preset = text(flight.preset);
+      if (text(flight.seed) !== "") out.seed = text(flight.seed);
+    }
+  }
+  if (SCALING_FORMATS.includes(format)) {
+    if (text(fields.scale) !== "" && Number(text(fields.scale)) !== 1) out.scale = text(fields.scale);
+    if (text(fields.offset) !== "") out.offset = text(fields.offset);
+  }
+  return out;
+}
