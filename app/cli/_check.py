@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
 
@@ -38,8 +39,8 @@ def _check(args: argparse.Namespace) -> int:
 def format_report(report) -> str:
     """The check report as a few human-readable lines."""
     lim = report.limits
-    # A show of one drone has no pair: the report's distances are then -1 (no value), not a distance.
-    if report.min_distance_m >= 0:
+    # A show of one drone has no pair: no distance (+inf in the report, null in its JSON), not a distance.
+    if math.isfinite(report.min_distance_m):
         closest = (f"{report.min_distance_m:8.3f} m   (limit {lim['min_distance_m']} m; drones "
                    f"{report.min_distance_pair[0]} and {report.min_distance_pair[1]} at t = "
                    f"{report.min_distance_time_s:.2f} s)")
