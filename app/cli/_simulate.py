@@ -21,9 +21,10 @@ an in-process cluster; the address defaults to ``$SWARMSHOW_DASK_SCHEDULER``). E
 with a one-line message when the scheduler or a worker cannot be reached within
 ``--scheduler-timeout`` seconds.
 
-``swarmshow simulate SHOW --runs K [--preset gusty-rtk] [--seed S] [--confidence 0.99]
+``swarmshow simulate SHOW --runs K [--preset calm-rtk] [--seed S] [--confidence 0.99]
 [--collision-distance M] [--report out.html|out.pdf]`` is the Monte-Carlo safety margin
-(``sim.flight.monte_carlo``): K flights with seeds S .. S+K-1 (on the local engine one after
+(``sim.flight.monte_carlo``): K flights with seeds S .. S+K-1 under the preset (default as a single
+flight's, so that run k is the single flight of seed S+k; none with ``--disturbance``) (on the local engine one after
 the other, on ``--engine dask`` one task per run), the flown minimum separation per segment
 and for the show, the probability of coming closer than the minimum distance and than the
 collision distance (exact binomial intervals), the worst pairs, every drone's largest deviation
@@ -117,9 +118,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")
     p.add_argument("--preset", choices=PRESETS,
-                   help=f"error-model preset: ideal, calm-rtk, gusty-rtk, gps-only (a single flight's default: "
-                   f"{DEFAULT_FLIGHT_PRESET}, or ideal with --disturbance; presets other than ideal bring their "
-                   "own wind and replace --disturbance)")
+                   help=f"error-model preset: ideal, calm-rtk, gusty-rtk, gps-only (default {DEFAULT_FLIGHT_PRESET}, "
+                   "for one flight and for --runs; with --disturbance: ideal for one flight, none for --runs; presets "
+                   "other than ideal bring their own wind and replace --disturbance)")
     p.add_argument("--runs", type=int, metavar="K",
                    help="Monte-Carlo: fly the show K times with seeds SEED..SEED+K-1 and report the margin")
     p.add_argument("--confidence", type=float, default=None, metavar="C",
@@ -230,12 +231,22 @@ def _base_options(args: argparse.Namespace, dask: dict) -> Any:
     )
 
 
+def montecarlo_preset(args: argparse.Namespace) -> str | None:
+    """The preset a Monte-Carlo flies: ``--preset``, else none with ``--disturbance`` (the ideal vehicle in that
+    disturbance: a preset's own wind would count it twice), else the single flight's default, so that run k is
+    ``swarmshow simulate SHOW --seed S+k`` (the API's and the editor's default too)."""
+    if args.preset is not None:
+        return str(args.preset)
+    return None if args.disturbance != "none" else DEFAULT_FLIGHT_PRESET
+
+
 def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
     """A Monte-Carlo run's FlightOptions: :func:`_base_options` and the error preset (if any)."""
     from sim.flight import options_for_preset
 
     options = _base_options(args, dask)
-    return options if args.preset is None else options_for_preset(args.preset, options)
+    preset = montecarlo_preset(args)
+    return options if preset is None else options_for_preset(preset, options)
 
 
 def single_preset(args: argparse.Namespace) -> str:
@@ -262,7 +273,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
                 confidence=0.99 if args.confidence is None else args.confidence,
                 collision_distance_m=(DEFAULT_COLLISION_DISTANCE_M if args.collision_distance is None
                                       else args.collision_distance),
-                preset=args.preset, progress=update,
+                preset=montecarlo_preset(args), progress=update,
             )
     report = result.to_json()
     report["show"] = show.name
