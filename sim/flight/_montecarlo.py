@@ -742,10 +742,11 @@ class _Monotone:
 # ----------------------------------------------------------------------------------------
 def _dask_run(plan: ShowPlan, options: FlightOptions, run: int, seed: int, max_bins: int, token: str) -> RunStats:
     """Fly and reduce one run on a worker, reporting progress as scheduler events."""
-    from sim.flight._dask import _ENGINE_LOCK, task_progress
+    from sim.flight import _dask
 
-    with _ENGINE_LOCK:
-        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=task_progress(token, run, "run"))
+    _dask.worker_notes()  # a compile note as "swarmshow: ..." on the worker's stderr
+    with _dask._ENGINE_LOCK:
+        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=_dask.task_progress(token, run, "run"))
 
 
 def _fly_dask(
