@@ -102,6 +102,18 @@ def read_bounded(path: str, limit: int, *, what: str = "file", timeout_s: float 
         os.close(fd)
 
 
+def output_path(text: str) -> Path:
+    """An output argument (``-o OUT``) as a path; a name ending in ``/`` names a directory, which must exist
+    (``Path`` drops the slash, and ``out/`` was written as a *file* called ``out``).
+
+    Raises:
+        CliError: a directory name that is not an existing directory.
+    """
+    if text.endswith(("/", os.sep)) and not Path(text).is_dir():
+        raise CliError(f"{text}: no such directory")
+    return Path(text)
+
+
 def write_atomically(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same directory, an fsync and a rename.
 

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli._common import EXIT_OK, CliError, load_show_arg, progress_bar
+from app.cli._common import EXIT_OK, CliError, load_show_arg, output_path, progress_bar
 from app.cli._common import write_atomically as write_atomically
 
 # Formats that apply --scale / --offset, embed --audio, fly --source simulated: the API and the editor
@@ -184,7 +184,7 @@ def _target_dir_check(output: str) -> Path | None:
     """Validate ``-o`` before doing any work: ``None`` for stdout, else the path."""
     if output == "-":
         return None
-    path = Path(output)
+    path = output_path(output)
     if path.is_dir():
         return path
     parent = path.parent

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
-from app.cli._common import EXIT_OK, CliError, load_show_arg, read_bounded, write_atomically
+from app.cli._common import EXIT_OK, CliError, load_show_arg, output_path, read_bounded, write_atomically
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -66,7 +65,7 @@ def _home(args: argparse.Namespace) -> int:
         raise CliError(exc.one_line()) from exc
     text = dump_show(new) + "\n"
     if args.output:
-        write_atomically(Path(args.output), text.encode())
+        write_atomically(output_path(args.output), text.encode())
     else:
         sys.stdout.write(text)
     return EXIT_OK

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from app.cli._common import EXIT_OK, load_show_arg, print_json
+from app.cli._common import EXIT_OK, CliError, load_show_arg, print_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +20,22 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    show = load_show_arg(args.show)
+    from formations import ShowValidationError
+
+    try:
+        show = load_show_arg(args.show)
+    except CliError as exc:
+        problems = exc.__cause__.errors if isinstance(exc.__cause__, ShowValidationError) else None
+        if problems is None:
+            raise
+        # The one-line reason names the first problem; every one of them is what this command is for.
+        if args.json:
+            print_json({"valid": False, "errors": [{"path": e["path"], "msg": e["msg"]} for e in problems]})
+        elif len(problems) > 1:
+            text = str(exc)  # "...: first problem (and N more problems)"
+            raise CliError(f"{text[:-1]}; swarmshow validate --json lists them)" if text.endswith(")")
+                           else f"{text} (swarmshow validate --json lists them all)") from exc
+        raise
     summary = {
         "valid": True,
         "name": show.name,

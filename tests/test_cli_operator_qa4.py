@@ -1,0 +1,90 @@
+"""An operator's walk of the command line (QA, round 4): each test failed against the defect it names.
+
+* ``swarmshow --version`` was a usage error ("the following arguments are required: COMMAND"), so a bug report
+  could not say which swarmshow it was about;
+* ``swarmshow validate --json`` of an invalid show printed nothing on stdout, and the text said "(and 4 more
+  problems)" with no way to see them;
+* an output named as a directory that does not exist (``-o out/``) was written as a *file* called ``out``
+  (export, formation, home).
+"""
+
+from __future__ import annotations
+
+import json
+from importlib.metadata import version
+from pathlib import Path
+
+import pytest
+
+from app.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "formations/data/demo_show.json"
+
+
+def _run(capsys, argv: list[str]) -> tuple[int, str, str]:
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own exits (--version, --help, usage errors)
+        code = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_version(capsys):
+    code, out, err = _run(capsys, ["--version"])
+    assert code == 0 and out == f"swarmshow {version('swarmshow')}\n" and err == "", (out, err)
+
+
+def _bad_show(tmp_path: Path) -> tuple[Path, list[dict]]:
+    doc = json.loads(DEMO.read_text())
+    doc["drones"] = 0
+    doc["settings"]["min_distance_m"] = -3
+    doc["formations"][1]["hold_s"] = "long"
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    from formations import ShowValidationError, parse_show
+
+    with pytest.raises(ShowValidationError) as exc:
+        parse_show(path.read_bytes())
+    return path, exc.value.errors
+
+
+def test_validate_json_lists_every_problem(tmp_path, capsys):
+    path, errors = _bad_show(tmp_path)
+    assert len(errors) >= 3
+    code, out, err = _run(capsys, ["validate", str(path), "--json"])
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    report = json.loads(out)
+    assert report["valid"] is False
+    assert [(e["path"], e["msg"]) for e in report["errors"]] == [(e["path"], e["msg"]) for e in errors]
+
+
+def test_validate_text_says_where_the_other_problems_are(tmp_path, capsys):
+    path, errors = _bad_show(tmp_path)
+    code, out, err = _run(capsys, ["validate", str(path)])
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert f"and {len(errors) - 1} more problems" in err and "--json" in err, err
+
+
+def test_validate_json_of_a_missing_file_is_still_one_line(tmp_path, capsys):
+    code, out, err = _run(capsys, ["validate", str(tmp_path / "nope.json"), "--json"])
+    assert code == 2 and out == "" and "no such file" in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["export", str(DEMO), "--format", "show", "-o"],
+    ["formation", "shape", "circle", "-n", "8", "-o"],
+    ["home", str(DEMO), "--boxes", "10", "-o"],
+])
+def test_an_output_named_as_a_missing_directory_is_refused(tmp_path, capsys, argv):
+    target = tmp_path / "out"
+    code, out, err = _run(capsys, [*argv, f"{target}/"])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "no such directory" in err, err
+    assert not target.exists()
+
+
+def test_export_into_an_existing_directory_with_a_slash_still_works(tmp_path, capsys):
+    code, _, err = _run(capsys, ["export", str(DEMO), "--format", "show", "-o", f"{tmp_path}/"])
+    assert code == 0, err
+    assert json.loads((tmp_path / "Demo.json").read_text())["drones"] == 100
