@@ -88,3 +88,37 @@ def test_export_into_an_existing_directory_with_a_slash_still_works(tmp_path, ca
     code, _, err = _run(capsys, ["export", str(DEMO), "--format", "show", "-o", f"{tmp_path}/"])
     assert code == 0, err
     assert json.loads((tmp_path / "Demo.json").read_text())["drones"] == 100
+
+
+# -- serve: bad settings are one line naming the flag, before anything is printed as served ----------------
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_serve_with_a_data_dir_it_cannot_create_is_one_line(tmp_path, capsys):
+    """Failed before: the server said "swarmshow server: http://..." and then died in its start-up with a
+    70-line traceback (exit 3)."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory")
+    code, out, err = _run(capsys, ["serve", "--port", str(_free_port()), "--data-dir", str(blocker / "data")])
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, (out, err)
+    assert "--data-dir" in err and str(blocker / "data") in err, err
+
+
+@pytest.mark.parametrize(("argv", "flag"), [(["--port", "70000"], "--port"), (["--workers", "0"], "--workers")])
+def test_serve_names_the_flag_at_fault(capsys, argv, flag):
+    """Failed before: "swarmshow: error: port: Input should be ..." (the setting's name, not the flag's)."""
+    code, out, err = _run(capsys, ["serve", *argv])
+    assert code == 2 and err.startswith(f"swarmshow: error: {flag}: "), err
+
+
+def test_serve_names_the_environment_variable_at_fault(capsys, monkeypatch):
+    monkeypatch.setenv("SWARMSHOW_PORT", "70000")
+    code, out, err = _run(capsys, ["serve"])
+    assert code == 2 and err.startswith("swarmshow: error: SWARMSHOW_PORT: "), err
