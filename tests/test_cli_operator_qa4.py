@@ -122,3 +122,19 @@ def test_serve_names_the_environment_variable_at_fault(capsys, monkeypatch):
     monkeypatch.setenv("SWARMSHOW_PORT", "70000")
     code, out, err = _run(capsys, ["serve"])
     assert code == 2 and err.startswith("swarmshow: error: SWARMSHOW_PORT: "), err
+
+
+# -- simulate --scenario paper --plot: a path it cannot write is refused before flying ------------------------
+
+
+@pytest.mark.parametrize(("name", "needle"), [("plot.txt", ".txt"), ("missing/plot.png", "no such directory")])
+def test_paper_plot_path_is_checked_before_flying(tmp_path, capsys, monkeypatch, name, needle):
+    """Failed before: ``--plot x.txt`` flew the 20 s scenario and then died in matplotlib with a traceback (exit 1);
+    a missing directory was found only after flying."""
+    import sim.flight
+
+    flew: list[bool] = []
+    monkeypatch.setattr(sim.flight, "paper_report", lambda **k: flew.append(True) or ({}, None, None))
+    code, out, err = _run(capsys, ["simulate", "--scenario", "paper", "--plot", str(tmp_path / name)])
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err, err
+    assert flew == []

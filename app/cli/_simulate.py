@@ -141,6 +141,8 @@ def _simulate(args: argparse.Namespace) -> int:
             raise CliError("--runs, --preset and --report fly a SHOW, not --scenario paper")
         if args.precision != "float64":
             raise CliError("--precision flies a SHOW; the paper scenario is float64")
+        if args.plot is not None:
+            check_plot_path(args.plot)
         return _paper(args)
     if args.show is None:
         raise CliError("a SHOW file or --scenario is required")
@@ -432,6 +434,24 @@ def format_flight(s: dict) -> str:
     lines.append("OK: every drone flew and kept the separation" if s["ok"] and not s.get("problems")
                  else "UNSAFE: see above")
     return "\n".join(lines)
+
+
+def check_plot_path(path: str) -> None:
+    """Refuse a ``--plot`` file that cannot be written, before the scenario flies: a missing directory, or a
+    suffix matplotlib cannot write (``x.txt`` died in matplotlib with a traceback after the flight).
+
+    Raises:
+        CliError: naming ``--plot`` and why.
+    """
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise CliError(f"--plot {path}: no such directory {str(target.parent)!r}")
+    suffix = target.suffix.lower().lstrip(".")
+    if suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        if suffix not in FigureCanvasBase.get_supported_filetypes():
+            raise CliError(f"--plot {path}: cannot write .{suffix} images; name it .png, .pdf or .svg")
 
 
 def _paper(args: argparse.Namespace) -> int:
