@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import json
+import subprocess
 from importlib.metadata import version
 from pathlib import Path
 
@@ -138,3 +139,35 @@ def test_paper_plot_path_is_checked_before_flying(tmp_path, capsys, monkeypatch,
     code, out, err = _run(capsys, ["simulate", "--scenario", "paper", "--plot", str(tmp_path / name)])
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err, err
     assert flew == []
+
+
+# -- SHOW as '-': standard input, so that `swarmshow home SHOW ... | swarmshow check -` composes --------------
+
+
+def _swarmshow(args: list[str], stdin: bytes) -> subprocess.CompletedProcess:
+    import os
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(ROOT / ".numba_cache"))
+    from tests.live_server import swarmshow_command
+
+    return subprocess.run([*swarmshow_command(), *args], input=stdin, capture_output=True, cwd=ROOT,
+                          timeout=300, env=env)
+
+
+def test_show_from_standard_input():
+    """Failed before: "swarmshow: error: -: no such file", though ``home`` writes the show to stdout by default
+    and ``export -o -`` writes to it."""
+    r = _swarmshow(["validate", "-", "--json"], DEMO.read_bytes())
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["drones"] == 100
+    home = _swarmshow(["home", str(DEMO), "--boxes", "10"], b"")
+    assert home.returncode == 0, home.stderr
+    r = _swarmshow(["check", "-", "--json"], home.stdout)
+    assert r.returncode == 0, r.stderr
+    report = json.loads(r.stdout)
+    assert report["ok"] is True and report["drones"] == 100
+
+
+def test_empty_standard_input_is_one_line():
+    r = _swarmshow(["validate", "-"], b"")
+    assert r.returncode == 2 and r.stderr.decode().strip().count("\n") == 0 and "stdin" in r.stderr.decode()

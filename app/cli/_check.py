@@ -15,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="plan the show with CAPT and verify separation, speeds, acceleration and altitude exactly "
         "(exit 1 if any limit is broken)",
     )
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.set_defaults(func=_check)
 

@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "export",
         help="export the show: show JSON, Skybrush CSV / .skyc, Crazyswarm, QGroundControl, sampled waypoints",
     )
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--format", "-f", required=True, metavar="FORMAT",
                    help=f"one of: {', '.join(EXPORT_FORMATS)}")
     p.add_argument("-o", "--output", required=True, metavar="OUT",

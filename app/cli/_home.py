@@ -12,7 +12,7 @@ from app.cli._common import EXIT_OK, CliError, load_show_arg, output_path, read_
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``home`` command."""
     p = sub.add_parser("home", help="set a show's home positions from a CSV file or launch boxes (writes the show)")
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--csv", metavar="FILE", help="home points: Skybrush 'Name,x,y,z' rows or plain 'x,y[,z]' rows")
     src.add_argument("--boxes", metavar="PER_BOX", type=int, help="launch boxes holding PER_BOX drones each")

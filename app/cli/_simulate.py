@@ -94,7 +94,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(exit 1 if a drone diverged or the flown separation broke the limit), or "
         "reproduce the paper's scenario with --scenario paper",
     )
-    p.add_argument("show", metavar="SHOW", nargs="?", help="show file (JSON); omit with --scenario")
+    p.add_argument("show", metavar="SHOW", nargs="?",
+                   help="show file (JSON; - reads standard input); omit with --scenario")
     p.add_argument("--scenario", choices=("paper",), help="run a built-in scenario instead of a show")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.add_argument("--plot", metavar="PNG", help="with --scenario paper: write the error/input figure")

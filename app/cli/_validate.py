@@ -11,7 +11,7 @@ from app.cli._common import EXIT_OK, CliError, load_show_arg, print_json
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``validate`` and ``schema`` commands."""
     p = sub.add_parser("validate", help="check that a show file is valid (exit 2 with the reason if not)")
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(func=_validate)
 
