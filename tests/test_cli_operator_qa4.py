@@ -171,3 +171,17 @@ def test_show_from_standard_input():
 def test_empty_standard_input_is_one_line():
     r = _swarmshow(["validate", "-"], b"")
     assert r.returncode == 2 and r.stderr.decode().strip().count("\n") == 0 and "stdin" in r.stderr.decode()
+
+
+# -- a one-drone show's summaries read as English: "1 drone", "n/a" without a unit ---------------------------
+
+
+@pytest.mark.parametrize("argv", [["check"], ["simulate"], ["simulate", "--runs", "2"]])
+def test_one_drone_summaries_read_right(tmp_path, capsys, argv):
+    """Failed before: "1 drones", "flown min distance n/a m (plan n/a m, ...)", "worst n/a m, 5 % n/a m"."""
+    from tests.test_cli_qa3 import _one_drone_show
+
+    code, out, err = _run(capsys, [argv[0], str(_one_drone_show(tmp_path)), *argv[1:]])
+    assert code == 0, err
+    assert ": 1 drone, " in out.splitlines()[0], out
+    assert "n/a m" not in out and "1 drones" not in out, out

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
+from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, count, load_show_arg, print_json, progress_bar
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +47,7 @@ def format_report(report) -> str:
     else:
         closest = f"     n/a     (limit {lim['min_distance_m']} m; one drone, no pair)"
     lines = [
-        f"show {report.show!r}: {report.drones} drones, {report.duration_s:.1f} s, "
+        f"show {report.show!r}: {count(report.drones, 'drone')}, {report.duration_s:.1f} s, "
         f"{len(report.transitions)} transitions",
         f"  min distance   {closest}",
         f"  speed xy       {report.max_speed_xy_mps:8.3f} m/s (limit {lim['max_speed_xy_mps']})",

@@ -164,6 +164,11 @@ def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for st
         raise CliError(f"{label}: {exc.one_line()}") from exc
 
 
+def count(n: int, noun: str) -> str:
+    """``"1 drone"``, ``"100 drones"``: a count with its noun in the right number."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def print_json(obj: Any) -> None:
     """Print one JSON object on stdout (numpy scalars and arrays are converted)."""
     print(json.dumps(obj, default=_json_default, allow_nan=False))

@@ -51,6 +51,7 @@ from app.cli._common import (
     EXIT_FAILED,
     EXIT_OK,
     CliError,
+    count,
     load_show_arg,
     print_json,
     progress_bar,
@@ -307,6 +308,9 @@ def format_montecarlo(r: dict) -> str:
     def num(x: float | None, fmt: str = ".3f") -> str:
         return "n/a" if x is None else format(x, fmt)
 
+    def metres(x: float | None, fmt: str = ".3f") -> str:  # "n/a" without a unit (one drone: no pair)
+        return "n/a" if x is None else f"{format(x, fmt)} m"
+
     s = r["show_min"]
     q = s["flown_min_m"]["quantiles"]
     # Plain metres with four significant digits (24.45 m, 0.0001255 m), and whose it is.
@@ -318,11 +322,12 @@ def format_montecarlo(r: dict) -> str:
                 f"{100 * p['confidence']:g} %)")
 
     lines = [
-        f"show {r['show']!r}: {r['drones']} drones, {r['duration_s']:.1f} s, {r['runs']} runs (seeds {r['seed0']}-"
+        f"show {r['show']!r}: {count(r['drones'], 'drone')}, {r['duration_s']:.1f} s, {r['runs']} runs (seeds "
+        f"{r['seed0']}-"
         f"{r['seed0'] + r['runs'] - 1}, preset {r['preset'] or 'none'}, {r['controller']}, {r['engine']} engine) "
         f"in {r['wall_time_s']:.1f} s",
-        f"  flown min separation: worst {num(q.get('0'))} m, 5 % {num(q.get('0.05'))} m, median "
-        f"{num(q.get('0.5'))} m (plan {num(s['planned_min_m'])} m, limit {r['min_distance_m']:g} m)",
+        f"  flown min separation: worst {metres(q.get('0'))}, 5 % {metres(q.get('0.05'))}, median "
+        f"{metres(q.get('0.5'))} (plan {metres(s['planned_min_m'])}, limit {r['min_distance_m']:g} m)",
         f"  closer than {r['min_distance_m']:g} m: {prob(s['p_below_min_distance'])}",
         f"  closer than {r['collision_distance_m']:g} m (collision): {prob(s['p_collision'])}",
         f"  extra spacing needed at {100 * r['confidence']:g} %: {num(s['extra_spacing']['extra_m'], '.3f')} m",
@@ -404,16 +409,19 @@ def format_flight(s: dict) -> str:
     def num(x: float | None, fmt: str) -> str:
         return "n/a" if x is None else format(x, fmt)
 
+    def metres(x: float | None, fmt: str) -> str:  # "n/a" without a unit (one drone: no pair)
+        return "n/a" if x is None else f"{format(x, fmt)} m"
+
     pair = s["flown_min_distance_pair"]
     lines = [
-        f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
+        f"show {s['show']!r}: {count(s['drones'], 'drone')}, {s['duration_s']:.1f} s flown at 1 kHz "
         f"({s['engine']} engine, {s['controller']}, "
         f"{'disturbance ' + str(s['disturbance']) if s.get('preset') in (None, 'ideal') else 'preset ' + s['preset']}"
         f") in {s['wall_time_s']:.1f} s",
         f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
         f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
-        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (plan "
-        f"{num(s.get('planned_min_distance_m'), '.3f')} m, limit {s['min_distance_limit_m']} m"
+        f"  flown min distance {metres(s['flown_min_distance_m'], '.3f')} (plan "
+        f"{metres(s.get('planned_min_distance_m'), '.3f')}, limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
     ]
     lines.extend(
