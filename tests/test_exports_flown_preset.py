@@ -189,6 +189,7 @@ def test_editor_sends_what_the_server_takes():
 
     assert js_list("SCALING_FORMATS") == _core.SCALING_FORMATS
     assert js_list("FLOWN_FORMATS") == _core.FLOWN_FORMATS
+    assert js_list("SAMPLED_FORMATS") == _core.SAMPLED_FORMATS
 
 
 # -- scale and offset: only where they apply (crazyswarm) ---------------------------------------------------
@@ -222,3 +223,25 @@ def test_api_crazyswarm_still_scales(client, square_id):
     with zipfile.ZipFile(io.BytesIO(r.content)) as z:
         manifest = json.loads(z.read("manifest.json"))
     assert manifest["scale"] == 0.5 and manifest["offset_m"] == [1.0, 2.0, 0.0], manifest
+
+
+# -- fps: only the sampled formats sample ----------------------------------------------------------------------
+
+NOT_SAMPLED = ["skyc", "crazyswarm", "qgc-plan", "qgc-wpl"]
+
+
+@pytest.mark.parametrize("fmt", NOT_SAMPLED)
+def test_formats_that_do_not_sample_refuse_fps(square, square_plan, client, square_id, tmp_path, capsys, fmt):
+    """Failed before: ``fps`` was dropped without a word by the formats that hold exact trajectories (a
+    "25 Hz" skyc is the same file as any other), while scale and offset were refused."""
+    with pytest.raises(ExportError) as err:
+        export_show(square, fmt, plan=square_plan, origin=(47.0, 8.0, 400.0), fps=25)
+    assert err.value.field == "fps" and "skybrush-csv" in str(err.value)
+    r = client.get(f"/api/shows/{square_id}/export/{fmt}", params={"origin": "47,8,400", "fps": 25})
+    assert r.status_code == 422 and r.json()["detail"][0]["path"] == "fps", r.text
+    show = tmp_path / "square.json"
+    show.write_text(dump_show(square))
+    code = main(["export", str(show), "--format", fmt, "--origin", "47,8,400", "--fps", "25",
+                 "-o", str(tmp_path / "o")])
+    err_text = capsys.readouterr().err
+    assert code == 2 and "--fps" in err_text and len(err_text.strip().splitlines()) == 1, err_text

@@ -15,6 +15,7 @@ from app.cli._common import write_atomically as write_atomically
 from app.exports._core import AUDIO_FORMATS as _AUDIO_FORMATS
 from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_PRESETS, MAX_SEED
 from app.exports._core import FLOWN_FORMATS as _FLOWN_FORMATS
+from app.exports._core import SAMPLED_FORMATS as _SAMPLED_FORMATS
 from app.exports._core import SCALING_FORMATS as _SCALING_FORMATS
 
 if TYPE_CHECKING:
@@ -128,12 +129,12 @@ def _export(args: argparse.Namespace) -> int:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
     # An option the format does not use would be dropped without a word (a show "scaled for indoors" written
     # at full size): refuse it, as --source simulated is refused for the exact formats.
-    unused = [flag for flag, given, formats in (
+    unused = [(flag, formats) for flag, given, formats in (
         ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
+        ("--fps", args.fps is not None, _SAMPLED_FORMATS),
         ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
     if unused:
-        flag = unused[0]
-        users = _SCALING_FORMATS if flag != "--audio" else _AUDIO_FORMATS
+        flag, users = unused[0]
         raise CliError(f"{flag} is not used by format {args.format!r} (only by {', '.join(users)}); drop it")
     for flag, value in (("--preset", args.preset), ("--seed", args.seed)):
         if value is not None and args.source != "simulated":

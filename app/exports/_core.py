@@ -48,6 +48,9 @@ DEFAULT_FLIGHT_PRESET = "calm-rtk"
 #: (``frontend/js/exportcheck.js``; a test keeps them equal) read these.
 SCALING_FORMATS: tuple[str, ...] = ("crazyswarm",)
 FLOWN_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
+#: Formats that sample the trajectories at ``fps`` (the others hold them exactly: polynomials, Bézier curves,
+#: waypoints where the plan rests).
+SAMPLED_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
 AUDIO_FORMATS: tuple[str, ...] = ("skyc", "viser-html")
 
 
@@ -182,19 +185,22 @@ DEFAULT_ORIGIN_ALT_M = 0.0
 ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
 
 
-def check_scaling(fmt: str, *, scale: bool, offset: bool) -> None:
-    """Refuse a scale or an offset (``scale`` / ``offset``: given, and not the identity) for a format that does
-    not apply them (not in :data:`SCALING_FORMATS`): the API, the CLI and :func:`export_plan` alike.
+def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False) -> None:
+    """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` not the
+    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`.
+    The API, the CLI and :func:`export_plan` alike.
 
     Raises:
-        ExportError: naming ``scale`` or ``offset``.
+        ExportError: naming the option.
     """
-    if fmt in SCALING_FORMATS:
-        return
-    for name, given in (("scale", scale), ("offset", offset)):
-        if given:
-            raise ExportError(f"{name} is not used by format {fmt!r} (only by {', '.join(SCALING_FORMATS)}: "
-                              "positions of an indoor show); drop it", field=name)
+    for name, given, users, what in (
+        ("scale", scale, SCALING_FORMATS, "positions of an indoor show"),
+        ("offset", offset, SCALING_FORMATS, "positions of an indoor show"),
+        ("fps", fps, SAMPLED_FORMATS, "the formats that sample; the others hold the exact trajectories"),
+    ):
+        if given and fmt not in users:
+            raise ExportError(f"{name} is not used by format {fmt!r} (only by {', '.join(users)}: {what}); drop it",
+                              field=name)
 
 
 def check_heading(value: Any) -> float:

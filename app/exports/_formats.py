@@ -22,7 +22,7 @@ from app.exports._core import (
     ExportResult,
     ProgressFn,
     Source,
-    check_scaling,
+    check_unused_options,
 )
 
 if TYPE_CHECKING:
@@ -125,7 +125,8 @@ def export_plan(
     exporter = _load_exporter(fmt)
     options = options if options is not None else ExportOptions()
     # Dropped without a word, a show "scaled for indoors" would be written at full size.
-    check_scaling(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m))
+    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
+                         fps=options.fps is not None)
     geo = show.settings.geo
     if options.origin is None and geo is not None:
         # The show's stored place on Earth, unless the caller gave an origin of its own.

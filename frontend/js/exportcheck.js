@@ -47,6 +47,8 @@ export function exportProblem(format, geo) {
  * does not take, so the editor sends it only where it is used. */
 export const SCALING_FORMATS = ["crazyswarm"];
 export const FLOWN_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
+/** Formats that sample the trajectories at a rate (app.exports SAMPLED_FORMATS): the others refuse `fps`. */
+export const SAMPLED_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
 
 /**
  * The query options of an export of `format`: the export fields the format takes (blank and default ones left
@@ -61,7 +63,7 @@ export function exportQuery(format, fields, flight = {}) {
   /** @type {Record<string, string>} */
   const out = {};
   const text = (/** @type {string|undefined} */ v) => String(v ?? "").trim().replace(/\s+/g, "");
-  if (text(fields.fps) !== "") out.fps = text(fields.fps);
+  if (SAMPLED_FORMATS.includes(format) && text(fields.fps) !== "") out.fps = text(fields.fps);
   // A format that exports the exact plan refuses "simulated" (the server says so beside the menu).
   if (text(fields.source) === "simulated") {
     out.source = "simulated";

@@ -4,7 +4,8 @@ import assert from "node:assert/strict";
 import { test } from "node:test";
 
 import {
-  exportProblem, exportQuery, FLOWN_FORMATS, GEO_FORMATS, MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M, parseOrigin, SCALING_FORMATS,
+  exportProblem, exportQuery, FLOWN_FORMATS, GEO_FORMATS, MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M, parseOrigin, SAMPLED_FORMATS,
+  SCALING_FORMATS,
 } from "../../frontend/js/exportcheck.js";
 
 test("the QGC formats without an origin are refused here, pointing at the origin field", () => {
@@ -49,9 +50,16 @@ test("the flown trajectories carry the simulation panel's preset and seed", () =
     assert.deepEqual(exportQuery(f, fields, flight), { fps: "25", source: "simulated", preset: "gusty-rtk", seed: "17" }, f);
   }
   // A format of the exact plan gets "simulated" alone: the server's refusal says why, beside the menu.
-  assert.deepEqual(exportQuery("skyc", fields, flight), { fps: "25", source: "simulated" });
+  assert.deepEqual(exportQuery("skyc", fields, flight), { source: "simulated" });
   // The planned trajectories fly nothing: no preset, no seed (the server refuses them there).
   assert.deepEqual(exportQuery("waypoints-csv", { ...fields, source: "planned" }, flight), { fps: "25" });
   assert.deepEqual(exportQuery("waypoints-csv", fields, { preset: "calm-rtk", seed: " " }),
     { fps: "25", source: "simulated", preset: "calm-rtk" });
+});
+
+test("the rate goes only to the formats that sample (the others hold exact trajectories and refuse it)", () => {
+  for (const f of ALL) {
+    const q = exportQuery(f, { fps: "25", source: "planned" });
+    assert.deepEqual(q, SAMPLED_FORMATS.includes(f) ? { fps: "25" } : {}, f);
+  }
 });
