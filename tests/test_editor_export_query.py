@@ -51,3 +51,23 @@ def test_export_sends_the_flight_and_the_scaling_where_they_apply(ui: Page):
     assert status == 200, page.locator("#export-error").text_content()
     assert query == {"scale": ["0.5"], "offset": ["1,2,0"]}, query
     expect(page.locator("#export-error")).to_have_text("")
+
+
+def test_simulated_trajectories_with_a_format_of_the_plan_are_caught_in_the_editor(ui: Page):
+    """Failed before: the editor asked the server, which refused with 422 (an error in the browser console)."""
+    page = ui.page
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    r = httpx.post(f"{ui.base}/api/shows", json=show_doc("Export plan only"))
+    assert r.status_code == 201, r.text
+    page.goto(f"{ui.base}/?show={r.json()['id']}")
+    expect(page.locator("#show-title")).to_have_text("Export plan only")
+    page.evaluate("() => { document.getElementById('export-options').open = true; }")
+    page.select_option("#exp-source", "simulated")
+    exports: list[str] = []
+    page.on("request", lambda req: exports.append(req.url) if "/export/" in req.url else None)
+    page.select_option("#export-format", "skyc")
+    page.get_by_role("button", name="Export in the chosen format").click()
+    expect(page.locator("#export-error")).to_contain_text("exact plan")
+    assert page.evaluate("() => document.activeElement.id") == "exp-source"
+    assert exports == [] and errors == [], (exports, errors)

@@ -28,16 +28,22 @@ export function parseOrigin(text) {
 }
 
 /**
- * Why `format` cannot be exported from a show placed at `geo` (its settings.geo), "" when it can as far
- * as the editor knows: the QGroundControl formats need the show's origin.
+ * Why `format` cannot be exported from a show placed at `geo` (its settings.geo) with the trajectories `source`,
+ * "" when it can as far as the editor knows: the QGroundControl formats need the show's origin, and only the
+ * formats in FLOWN_FORMATS hold the simulated (flown) trajectories (the server refuses the others with 422).
  * @param {string} format
  * @param {object|null|undefined} geo
+ * @param {string} [source] "planned" (default) or "simulated"
  * @returns {string}
  */
-export function exportProblem(format, geo) {
+export function exportProblem(format, geo, source = "planned") {
   if (GEO_FORMATS.includes(format) && !geo) {
     return "needs the show's place on Earth: enter its origin (latitude, longitude, altitude) "
       + "in Export options → Origin first.";
+  }
+  if (source === "simulated" && !FLOWN_FORMATS.includes(format)) {
+    return "exports the exact plan, not the simulated flight: set Export options → Trajectories to planned, "
+      + `or choose ${FLOWN_FORMATS.join(", ")}.`;
   }
   return "";
 }
@@ -64,13 +70,11 @@ export function exportQuery(format, fields, flight = {}) {
   const out = {};
   const text = (/** @type {string|undefined} */ v) => String(v ?? "").trim().replace(/\s+/g, "");
   if (SAMPLED_FORMATS.includes(format) && text(fields.fps) !== "") out.fps = text(fields.fps);
-  // A format that exports the exact plan refuses "simulated" (the server says so beside the menu).
-  if (text(fields.source) === "simulated") {
+  // Only a format that can hold the flown trajectories gets them (exportProblem says so for the others).
+  if (text(fields.source) === "simulated" && FLOWN_FORMATS.includes(format)) {
     out.source = "simulated";
-    if (FLOWN_FORMATS.includes(format)) {
-      if (text(flight.preset) !== "") out.preset = text(flight.preset);
-      if (text(flight.seed) !== "") out.seed = text(flight.seed);
-    }
+    if (text(flight.preset) !== "") out.preset = text(flight.preset);
+    if (text(flight.seed) !== "") out.seed = text(flight.seed);
   }
   if (SCALING_FORMATS.includes(format)) {
     if (text(fields.scale) !== "" && Number(text(fields.scale)) !== 1) out.scale = text(fields.scale);

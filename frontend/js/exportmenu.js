@@ -143,11 +143,16 @@ export class ExportMenu {
     const el = document.getElementById("export-error");
     this._clearErrors();
     const format = this.select.value;
-    // Known before asking the server (a 422 in the browser console otherwise): the QGC formats need the origin.
-    const problem = exportProblem(format, st.show && st.show.settings.geo);
+    // Known before asking the server (a 422 in the browser console otherwise): the QGC formats need the origin,
+    // and only some formats hold the simulated trajectories.
+    const problem = exportProblem(format, st.show && st.show.settings.geo, this.fields.source.value);
     if (problem) {
       el.textContent = `${FORMAT_LABELS[format] || format}: ${problem}`;
-      this._pointAtOrigin(problem);
+      if (/origin/i.test(problem)) this._pointAtOrigin(problem);
+      else {
+        /** @type {HTMLDetailsElement} */ (document.getElementById("export-options")).open = true;
+        this.fields.source.focus();
+      }
       return;
     }
     this.button.disabled = true;

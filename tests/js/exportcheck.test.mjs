@@ -49,8 +49,13 @@ test("the flown trajectories carry the simulation panel's preset and seed", () =
   for (const f of FLOWN_FORMATS) {
     assert.deepEqual(exportQuery(f, fields, flight), { fps: "25", source: "simulated", preset: "gusty-rtk", seed: "17" }, f);
   }
-  // A format of the exact plan gets "simulated" alone: the server's refusal says why, beside the menu.
-  assert.deepEqual(exportQuery("skyc", fields, flight), { source: "simulated" });
+  // A format of the exact plan cannot hold them: caught in the editor (no request the server would refuse).
+  assert.deepEqual(exportQuery("skyc", fields, flight), {});
+  for (const f of ALL) {
+    const problem = exportProblem(f, { origin_lat_deg: 47, origin_lon_deg: 8, origin_alt_m: 400, heading_deg: 0 }, "simulated");
+    if (FLOWN_FORMATS.includes(f)) assert.equal(problem, "", f);
+    else assert.match(problem, /exact plan.*planned/, f);
+  }
   // The planned trajectories fly nothing: no preset, no seed (the server refuses them there).
   assert.deepEqual(exportQuery("waypoints-csv", { ...fields, source: "planned" }, flight), { fps: "25" });
   assert.deepEqual(exportQuery("waypoints-csv", fields, { preset: "calm-rtk", seed: " " }),
