@@ -110,6 +110,9 @@ def test_export_presets_are_the_simulations():
 
     assert _core.FLIGHT_PRESETS == flight.PRESETS == cli_sim.PRESETS
     assert _core.DEFAULT_FLIGHT_PRESET == flight.DEFAULT_FLIGHT_PRESET == cli_sim.DEFAULT_FLIGHT_PRESET
+    from app.api.models import MAX_SEED
+
+    assert _core.MAX_SEED == MAX_SEED  # the export's seed bound is the simulation's
 
 
 # -- the command line ---------------------------------------------------------------------------------------
