@@ -391,7 +391,7 @@ class JobManager:
         now = time.time()
         for text in records:
             rec = json.loads(text)
-            rec.update(state=JobState.FAILED.value, finished_at=_iso(now), error={
+            rec.update(state=JobState.FAILED.value, finished_at=_iso(now), note="", error={
                 "kind": ErrorKind.INTERRUPTED.value,
                 "message": "the server stopped while this job was queued or running; start it again"})
             self._persist(rec["id"], (json.dumps(rec), rec["state"]))
@@ -739,6 +739,8 @@ class JobManager:
             if job.terminal:
                 return  # cancelled meanwhile: the late result or error is dropped
             job.state, job.result, job.error = state, result, error
+            # A note says what holds a running job up (a kernel compile); an ended job has nothing holding it.
+            job.note = ""
             if state == JobState.DONE:
                 job.progress = 1.0
             job.finished_at = time.time()

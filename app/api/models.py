@@ -249,7 +249,13 @@ class MonteCarloOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     runs: int = Field(20, ge=1, le=MAX_MONTECARLO_RUNS, description="K, the number of flights (seeds seed0..).")
-    preset: PresetName = Field("gusty-rtk", description="Error-model preset.")
+    # The single flight's default (calm-rtk): a designer runs a Monte-Carlo to ask "will this show fly in the
+    # conditions it is normally flown in?", and run k is then the default single flight of seed seed0 + k
+    # (a seed seen in the report flies again alone). gusty-rtk is the stress case, one choice away (it was
+    # the default here while the editor's menu, the CLI and single flights said calm-rtk).
+    preset: PresetName = Field(cast(PresetName, DEFAULT_FLIGHT_PRESET), description=(
+        f"Error-model preset (default {DEFAULT_FLIGHT_PRESET!r}, as a single flight; 'gusty-rtk' for the stress "
+        "case)."))
     controller: ControllerName = Field("ismc", description="Position and attitude controllers.")
     precision: PrecisionName = Field("float64", description="The numba kernel's arithmetic (as for a simulation).")
     seed0: int = Field(0, ge=0, le=MAX_SEED, description="Seed of the first run.")

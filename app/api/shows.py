@@ -15,9 +15,12 @@ from app import tasks
 from app.api import deps
 from app.api.errors import ApiError, draft_problems, job_body, require_valid, show_problems
 from app.api.models import (
+    DEFAULT_FLIGHT_PRESET,
+    MAX_SEED,
     CheckOut,
     JobOut,
     MonteCarloOptions,
+    PresetName,
     RevisionList,
     RevisionOut,
     ShowList,
@@ -425,6 +428,23 @@ def _parse_offset(offset: str) -> tuple[float, ...]:
     return values
 
 
+_PRESET_HELP = (f"With source=simulated: the flight's error-model preset (default {DEFAULT_FLIGHT_PRESET!r}, as a "
+                "simulation): the file holds the single flight the simulation panel flies.")
+
+
+def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool) -> None:
+    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1) and ``fps`` for a format that does not use them, as
+    the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` (``app.exports._core.check_unused_options``): they were
+    dropped without a word."""
+    from app.exports import ExportError
+    from app.exports._core import check_unused_options
+
+    try:
+        check_unused_options(fmt, scale=scale, offset=offset, fps=fps)
+    except ExportError as exc:
+        raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
+
+
 @router.get(
     "/shows/{show_id}/export/{fmt}",
     summary="Export a show",
@@ -440,15 +460,22 @@ async def export_show(
     request: Request,
     show_id: str,
     fmt: str,
-    fps: float | None = Query(None, gt=0, le=1000, description="Sample rate of trajectory formats, Hz."),
+    fps: float | None = Query(None, gt=0, le=1000, description=(
+        "Sample rate, Hz, of the formats that sample (skybrush-csv, waypoints-csv, viser-html; the others refuse "
+        "it with 422).")),
     origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
     # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
     heading_deg: float | None = Query(None, ge=-360, le=360, description=(
         "Direction of the show's +y axis, degrees clockwise from north (default: the show's settings.geo "
         "heading, else 0; given, it turns the show about its stored origin).")),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
-    scale: float = Query(1.0, gt=0, le=10, description="Scale factor for positions (crazyswarm, indoor shows)."),
-    offset: str | None = Query(None, description="'x,y,z' metres added after scaling (crazyswarm)."),
+    scale: float = Query(1.0, gt=0, le=10, description=(
+        "Scale factor for positions (crazyswarm only, indoor shows; other formats refuse it with 422).")),
+    offset: str | None = Query(None, description=(
+        "'x,y,z' metres added after scaling (crazyswarm only; other formats refuse it with 422).")),
+    preset: Annotated[PresetName | None, Query(description=_PRESET_HELP)] = None,
+    seed: int | None = Query(None, ge=0, le=MAX_SEED, description=(
+        "With source=simulated: the flight's seed (default 0; the same seed flies the same flight).")),
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
@@ -457,6 +484,7 @@ async def export_show(
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
+    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None)
     record = deps.store(request).get(show_id)
     if fmt != "show":
         # The show file itself downloads as it is (a draft too: it is the user's work); every other
@@ -489,6 +517,10 @@ async def export_show(
         options["scale"] = scale
     if offset is not None:
         options["offset_m"] = _parse_offset(offset)
+    if preset is not None:
+        options["preset"] = preset
+    if seed is not None:
+        options["seed"] = seed
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

@@ -78,6 +78,10 @@ def build_parser(argv: Sequence[str] | None = ()) -> argparse.ArgumentParser:
         prog="swarmshow",
         description="Design, plan, verify, fly and export drone light shows.",
     )
+    from app.version import __version__
+
+    # Which swarmshow a bug report is about (it was a usage error: "the following arguments are required").
+    parser.add_argument("--version", action="version", version=f"swarmshow {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in _modules_for(argv):

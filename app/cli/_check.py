@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import math
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, load_show_arg, print_json, progress_bar
+from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, count, load_show_arg, print_json, progress_bar
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -14,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="plan the show with CAPT and verify separation, speeds, acceleration and altitude exactly "
         "(exit 1 if any limit is broken)",
     )
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.set_defaults(func=_check)
 
@@ -38,15 +39,15 @@ def _check(args: argparse.Namespace) -> int:
 def format_report(report) -> str:
     """The check report as a few human-readable lines."""
     lim = report.limits
-    # A show of one drone has no pair: the report's distances are then -1 (no value), not a distance.
-    if report.min_distance_m >= 0:
+    # A show of one drone has no pair: no distance (+inf in the report, null in its JSON), not a distance.
+    if math.isfinite(report.min_distance_m):
         closest = (f"{report.min_distance_m:8.3f} m   (limit {lim['min_distance_m']} m; drones "
                    f"{report.min_distance_pair[0]} and {report.min_distance_pair[1]} at t = "
                    f"{report.min_distance_time_s:.2f} s)")
     else:
         closest = f"     n/a     (limit {lim['min_distance_m']} m; one drone, no pair)"
     lines = [
-        f"show {report.show!r}: {report.drones} drones, {report.duration_s:.1f} s, "
+        f"show {report.show!r}: {count(report.drones, 'drone')}, {report.duration_s:.1f} s, "
         f"{len(report.transitions)} transitions",
         f"  min distance   {closest}",
         f"  speed xy       {report.max_speed_xy_mps:8.3f} m/s (limit {lim['max_speed_xy_mps']})",

@@ -102,6 +102,18 @@ def read_bounded(path: str, limit: int, *, what: str = "file", timeout_s: float 
         os.close(fd)
 
 
+def output_path(text: str) -> Path:
+    """An output argument (``-o OUT``) as a path; a name ending in ``/`` names a directory, which must exist
+    (``Path`` drops the slash, and ``out/`` was written as a *file* called ``out``).
+
+    Raises:
+        CliError: a directory name that is not an existing directory.
+    """
+    if text.endswith(("/", os.sep)) and not Path(text).is_dir():
+        raise CliError(f"{text}: no such directory")
+    return Path(text)
+
+
 def write_atomically(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same directory, an fsync and a rename.
 
@@ -133,17 +145,28 @@ def write_atomically(path: Path, data: bytes) -> None:
 
 
 def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for start-up time)
-    """Read (bounded, see :func:`read_bounded`) and validate a show file; bad input becomes a
-    ``CliError`` (exit 2)."""
+    """Read (bounded, see :func:`read_bounded`) and validate a show file; ``-`` reads standard input (so that
+    ``swarmshow home SHOW --boxes 10 | swarmshow check -`` composes). Bad input becomes a ``CliError`` (exit 2)."""
     from formations import MAX_SHOW_FILE_BYTES, ShowValidationError, parse_show
 
-    data = read_bounded(path, MAX_SHOW_FILE_BYTES, what="show file")
+    label = "stdin" if path == "-" else path
+    try:
+        data = read_bounded("/dev/stdin" if path == "-" else path, MAX_SHOW_FILE_BYTES, what="show file")
+    except CliError as exc:
+        if path != "-":
+            raise
+        raise CliError(str(exc).replace("/dev/stdin", label, 1)) from None
     if not data.strip():
-        raise CliError(f"{path}: is empty; expected a show file (JSON)")
+        raise CliError(f"{label}: is empty; expected a show file (JSON)")
     try:
         return parse_show(data)
     except ShowValidationError as exc:
-        raise CliError(f"{path}: {exc.one_line()}") from exc
+        raise CliError(f"{label}: {exc.one_line()}") from exc
+
+
+def count(n: int, noun: str) -> str:
+    """``"1 drone"``, ``"100 drones"``: a count with its noun in the right number."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def print_json(obj: Any) -> None:

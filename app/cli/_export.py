@@ -7,15 +7,20 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli._common import EXIT_OK, CliError, load_show_arg, progress_bar
+from app.cli._common import EXIT_OK, CliError, load_show_arg, output_path, progress_bar
 from app.cli._common import write_atomically as write_atomically
+
+# Formats that apply --scale / --offset, embed --audio, fly --source simulated: the API and the editor
+# read the same lists (app.exports._core).
+from app.exports._core import AUDIO_FORMATS as _AUDIO_FORMATS
+from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_PRESETS, MAX_SEED
+from app.exports._core import FLOWN_FORMATS as _FLOWN_FORMATS
+from app.exports._core import SAMPLED_FORMATS as _SAMPLED_FORMATS
+from app.exports._core import SCALING_FORMATS as _SCALING_FORMATS
 
 if TYPE_CHECKING:
     from app.media import AudioTrack
 
-#: Formats that apply ``--scale`` / ``--offset``, and those that embed ``--audio`` (``app.exports``).
-_SCALING_FORMATS = ("crazyswarm",)
-_AUDIO_FORMATS = ("skyc", "viser-html")
 
 #: Shows with at least this many drones draw a progress bar (smaller ones finish in a blink).
 _PROGRESS_MIN_DRONES = 200
@@ -29,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "export",
         help="export the show: show JSON, Skybrush CSV / .skyc, Crazyswarm, QGroundControl, sampled waypoints",
     )
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--format", "-f", required=True, metavar="FORMAT",
                    help=f"one of: {', '.join(EXPORT_FORMATS)}")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
@@ -48,7 +53,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "the show's settings.geo heading, else 0; without --origin it turns the show about its stored "
                    "origin)")
     p.add_argument("--source", choices=("planned", "simulated"), default="planned",
-                   help="planned trajectory (default) or the simulated flight (sampled formats)")
+                   help=f"planned trajectory (default) or the simulated flight ({', '.join(_FLOWN_FORMATS)})")
+    p.add_argument("--preset", choices=FLIGHT_PRESETS, default=None,
+                   help=f"with --source simulated: the flight's error-model preset (default {DEFAULT_FLIGHT_PRESET}, "
+                   "as swarmshow simulate)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="with --source simulated: the flight's seed (default 0; the same seed flies the same flight "
+                   "as swarmshow simulate --seed)")
     p.add_argument("--audio", default=None, metavar="FILE",
                    help="the show's music (WAV, MP3, OGG or FLAC): embedded by skyc (media.audio) and viser-html")
     p.add_argument("--scale", type=float, default=1.0, metavar="FACTOR",
@@ -118,13 +129,18 @@ def _export(args: argparse.Namespace) -> int:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
     # An option the format does not use would be dropped without a word (a show "scaled for indoors" written
     # at full size): refuse it, as --source simulated is refused for the exact formats.
-    unused = [flag for flag, given, formats in (
+    unused = [(flag, formats) for flag, given, formats in (
         ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
+        ("--fps", args.fps is not None, _SAMPLED_FORMATS),
         ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
     if unused:
-        flag = unused[0]
-        users = _SCALING_FORMATS if flag != "--audio" else _AUDIO_FORMATS
+        flag, users = unused[0]
         raise CliError(f"{flag} is not used by format {args.format!r} (only by {', '.join(users)}); drop it")
+    for flag, value in (("--preset", args.preset), ("--seed", args.seed)):
+        if value is not None and args.source != "simulated":
+            raise CliError(f"{flag} chooses the simulated flight; it is only used with --source simulated")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise CliError(f"--seed must be in [0, {MAX_SEED}], got {args.seed}")
     origin = parse_origin(args.origin) if args.origin is not None else None
     if args.heading is not None:
         check_heading_arg(args.heading)
@@ -144,6 +160,8 @@ def _export(args: argparse.Namespace) -> int:
                 audio=audio,
                 scale=args.scale,
                 offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
+                preset=args.preset,
+                seed=args.seed,
             )
     except ExportError as exc:
         msg = str(exc)
@@ -167,7 +185,7 @@ def _target_dir_check(output: str) -> Path | None:
     """Validate ``-o`` before doing any work: ``None`` for stdout, else the path."""
     if output == "-":
         return None
-    path = Path(output)
+    path = output_path(output)
     if path.is_dir():
         return path
     parent = path.parent

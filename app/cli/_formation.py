@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, read_bounded, write_atomically
+from app.cli._common import EXIT_FAILED, EXIT_OK, CliError, output_path, read_bounded, write_atomically
 
 
 def _center(text: str) -> tuple[float, float, float]:
@@ -130,7 +130,7 @@ def _write(obj: dict[str, Any], output: str) -> None:
         print(text)
         return
     # Atomic, and a symlink at OUT is replaced, never written through to its target.
-    write_atomically(Path(output), (text + "\n").encode("utf-8"))
+    write_atomically(output_path(output), (text + "\n").encode("utf-8"))
     n, d = len(obj["points"]), obj.get("min_spacing_m")
     spacing = f", min spacing {d:.3f} m" if d is not None else ""
     print(f"wrote {n} points{spacing} to {output}", file=sys.stderr)

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
-from app.cli._common import EXIT_OK, CliError, load_show_arg, read_bounded, write_atomically
+from app.cli._common import EXIT_OK, CliError, load_show_arg, output_path, read_bounded, write_atomically
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``home`` command."""
     p = sub.add_parser("home", help="set a show's home positions from a CSV file or launch boxes (writes the show)")
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--csv", metavar="FILE", help="home points: Skybrush 'Name,x,y,z' rows or plain 'x,y[,z]' rows")
     src.add_argument("--boxes", metavar="PER_BOX", type=int, help="launch boxes holding PER_BOX drones each")
@@ -66,7 +65,7 @@ def _home(args: argparse.Namespace) -> int:
         raise CliError(exc.one_line()) from exc
     text = dump_show(new) + "\n"
     if args.output:
-        write_atomically(Path(args.output), text.encode())
+        write_atomically(output_path(args.output), text.encode())
     else:
         sys.stdout.write(text)
     return EXIT_OK

@@ -7,6 +7,7 @@ import errno
 import socket
 import sys
 from pathlib import Path
+from typing import Any
 
 from app.cli._common import EXIT_OK, CliError
 
@@ -39,8 +40,21 @@ def _settings(args: argparse.Namespace):
     except ValidationError as exc:
         err = exc.errors()[0]
         field = ".".join(map(str, err["loc"]))
-        where = f"SWARMSHOW_{field.upper()}" if field in ("token", "session_ttl_s", "job_timeout_s") else field
+        # The flag the operator typed, else the environment variable the value came from.
+        where = f"--{field.replace('_', '-')}" if field in given else f"SWARMSHOW_{field.upper()}"
         raise CliError(f"{where}: {err['msg']}") from None
+
+
+def _check_store(settings: Any) -> None:
+    """Open (creating) the show store now, so that a data directory that cannot be made or written is one line
+    naming ``--data-dir``, rather than a traceback in the server's start-up after it said it was serving."""
+    from app.store import ShowStore, StoreError
+
+    try:
+        ShowStore(settings.db_path).close()
+    except (StoreError, OSError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise CliError(f"--data-dir {settings.data_dir}: cannot use it for the show store: {reason}") from None
 
 
 def seed_demo(data_dir: Path) -> tuple[str, bool]:
@@ -86,6 +100,7 @@ def _serve(args: argparse.Namespace) -> int:
     if problem is not None:
         raise CliError(problem)
     _check_port(settings.host, settings.port)
+    _check_store(settings)
     shown_host = "127.0.0.1" if settings.host in ("0.0.0.0", "::", "") else settings.host
     url = f"http://{'[' + shown_host + ']' if ':' in shown_host else shown_host}:{settings.port}"
     if args.seed_demo:

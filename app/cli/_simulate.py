@@ -21,9 +21,10 @@ an in-process cluster; the address defaults to ``$SWARMSHOW_DASK_SCHEDULER``). E
 with a one-line message when the scheduler or a worker cannot be reached within
 ``--scheduler-timeout`` seconds.
 
-``swarmshow simulate SHOW --runs K [--preset gusty-rtk] [--seed S] [--confidence 0.99]
+``swarmshow simulate SHOW --runs K [--preset calm-rtk] [--seed S] [--confidence 0.99]
 [--collision-distance M] [--report out.html|out.pdf]`` is the Monte-Carlo safety margin
-(``sim.flight.monte_carlo``): K flights with seeds S .. S+K-1 (on the local engine one after
+(``sim.flight.monte_carlo``): K flights with seeds S .. S+K-1 under the preset (default as a single
+flight's, so that run k is the single flight of seed S+k; none with ``--disturbance``) (on the local engine one after
 the other, on ``--engine dask`` one task per run), the flown minimum separation per segment
 and for the show, the probability of coming closer than the minimum distance and than the
 collision distance (exact binomial intervals), the worst pairs, every drone's largest deviation
@@ -50,6 +51,7 @@ from app.cli._common import (
     EXIT_FAILED,
     EXIT_OK,
     CliError,
+    count,
     load_show_arg,
     print_json,
     progress_bar,
@@ -93,7 +95,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(exit 1 if a drone diverged or the flown separation broke the limit), or "
         "reproduce the paper's scenario with --scenario paper",
     )
-    p.add_argument("show", metavar="SHOW", nargs="?", help="show file (JSON); omit with --scenario")
+    p.add_argument("show", metavar="SHOW", nargs="?",
+                   help="show file (JSON; - reads standard input); omit with --scenario")
     p.add_argument("--scenario", choices=("paper",), help="run a built-in scenario instead of a show")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object on stdout")
     p.add_argument("--plot", metavar="PNG", help="with --scenario paper: write the error/input figure")
@@ -117,9 +120,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the random errors (default 0); with --runs the first run's seed")
     p.add_argument("--preset", choices=PRESETS,
-                   help=f"error-model preset: ideal, calm-rtk, gusty-rtk, gps-only (a single flight's default: "
-                   f"{DEFAULT_FLIGHT_PRESET}, or ideal with --disturbance; presets other than ideal bring their "
-                   "own wind and replace --disturbance)")
+                   help=f"error-model preset: ideal, calm-rtk, gusty-rtk, gps-only (default {DEFAULT_FLIGHT_PRESET}, "
+                   "for one flight and for --runs; with --disturbance: ideal for one flight, none for --runs; presets "
+                   "other than ideal bring their own wind and replace --disturbance)")
     p.add_argument("--runs", type=int, metavar="K",
                    help="Monte-Carlo: fly the show K times with seeds SEED..SEED+K-1 and report the margin")
     p.add_argument("--confidence", type=float, default=None, metavar="C",
@@ -140,6 +143,8 @@ def _simulate(args: argparse.Namespace) -> int:
             raise CliError("--runs, --preset and --report fly a SHOW, not --scenario paper")
         if args.precision != "float64":
             raise CliError("--precision flies a SHOW; the paper scenario is float64")
+        if args.plot is not None:
+            check_plot_path(args.plot)
         return _paper(args)
     if args.show is None:
         raise CliError("a SHOW file or --scenario is required")
@@ -230,12 +235,22 @@ def _base_options(args: argparse.Namespace, dask: dict) -> Any:
     )
 
 
+def montecarlo_preset(args: argparse.Namespace) -> str | None:
+    """The preset a Monte-Carlo flies: ``--preset``, else none with ``--disturbance`` (the ideal vehicle in that
+    disturbance: a preset's own wind would count it twice), else the single flight's default, so that run k is
+    ``swarmshow simulate SHOW --seed S+k`` (the API's and the editor's default too)."""
+    if args.preset is not None:
+        return str(args.preset)
+    return None if args.disturbance != "none" else DEFAULT_FLIGHT_PRESET
+
+
 def _flight_options(args: argparse.Namespace, dask: dict) -> Any:
     """A Monte-Carlo run's FlightOptions: :func:`_base_options` and the error preset (if any)."""
     from sim.flight import options_for_preset
 
     options = _base_options(args, dask)
-    return options if args.preset is None else options_for_preset(args.preset, options)
+    preset = montecarlo_preset(args)
+    return options if preset is None else options_for_preset(preset, options)
 
 
 def single_preset(args: argparse.Namespace) -> str:
@@ -262,7 +277,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
                 confidence=0.99 if args.confidence is None else args.confidence,
                 collision_distance_m=(DEFAULT_COLLISION_DISTANCE_M if args.collision_distance is None
                                       else args.collision_distance),
-                preset=args.preset, progress=update,
+                preset=montecarlo_preset(args), progress=update,
             )
     report = result.to_json()
     report["show"] = show.name
@@ -293,6 +308,9 @@ def format_montecarlo(r: dict) -> str:
     def num(x: float | None, fmt: str = ".3f") -> str:
         return "n/a" if x is None else format(x, fmt)
 
+    def metres(x: float | None, fmt: str = ".3f") -> str:  # "n/a" without a unit (one drone: no pair)
+        return "n/a" if x is None else f"{format(x, fmt)} m"
+
     s = r["show_min"]
     q = s["flown_min_m"]["quantiles"]
     # Plain metres with four significant digits (24.45 m, 0.0001255 m), and whose it is.
@@ -304,11 +322,12 @@ def format_montecarlo(r: dict) -> str:
                 f"{100 * p['confidence']:g} %)")
 
     lines = [
-        f"show {r['show']!r}: {r['drones']} drones, {r['duration_s']:.1f} s, {r['runs']} runs (seeds {r['seed0']}-"
+        f"show {r['show']!r}: {count(r['drones'], 'drone')}, {r['duration_s']:.1f} s, {r['runs']} runs (seeds "
+        f"{r['seed0']}-"
         f"{r['seed0'] + r['runs'] - 1}, preset {r['preset'] or 'none'}, {r['controller']}, {r['engine']} engine) "
         f"in {r['wall_time_s']:.1f} s",
-        f"  flown min separation: worst {num(q.get('0'))} m, 5 % {num(q.get('0.05'))} m, median "
-        f"{num(q.get('0.5'))} m (plan {num(s['planned_min_m'])} m, limit {r['min_distance_m']:g} m)",
+        f"  flown min separation: worst {metres(q.get('0'))}, 5 % {metres(q.get('0.05'))}, median "
+        f"{metres(q.get('0.5'))} (plan {metres(s['planned_min_m'])}, limit {r['min_distance_m']:g} m)",
         f"  closer than {r['min_distance_m']:g} m: {prob(s['p_below_min_distance'])}",
         f"  closer than {r['collision_distance_m']:g} m (collision): {prob(s['p_collision'])}",
         f"  extra spacing needed at {100 * r['confidence']:g} %: {num(s['extra_spacing']['extra_m'], '.3f')} m",
@@ -390,16 +409,19 @@ def format_flight(s: dict) -> str:
     def num(x: float | None, fmt: str) -> str:
         return "n/a" if x is None else format(x, fmt)
 
+    def metres(x: float | None, fmt: str) -> str:  # "n/a" without a unit (one drone: no pair)
+        return "n/a" if x is None else f"{format(x, fmt)} m"
+
     pair = s["flown_min_distance_pair"]
     lines = [
-        f"show {s['show']!r}: {s['drones']} drones, {s['duration_s']:.1f} s flown at 1 kHz "
+        f"show {s['show']!r}: {count(s['drones'], 'drone')}, {s['duration_s']:.1f} s flown at 1 kHz "
         f"({s['engine']} engine, {s['controller']}, "
         f"{'disturbance ' + str(s['disturbance']) if s.get('preset') in (None, 'ideal') else 'preset ' + s['preset']}"
         f") in {s['wall_time_s']:.1f} s",
         f"  error preset {s.get('preset', 'ideal')}, seed {s.get('seed', 0)} (the same seed flies the same flight)",
         f"  deviation from the plan  rms {num(s['tracking_rms_m'], '.3g')} m, max {num(s['tracking_max_m'], '.3g')} m",
-        f"  flown min distance {num(s['flown_min_distance_m'], '.3f')} m (plan "
-        f"{num(s.get('planned_min_distance_m'), '.3f')} m, limit {s['min_distance_limit_m']} m"
+        f"  flown min distance {metres(s['flown_min_distance_m'], '.3f')} (plan "
+        f"{metres(s.get('planned_min_distance_m'), '.3f')}, limit {s['min_distance_limit_m']} m"
         + (f"; drones {pair[0]} and {pair[1]} at t = {s['flown_min_distance_time_s']:.2f} s)" if pair else ")"),
     ]
     lines.extend(
@@ -421,6 +443,24 @@ def format_flight(s: dict) -> str:
     lines.append("OK: every drone flew and kept the separation" if s["ok"] and not s.get("problems")
                  else "UNSAFE: see above")
     return "\n".join(lines)
+
+
+def check_plot_path(path: str) -> None:
+    """Refuse a ``--plot`` file that cannot be written, before the scenario flies: a missing directory, or a
+    suffix matplotlib cannot write (``x.txt`` died in matplotlib with a traceback after the flight).
+
+    Raises:
+        CliError: naming ``--plot`` and why.
+    """
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise CliError(f"--plot {path}: no such directory {str(target.parent)!r}")
+    suffix = target.suffix.lower().lstrip(".")
+    if suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        if suffix not in FigureCanvasBase.get_supported_filetypes():
+            raise CliError(f"--plot {path}: cannot write .{suffix} images; name it .png, .pdf or .svg")
 
 
 def _paper(args: argparse.Namespace) -> int:

@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 
-from app.cli._common import EXIT_OK, load_show_arg, print_json
+from app.cli._common import EXIT_OK, CliError, load_show_arg, print_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``validate`` and ``schema`` commands."""
     p = sub.add_parser("validate", help="check that a show file is valid (exit 2 with the reason if not)")
-    p.add_argument("show", metavar="SHOW", help="show file (JSON)")
+    p.add_argument("show", metavar="SHOW", help="show file (JSON; - reads standard input)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(func=_validate)
 
@@ -20,7 +20,22 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    show = load_show_arg(args.show)
+    from formations import ShowValidationError
+
+    try:
+        show = load_show_arg(args.show)
+    except CliError as exc:
+        problems = exc.__cause__.errors if isinstance(exc.__cause__, ShowValidationError) else None
+        if problems is None:
+            raise
+        # The one-line reason names the first problem; every one of them is what this command is for.
+        if args.json:
+            print_json({"valid": False, "errors": [{"path": e["path"], "msg": e["msg"]} for e in problems]})
+        elif len(problems) > 1:
+            text = str(exc)  # "...: first problem (and N more problems)"
+            raise CliError(f"{text[:-1]}; swarmshow validate --json lists them)" if text.endswith(")")
+                           else f"{text} (swarmshow validate --json lists them all)") from exc
+        raise
     summary = {
         "valid": True,
         "name": show.name,

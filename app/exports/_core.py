@@ -13,6 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
+
 from formations import MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M
 
 if TYPE_CHECKING:
@@ -32,6 +34,24 @@ MAX_SAMPLES = 4_000_000
 MAX_SCALE = 10.0
 #: Largest position offset accepted, metres per axis (``crazyswarm``).
 MAX_OFFSET_M = 10_000.0
+#: Largest flight seed (the API's simulation seed bound, ``app.api.models.MAX_SEED``).
+MAX_SEED = 2**31 - 1
+#: The error-model presets a flown export can fly and a single flight's default one (copied from
+#: ``sim.flight.PRESETS`` / ``DEFAULT_FLIGHT_PRESET`` so that validating options does not import the
+#: simulation; a test keeps them equal).
+FLIGHT_PRESETS: tuple[str, ...] = ("ideal", "calm-rtk", "gusty-rtk", "gps-only")
+DEFAULT_FLIGHT_PRESET = "calm-rtk"
+
+#: Which formats take the options that only some formats use. A format given one it does not use refuses
+#: it (``ExportError`` naming the option) rather than drop it without a word: a show "scaled for indoors"
+#: written at full size, a "simulated" file holding the plan. The CLI, the API and the editor
+#: (``frontend/js/exportcheck.js``; a test keeps them equal) read these.
+SCALING_FORMATS: tuple[str, ...] = ("crazyswarm",)
+FLOWN_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
+#: Formats that sample the trajectories at ``fps`` (the others hold them exactly: polynomials, Bézier curves,
+#: waypoints where the plan rests).
+SAMPLED_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
+AUDIO_FORMATS: tuple[str, ...] = ("skyc", "viser-html")
 
 
 class ExportError(ValueError):
@@ -67,6 +87,11 @@ class ExportOptions:
             show indoors, e.g. 0.02), in (0, 10]; times are kept, speeds scale with it.
         offset_m: (x, y, z) metres added after scaling (``crazyswarm``: where the
             show's origin lies in the motion-capture frame).
+        preset: with ``source="simulated"``, the error-model preset of the flight (one of
+            :data:`FLIGHT_PRESETS`; ``None``: :data:`DEFAULT_FLIGHT_PRESET`), as the single flight
+            ``sim.flight.single_flight_options(preset, ...)`` the editor's simulation panel flies.
+        seed: with ``source="simulated"``, the flight's seed (``None``: 0): Monte-Carlo run ``k`` of
+            ``seed0`` with ``seed0 + k == seed``.
     """
 
     fps: float | None = None
@@ -76,6 +101,8 @@ class ExportOptions:
     audio: AudioTrack | None = None
     scale: float = 1.0
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    preset: str | None = None
+    seed: int | None = None
 
     def __post_init__(self) -> None:
         if self.fps is not None:
@@ -116,6 +143,33 @@ class ExportOptions:
         object.__setattr__(self, "offset_m", offset)
         if self.source not in ("planned", "simulated"):
             raise ExportError(f"source must be 'planned' or 'simulated', got {self.source!r}", field="source")
+        self._check_flight()
+
+    def _check_flight(self) -> None:
+        """The flight's preset and seed: known, in range, and only for a flown (simulated) source."""
+        for name, value in (("preset", self.preset), ("seed", self.seed)):
+            if value is not None and self.source != "simulated":
+                raise ExportError(f"{name} chooses the simulated flight; it is only used with source 'simulated'",
+                                  field=name)
+        if self.preset is not None and self.preset not in FLIGHT_PRESETS:
+            raise ExportError(f"preset must be one of {', '.join(FLIGHT_PRESETS)}, got {self.preset!r}",
+                              field="preset")
+        if self.seed is not None:
+            if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
+                raise ExportError(f"seed must be a whole number, got {self.seed!r}", field="seed")
+            if not 0 <= self.seed <= MAX_SEED:
+                raise ExportError(f"seed must be in [0, {MAX_SEED}], got {self.seed!r}", field="seed")
+            object.__setattr__(self, "seed", int(self.seed))
+
+    @property
+    def flight_preset(self) -> str:
+        """The error-model preset a flown export flies (:data:`DEFAULT_FLIGHT_PRESET` unless chosen)."""
+        return self.preset if self.preset is not None else DEFAULT_FLIGHT_PRESET
+
+    @property
+    def flight_seed(self) -> int:
+        """The seed a flown export flies (0 unless chosen)."""
+        return self.seed if self.seed is not None else 0
 
     def fps_or(self, default: float) -> float:
         """``fps`` if given, else ``default`` (frames per second)."""
@@ -129,6 +183,24 @@ MAX_HEADING_DEG = 360.0
 DEFAULT_ORIGIN_ALT_M = 0.0
 #: How an origin is written on the command line and in the API's query.
 ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
+
+
+def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False) -> None:
+    """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` not the
+    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`.
+    The API, the CLI and :func:`export_plan` alike.
+
+    Raises:
+        ExportError: naming the option.
+    """
+    for name, given, users, what in (
+        ("scale", scale, SCALING_FORMATS, "positions of an indoor show"),
+        ("offset", offset, SCALING_FORMATS, "positions of an indoor show"),
+        ("fps", fps, SAMPLED_FORMATS, "the formats that sample; the others hold the exact trajectories"),
+    ):
+        if given and fmt not in users:
+            raise ExportError(f"{name} is not used by format {fmt!r} (only by {', '.join(users)}: {what}); drop it",
+                              field=name)
 
 
 def check_heading(value: Any) -> float:
@@ -211,6 +283,7 @@ class ExportContext:
         self.fmt = fmt
         self._plan = plan
         self._flight = flight
+        self._flight_given = flight is not None
         self._drone_names = drone_names
         self._names_cache: list[str] | None = None
         self._progress = progress
@@ -232,13 +305,31 @@ class ExportContext:
     def flight(self) -> Any:
         """The simulated flight (``sim.flight.FlightResult``), flown on first use."""
         if self._flight is None:
-            from sim.flight import FlightOptions, fly_show
+            from sim.flight import FlightOptions, fly_show, single_flight_options
 
             # Record at least as often as the export samples, so interpolation adds nothing visible.
             output_hz = min(max(self.options.fps_or(25.0), 25.0), MAX_FPS)
             progress = (lambda f: self.progress(0.8 * f)) if self._progress is not None else None
-            self._flight = fly_show(self.plan, FlightOptions(output_hz=output_hz), progress=progress)
+            # The single flight of the designer's preset and seed (the editor's simulation panel, ``swarmshow
+            # simulate --preset P --seed S``), not the ideal vehicle: what the file holds is what they watched.
+            options = single_flight_options(self.options.flight_preset,
+                                            FlightOptions(output_hz=output_hz, seed=self.options.flight_seed))
+            self._flight = fly_show(self.plan, options, progress=progress)
         return self._flight
+
+    def flight_summary(self) -> dict[str, Any]:
+        """What the flown trajectories are, for a manifest: engine, controller, disturbance, the error preset
+        and seed (when this export flew it; a flight handed in says only what it carries), worst RMS tracking."""
+        flight = self.flight
+        out: dict[str, Any] = {
+            key: getattr(flight, key) for key in ("engine", "controller", "disturbance") if hasattr(flight, key)
+        }
+        if not self._flight_given:
+            out["preset"], out["seed"] = self.options.flight_preset, self.options.flight_seed
+        rms = getattr(flight, "tracking_rms_m", None)
+        if rms is not None and len(rms):
+            out["worst_tracking_rms_m"] = float(max(rms))
+        return out
 
     @property
     def drone_names(self) -> list[str]:
@@ -263,4 +354,4 @@ def require_planned(ctx: ExportContext) -> None:
     """Refuse ``source="simulated"`` in a format that exports the exact plan."""
     if ctx.options.source != "planned":
         raise ExportError(f"format {ctx.fmt!r} exports the exact plan; --source simulated is only for "
-                          "skybrush-csv and waypoints-csv", field="source")
+                          f"{', '.join(FLOWN_FORMATS)}", field="source")

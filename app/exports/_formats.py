@@ -15,7 +15,15 @@ import importlib
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from app.exports._core import ExportContext, ExportError, ExportOptions, ExportResult, ProgressFn, Source
+from app.exports._core import (
+    ExportContext,
+    ExportError,
+    ExportOptions,
+    ExportResult,
+    ProgressFn,
+    Source,
+    check_unused_options,
+)
 
 if TYPE_CHECKING:
     from app.media import AudioTrack
@@ -59,6 +67,8 @@ def export_show(
     audio: AudioTrack | None = None,
     scale: float = 1.0,
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    preset: str | None = None,
+    seed: int | None = None,
 ) -> ExportResult:
     """Export a show in one of :data:`EXPORT_FORMATS`.
 
@@ -78,6 +88,9 @@ def export_show(
         audio: the show's music (``skyc`` and ``viser-html`` embed it).
         scale: factor applied to positions (``crazyswarm``, indoor shows).
         offset_m: (x, y, z) metres added after scaling (``crazyswarm``).
+        preset: with ``source="simulated"``, the flight's error-model preset (None: the single flight's
+            default, ``calm-rtk``); ignored when ``flight`` is given.
+        seed: with ``source="simulated"``, the flight's seed (None: 0).
 
     Returns:
         The exported file.
@@ -92,7 +105,7 @@ def export_show(
         heading_deg = geo.heading_deg if heading_deg is None else heading_deg
     options = ExportOptions(fps=fps, origin=origin, heading_deg=0.0 if heading_deg is None else heading_deg,
                             source=source, audio=audio,
-                            scale=scale, offset_m=offset_m)
+                            scale=scale, offset_m=offset_m, preset=preset, seed=seed)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
     )
@@ -111,6 +124,9 @@ def export_plan(
     """Like :func:`export_show` with the options as one :class:`ExportOptions`."""
     exporter = _load_exporter(fmt)
     options = options if options is not None else ExportOptions()
+    # Dropped without a word, a show "scaled for indoors" would be written at full size.
+    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
+                         fps=options.fps is not None)
     geo = show.settings.geo
     if options.origin is None and geo is not None:
         # The show's stored place on Earth, unless the caller gave an origin of its own.

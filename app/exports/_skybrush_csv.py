@@ -61,7 +61,8 @@ def export_skybrush_csv(ctx: ExportContext) -> ExportResult:
     z.set_comment(
         base_manifest(ctx, fmt="skybrush-csv", fps=fps, source=ctx.options.source,
                       columns=HEADER.strip().split(","),
-                      last_row="one frame after the end, holding the final state (Studio drops the last row)")
+                      last_row="one frame after the end, holding the final state (Studio drops the last row)",
+                      **({"flight": ctx.flight_summary()} if ctx.options.source == "simulated" else {}))
     )
     return ExportResult(
         filename=f"{safe_stem(ctx.show.name)}-skybrush.zip",

@@ -28,16 +28,57 @@ export function parseOrigin(text) {
 }
 
 /**
- * Why `format` cannot be exported from a show placed at `geo` (its settings.geo), "" when it can as far
- * as the editor knows: the QGroundControl formats need the show's origin.
+ * Why `format` cannot be exported from a show placed at `geo` (its settings.geo) with the trajectories `source`,
+ * "" when it can as far as the editor knows: the QGroundControl formats need the show's origin, and only the
+ * formats in FLOWN_FORMATS hold the simulated (flown) trajectories (the server refuses the others with 422).
  * @param {string} format
  * @param {object|null|undefined} geo
+ * @param {string} [source] "planned" (default) or "simulated"
  * @returns {string}
  */
-export function exportProblem(format, geo) {
+export function exportProblem(format, geo, source = "planned") {
   if (GEO_FORMATS.includes(format) && !geo) {
     return "needs the show's place on Earth: enter its origin (latitude, longitude, altitude) "
       + "in Export options → Origin first.";
   }
+  if (source === "simulated" && !FLOWN_FORMATS.includes(format)) {
+    return "exports the exact plan, not the simulated flight: set Export options → Trajectories to planned, "
+      + `or choose ${FLOWN_FORMATS.join(", ")}.`;
+  }
   return "";
+}
+
+/** Formats that apply the scale and offset (indoor flying), and formats that can hold the flown trajectories
+ * (app.exports SCALING_FORMATS / FLOWN_FORMATS; a test keeps them equal). The server refuses an option a format
+ * does not take, so the editor sends it only where it is used. */
+export const SCALING_FORMATS = ["crazyswarm"];
+export const FLOWN_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
+/** Formats that sample the trajectories at a rate (app.exports SAMPLED_FORMATS): the others refuse `fps`. */
+export const SAMPLED_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
+
+/**
+ * The query options of an export of `format`: the export fields the format takes (blank and default ones left
+ * out) and, for the flown trajectories, the simulation panel's preset and seed, so that the file holds the
+ * single flight the designer chose (the server flies the same one: sim.flight.single_flight_options).
+ * @param {string} format
+ * @param {{fps?: string, source?: string, scale?: string, offset?: string}} fields the export options' text
+ * @param {{preset?: string, seed?: string}} flight the simulation panel's `#sim-preset` and `#sim-seed`
+ * @returns {Record<string, string>}
+ */
+export function exportQuery(format, fields, flight = {}) {
+  /** @type {Record<string, string>} */
+  const out = {};
+  const text = (/** @type {string|undefined} */ v) => String(v ?? "").trim().replace(/\s+/g, "");
+  if (SAMPLED_FORMATS.includes(format) && text(fields.fps) !== "") out.fps = text(fields.fps);
+  // Only a format that can hold the flown trajectories gets them (exportProblem says so for the others).
+  if (text(fields.source) === "simulated" && FLOWN_FORMATS.includes(format)) {
+    out.source = "simulated";
+    if (text(flight.preset) !== "") out.preset = text(flight.preset);
+    if (text(flight.seed) !== "") out.seed = text(flight.seed);
+  }
+  if (SCALING_FORMATS.includes(format)) {
+    if (text(fields.scale) !== "" && Number(text(fields.scale)) !== 1) out.scale = text(fields.scale);
+    if (text(fields.offset) !== "") out.offset = text(fields.offset);
+  }
+  return out;
 }

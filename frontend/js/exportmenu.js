@@ -5,7 +5,7 @@
 import * as api from "./api.js";
 import { toast } from "./dialogs.js";
 import { showShowErrors } from "./errors.js";
-import { exportProblem, parseOrigin } from "./exportcheck.js";
+import { exportProblem, exportQuery, parseOrigin } from "./exportcheck.js";
 import { downloadBlob } from "./shows.js";
 
 /** Human names of the known formats. */
@@ -99,17 +99,21 @@ export class ExportMenu {
     st.edit("Set the show's origin", () => { st.show.settings.geo = geo; });
   }
 
-  /** @returns {Record<string, string>} the export options as query parameters (blank ones left out). */
-  options() {
-    /** @type {Record<string, string>} */
-    const out = {};
-    for (const [key, el] of Object.entries(this.fields)) {
-      if (key === "origin" || key === "heading_deg") continue; // the server reads them from the show
-      const v = el.value.trim().replace(/\s+/g, "");
-      if (v !== "" && !(key === "heading_deg" && Number(v) === 0) && !(key === "source" && v === "planned")
-          && !(key === "scale" && Number(v) === 1)) out[key] = v;
-    }
-    return out;
+  /**
+   * The export options of `format` as query parameters: only those the format takes (exportQuery), with the
+   * simulation panel's preset and seed for the flown trajectories.
+   * @param {string} format
+   * @returns {Record<string, string>}
+   */
+  options(format) {
+    const value = (/** @type {string} */ id) => {
+      const el = /** @type {HTMLInputElement|HTMLSelectElement|null} */ (document.getElementById(id));
+      return el ? el.value : "";
+    };
+    return exportQuery(format, {
+      fps: this.fields.fps.value, source: this.fields.source.value,
+      scale: this.fields.scale.value, offset: this.fields.offset.value,
+    }, { preset: value("sim-preset"), seed: value("sim-seed") });
   }
 
   /** Open the export options at the origin field with `message` under it. @param {string} message */
@@ -139,11 +143,16 @@ export class ExportMenu {
     const el = document.getElementById("export-error");
     this._clearErrors();
     const format = this.select.value;
-    // Known before asking the server (a 422 in the browser console otherwise): the QGC formats need the origin.
-    const problem = exportProblem(format, st.show && st.show.settings.geo);
+    // Known before asking the server (a 422 in the browser console otherwise): the QGC formats need the origin,
+    // and only some formats hold the simulated trajectories.
+    const problem = exportProblem(format, st.show && st.show.settings.geo, this.fields.source.value);
     if (problem) {
       el.textContent = `${FORMAT_LABELS[format] || format}: ${problem}`;
-      this._pointAtOrigin(problem);
+      if (/origin/i.test(problem)) this._pointAtOrigin(problem);
+      else {
+        /** @type {HTMLDetailsElement} */ (document.getElementById("export-options")).open = true;
+        this.fields.source.focus();
+      }
       return;
     }
     this.button.disabled = true;
@@ -155,7 +164,7 @@ export class ExportMenu {
         el.textContent = "Not exported: the show could not be saved.";
         return;
       }
-      const { blob, filename, warnings } = await api.exportShow(st.meta.id, format, this.options());
+      const { blob, filename, warnings } = await api.exportShow(st.meta.id, format, this.options(format));
       downloadBlob(blob, filename);
       toast(warnings.length ? `Downloaded ${filename} (${warnings.join("; ")})` : `Downloaded ${filename}`, { ms: warnings.length ? 8000 : 2500 });
     } catch (err) {

@@ -4,10 +4,12 @@
 
 import * as api from "./api.js";
 import { clearShowErrors, showShowErrors } from "./errors.js";
-import { fmt, plannerText, summaryTable } from "./summary.js";
+import { fmt, limitRow, plannerText, summaryTable } from "./summary.js";
 
+/** @type {[string, string, string, string, "min"|"max", string?][]} label, report key, limit key, unit, sense,
+ * the text when the report has no value (null: a one-drone show has no pair) */
 const LIMIT_ROWS = [
-  ["Minimum distance", "min_distance_m", "min_distance_m", "m", "min"],
+  ["Minimum distance", "min_distance_m", "min_distance_m", "m", "min", "none (one drone, no pair)"],
   ["Peak horizontal speed", "max_speed_xy_mps", "max_speed_xy_mps", "m/s", "max"],
   ["Peak vertical speed", "max_speed_z_mps", "max_speed_z_mps", "m/s", "max"],
   ["Peak acceleration", "max_accel_mps2", "max_accel_mps2", "m/s²", "max"],
@@ -171,13 +173,8 @@ export class ReportPanel {
     const [head, table] = summaryTable(r.ok, r.ok ? "✓ Safe: every limit holds" : `✗ ${r.violations_total} violation${r.violations_total === 1 ? "" : "s"}`,
       "Check summary", [
         ["Duration", `${fmt(r.duration_s, 1)} s`],
-        ...LIMIT_ROWS.map(([label, key, limitKey, unit, sense]) => {
-          const v = r[key];
-          const lim = r.limits ? r.limits[limitKey] : undefined;
-          const bad = lim != null && v != null && (sense === "min" ? v < lim - 1e-9 : v > lim + 1e-9);
-          return /** @type {[string, string, boolean]} */ (
-            [label, `${fmt(v)} ${unit}${lim != null ? ` (${sense === "min" ? "≥" : "≤"} ${fmt(lim, 1)})` : ""}`, bad]);
-        }),
+        ...LIMIT_ROWS.map(([label, key, limitKey, unit, sense, none]) =>
+          limitRow(label, r[key], r.limits ? r.limits[limitKey] : undefined, unit, sense, none)),
         r.min_distance_pair && r.min_distance_pair.length === 2
           && ["Closest pair", `drones ${r.min_distance_pair[0]} & ${r.min_distance_pair[1]} at ${fmt(r.min_distance_time_s, 1)} s`],
       ]);

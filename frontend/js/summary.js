@@ -11,6 +11,20 @@ export function fmt(v, digits = 2, unit = "") {
   return v == null || !Number.isFinite(v) ? "—" : `${Number(v).toFixed(digits)}${unit}`;
 }
 
+/**
+ * A check report's row for one limit: the value against it, and whether it breaks it. A value of null is none
+ * to report (`min_distance_m` of a one-drone show: no pair), said in `none` and never drawn as breaking the limit.
+ * @param {string} label @param {number|null|undefined} v @param {number|null|undefined} lim
+ * @param {string} unit @param {"min"|"max"} sense @param {string} [none] the text for no value
+ * @returns {[string, string, boolean]}
+ */
+export function limitRow(label, v, lim, unit, sense, none = "—") {
+  const has = v != null && Number.isFinite(v);
+  const bad = lim != null && has && (sense === "min" ? v < lim - 1e-9 : v > lim + 1e-9);
+  const value = has ? `${fmt(v)} ${unit}` : none;
+  return [label, `${value}${lim != null ? ` (${sense === "min" ? "≥" : "≤"} ${fmt(lim, 1)})` : ""}`, bad];
+}
+
 /** How the planner flew a transition (``TransitionInfo.resolution`` in sim.plan), in plain words. */
 const PLANNER_TEXT = {
   none: "Every drone flies a straight line, all of them together.",

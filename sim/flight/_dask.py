@@ -35,8 +35,10 @@ its next chunk (``chunk_s`` of simulated time) and stops.
 
 from __future__ import annotations
 
+import logging
 import os
 import queue
+import sys
 import threading
 import time
 import uuid
@@ -87,6 +89,30 @@ def _hold_plan(plan: ShowPlan) -> ShowPlan:
     return plan
 
 
+class _WorkerNote(logging.Handler):
+    """Prints a ``sim`` warning as one ``swarmshow: ...`` line on the worker's *current* stderr, as the CLI
+    prints it (``app.cli._common``, which ``sim`` may not import)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            print(f"swarmshow: {record.getMessage()}", file=sys.stderr, flush=True)
+        except Exception:  # logging's contract: a failing handler must not raise
+            self.handleError(record)
+
+
+def worker_notes() -> None:
+    """Have this worker say the ``sim`` packages' warnings (the flight kernel's cold-cache compile note,
+    ``sim.flight.engines._numba.COMPILE_NOTE``) as ``swarmshow: ...`` lines on its stderr (idempotent).
+
+    Why: a Dask worker has no handler for them, so logging's last-resort handler printed the bare sentence,
+    unlike every other line swarmshow prints. Nothing is added where a handler already hears them (the CLI's
+    own process with an in-process cluster, a worker whose logging was configured): no line twice.
+    """
+    logger = logging.getLogger("sim")
+    if not logger.hasHandlers():
+        logger.addHandler(_WorkerNote(logging.WARNING))
+
+
 def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token: str, shard: int) -> FlightResult:
     """Fly one shard with the local numba engine (runs on a worker).
 
@@ -100,6 +126,7 @@ def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token
     Returns:
         The shard's :class:`~sim.flight._result.FlightResult` (without the flown distance).
     """
+    worker_notes()
     with _ENGINE_LOCK:
         return fly_local(plan, options, drones=drones, progress=task_progress(token, shard, "shard"))
 
@@ -149,6 +176,7 @@ def dask_setup(worker: Any) -> None:
     """
     from sim.flight.engines._driver import warm_up
 
+    worker_notes()
     warm_up()
 
 

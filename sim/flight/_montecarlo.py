@@ -75,7 +75,8 @@ PRESETS: tuple[str, ...] = tuple(ERROR_PRESETS)
 #: The error preset a single flight flies unless told otherwise (``swarmshow simulate SHOW``, the API's
 #: simulate job, the editor): RTK GNSS and light wind (2 m/s at 10 m), the conditions show drones are
 #: normally flown in. "ideal" reports a tracking error of a fraction of a millimetre, which tells a
-#: designer nothing (issue 20); "gusty-rtk" is the stress case the Monte-Carlo margin is for.
+#: designer nothing (issue 20); "gusty-rtk" is the stress case, one choice away. A Monte-Carlo defaults to it too
+#: (the API, the CLI, the editor): run k of a default Monte-Carlo is then the default single flight of seed0 + k.
 DEFAULT_FLIGHT_PRESET = "calm-rtk"
 #: Centre distance below which two drones count as colliding (m): a show drone is about 0.3-0.5 m
 #: across with its guards, so two centres 1 m apart leave a hand's width once both sway.
@@ -742,10 +743,11 @@ class _Monotone:
 # ----------------------------------------------------------------------------------------
 def _dask_run(plan: ShowPlan, options: FlightOptions, run: int, seed: int, max_bins: int, token: str) -> RunStats:
     """Fly and reduce one run on a worker, reporting progress as scheduler events."""
-    from sim.flight._dask import _ENGINE_LOCK, task_progress
+    from sim.flight import _dask
 
-    with _ENGINE_LOCK:
-        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=task_progress(token, run, "run"))
+    _dask.worker_notes()  # a compile note as "swarmshow: ..." on the worker's stderr
+    with _dask._ENGINE_LOCK:
+        return fly_run(plan, options, run, seed, max_bins=max_bins, progress=_dask.task_progress(token, run, "run"))
 
 
 def _fly_dask(

@@ -46,7 +46,7 @@ from typing import Any, NamedTuple
 
 import numba
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, field_serializer
 from scipy.spatial import cKDTree
 
 from formations import ShowFile
@@ -145,8 +145,10 @@ class CheckReport(BaseModel):
     show: str
     drones: int
     duration_s: float
-    min_distance_m: float
-    min_distance_pair: list[int]
+    min_distance_m: float = Field(description=(
+        "Exact minimum distance between any two drones over the show, m; +inf in Python and null in JSON with "
+        "fewer than two drones (no pair: no distance, and no limit broken by it)."))
+    min_distance_pair: list[int] = Field(description="The closest pair (i < j); empty with fewer than two drones.")
     min_distance_time_s: float
     max_speed_xy_mps: float
     max_speed_z_mps: float
@@ -160,6 +162,12 @@ class CheckReport(BaseModel):
     )
     violations: list[Violation]
     violations_total: int
+
+    @field_serializer("min_distance_m", when_used="json")
+    def _no_pair_is_null(self, value: float) -> float | None:
+        """No pair's distance is ``null`` in JSON (which has no infinity; the -1 it used to say read as a
+        distance below every limit). The schema of the API's answer says so (number or null)."""
+        return float(value) if math.isfinite(value) else None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict with DESIGN.md's key names (``from``, not ``from_``)."""
@@ -499,8 +507,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
         show=plan.show_name,
         drones=plan.drone_count,
         duration_s=plan.duration_s,
-        min_distance_m=_finite(min_d),
-        min_distance_pair=list(pair),
+        min_distance_m=float(min_d),  # +inf: fewer than two drones, no pair (null in JSON)
+        min_distance_pair=list(pair) if math.isfinite(min_d) else [],
         min_distance_time_s=t_min,
         max_speed_xy_mps=peaks["max_speed_xy"],
         max_speed_z_mps=peaks["max_speed_z"],

@@ -3,7 +3,10 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 
-import { exportProblem, GEO_FORMATS, MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M, parseOrigin } from "../../frontend/js/exportcheck.js";
+import {
+  exportProblem, exportQuery, FLOWN_FORMATS, GEO_FORMATS, MAX_ORIGIN_ALT_M, MIN_ORIGIN_ALT_M, parseOrigin, SAMPLED_FORMATS,
+  SCALING_FORMATS,
+} from "../../frontend/js/exportcheck.js";
 
 test("the QGC formats without an origin are refused here, pointing at the origin field", () => {
   for (const f of GEO_FORMATS) {
@@ -26,4 +29,42 @@ test("origins: two or three numbers within the show file's ranges", () => {
     assert.match(out.error, /^Origin/, bad);
   }
   assert.match(parseOrigin("0,0,50000").error, /altitude.*10000/);
+});
+
+const ALL = ["show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html"];
+
+test("scale and offset go only to the formats that apply them (the server refuses them elsewhere)", () => {
+  const fields = { fps: "", source: "planned", scale: "0.02", offset: "1, 2, 0" };
+  for (const f of ALL) {
+    const q = exportQuery(f, fields);
+    if (SCALING_FORMATS.includes(f)) assert.deepEqual(q, { scale: "0.02", offset: "1,2,0" }, f);
+    else assert.deepEqual(q, {}, f);
+  }
+  assert.deepEqual(exportQuery("crazyswarm", { scale: "1", offset: "" }), {}); // the identity is the default
+});
+
+test("the flown trajectories carry the simulation panel's preset and seed", () => {
+  const fields = { fps: "25", source: "simulated", scale: "", offset: "" };
+  const flight = { preset: "gusty-rtk", seed: "17" };
+  for (const f of FLOWN_FORMATS) {
+    assert.deepEqual(exportQuery(f, fields, flight), { fps: "25", source: "simulated", preset: "gusty-rtk", seed: "17" }, f);
+  }
+  // A format of the exact plan cannot hold them: caught in the editor (no request the server would refuse).
+  assert.deepEqual(exportQuery("skyc", fields, flight), {});
+  for (const f of ALL) {
+    const problem = exportProblem(f, { origin_lat_deg: 47, origin_lon_deg: 8, origin_alt_m: 400, heading_deg: 0 }, "simulated");
+    if (FLOWN_FORMATS.includes(f)) assert.equal(problem, "", f);
+    else assert.match(problem, /exact plan.*planned/, f);
+  }
+  // The planned trajectories fly nothing: no preset, no seed (the server refuses them there).
+  assert.deepEqual(exportQuery("waypoints-csv", { ...fields, source: "planned" }, flight), { fps: "25" });
+  assert.deepEqual(exportQuery("waypoints-csv", fields, { preset: "calm-rtk", seed: " " }),
+    { fps: "25", source: "simulated", preset: "calm-rtk" });
+});
+
+test("the rate goes only to the formats that sample (the others hold exact trajectories and refuse it)", () => {
+  for (const f of ALL) {
+    const q = exportQuery(f, { fps: "25", source: "planned" });
+    assert.deepEqual(q, SAMPLED_FORMATS.includes(f) ? { fps: "25" } : {}, f);
+  }
 });

@@ -3,7 +3,7 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 
-import { plannerText } from "../../frontend/js/summary.js";
+import { limitRow, plannerText } from "../../frontend/js/summary.js";
 
 test("every resolution the planner reports reads as a sentence, not its code", () => {
   for (const code of ["none", "delays", "layers", "unresolved"]) {
@@ -18,4 +18,15 @@ test("every resolution the planner reports reads as a sentence, not its code", (
 test("an unknown resolution is shown as it is, and none at all says nothing", () => {
   assert.equal(plannerText("swirl"), "Planner: swirl.");
   assert.equal(plannerText(""), "");
+});
+
+test("a check row with no value (one drone: no pair, min_distance_m null) says so and breaks no limit", () => {
+  const none = "none (one drone, no pair)";
+  assert.deepEqual(limitRow("Minimum distance", null, 3, "m", "min", none),
+    ["Minimum distance", "none (one drone, no pair) (≥ 3.0)", false]);
+  // What the server said before (-1) was drawn as a distance below the limit.
+  assert.deepEqual(limitRow("Minimum distance", 2.5, 3, "m", "min", none), ["Minimum distance", "2.50 m (≥ 3.0)", true]);
+  assert.deepEqual(limitRow("Minimum distance", 3.2, 3, "m", "min", none), ["Minimum distance", "3.20 m (≥ 3.0)", false]);
+  assert.deepEqual(limitRow("Peak horizontal speed", 12, 10, "m/s", "max"), ["Peak horizontal speed", "12.00 m/s (≤ 10.0)", true]);
+  assert.deepEqual(limitRow("Peak horizontal speed", 4, undefined, "m/s", "max"), ["Peak horizontal speed", "4.00 m/s", false]);
 });
