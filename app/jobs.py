@@ -24,7 +24,7 @@
   the pool's queue; a running one sees the event at its next progress report and
   raises :class:`app.tasks.TaskCancelled`. The job reads ``cancelled`` at once
   either way, and the late result, if any, is dropped.
-* **Cache.** Results are keyed by (kind, show content hash, options, version): in memory
+* **Cache.** Results are keyed by (kind, show content hash, options, version, code digest): in memory
   (LRU) in front of the store's ``results`` table, so an unchanged show is not
   recomputed, not even after a restart. An identical job of the same client already queued
   or running is shared instead of started twice (never across clients: one client's
@@ -61,7 +61,7 @@ from typing import Any
 from app import tasks
 from app.settings import AppSettings
 from app.store import ShowStore
-from app.version import __version__
+from app.version import __version__, code_digest
 
 log = logging.getLogger("swarmshow.jobs")
 
@@ -186,9 +186,10 @@ def _parse_iso(text: str) -> float:
 
 
 def cache_key(kind: str, content_hash: str, options: dict[str, Any]) -> str:
-    """Key of a result: kind, show content hash, and a digest of the options and the swarmshow
-    version (results cached on disk by an older planner are not served after an upgrade)."""
-    salted = {"options": options, "version": __version__}
+    """Key of a result: kind, show content hash, and a digest of the options, the swarmshow version and
+    the code (results cached on disk by an older planner or flight model are not served after an upgrade,
+    nor after an edit that kept the version number)."""
+    salted = {"options": options, "version": __version__, "code": code_digest()}
     opts = hashlib.sha256(json.dumps(salted, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
     return f"{kind}:{content_hash}:{opts}"
 
