@@ -2,9 +2,17 @@
 
 * in a narrow window (a split screen, a small laptop) the top bar ran off the right edge: Export, its format
   and the shortcuts button could not be reached with the mouse;
+* a mesh imported at the smallest size that fits (its closest points exactly the minimum distance apart) was
+  rounded to millimetres in the editor, which brought pairs closer than the minimum distance: the save became a
+  draft that check, simulate and export refuse; so did turning or nudging such a formation (each edit rounds the
+  points it moves); and a refused vertices import said "at undefined m";
 """
 
 from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
 
 import httpx
 import pytest
@@ -59,3 +67,67 @@ def test_narrow_window_keeps_every_top_bar_control_on_screen(ui: Page):
             f"{width} px: canvas {canvas}, timeline {timeline}"
     page.get_by_role("button", name="Keyboard shortcuts").click()
     expect(page.locator("#dlg-help")).to_be_visible()
+
+
+#: A unit cube: 8 vertices, 6 quadrilateral faces.
+CUBE_OBJ = "\n".join(f"v {x} {y} {z}" for x in (0, 1) for y in (0, 1) for z in (0, 1)) + (
+    "\nf 1 2 4 3\nf 5 6 8 7\nf 1 2 6 5\nf 3 4 8 7\nf 1 3 7 5\nf 2 4 8 6\n")
+TRIANGLE_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def _eight_drones(name: str) -> dict:
+    return {"format": "swarmshow/1", "name": name, "drones": 8,
+            "home": {"grid": {"rows": 3, "cols": 3, "spacing_m": 4.5}},
+            "formations": [{"name": "square", "hold_s": 2.0, "color": "#00ff00",
+                            "points": [[x, 0.0, z] for x in (0.0, 5.0, 10.0, 15.0) for z in (10.0, 15.0)]}]}
+
+
+def _closest_m(points: list[list[float]]) -> float:
+    """Brute force over all pairs."""
+    return min(math.dist(a, b) for a, b in itertools.combinations(points, 2))
+
+
+def test_mesh_at_its_fitting_size_saves_valid(ui: Page, tmp_path: Path):
+    page = ui.page
+    show_id = _open(ui, _eight_drones("Mesh import"))
+    (tmp_path / "cube.obj").write_text(CUBE_OBJ)
+    (tmp_path / "triangle.obj").write_text(TRIANGLE_OBJ)
+    page.locator("summary", has_text="Mesh / point cloud").click()
+    import_button = page.get_by_role("button", name="Replace the formation with points from the mesh or point file")
+    # Eight drones on a triangle's three vertices: refused, saying so without an undefined size.
+    page.set_input_files("#mesh-file", str(tmp_path / "triangle.obj"))
+    page.select_option("#mesh-mode", "vertices")
+    import_button.click()
+    error = page.locator('[data-error-for="mesh"]')
+    expect(error).to_contain_text("at most 3 fit")
+    assert "undefined" not in error.text_content()
+    # The cube's volume at the smallest size that fits (the size left empty): the server spaces the closest
+    # points the minimum distance apart, exactly.
+    page.set_input_files("#mesh-file", str(tmp_path / "cube.obj"))
+    page.select_option("#mesh-mode", "volume")
+    with page.expect_response(lambda r: r.url.endswith("/api/formations/mesh")) as made:
+        import_button.click()
+    served = made.value.json()["points"]
+    assert _closest_m(served) == pytest.approx(3.0, abs=1e-5)
+    expect(page.locator("#toast")).to_contain_text("From cube.obj")
+    expect(page.locator("#st-spacing")).to_contain_text("spacing ≥ 3 m")
+    page.get_by_role("button", name="Save").click()
+    expect(page.locator("#save-status")).to_contain_text("Saved")
+    stored = httpx.get(f"{ui.base}/api/shows/{show_id}").json()
+    assert not stored["draft"] and not stored["problems"], stored["problems"]
+    points = stored["show"]["formations"][0]["points"]
+    assert len(points) == 8 and _closest_m(points) >= 3.0 - 1e-9
+    # Turned (the Transform panel, then the keys) and nudged: still exactly as far apart, so still valid.
+    page.fill("#rotate-input", "15")
+    page.get_by_role("button", name="Rotate the selection").click()
+    page.locator("#canvas").focus()
+    page.keyboard.press("[")
+    page.keyboard.press("Control+a")
+    page.keyboard.press("ArrowUp")
+    expect(page.get_by_role("button", name="Undo")).to_have_attribute("title", "Undo Nudge 8 points (Ctrl+Z)")
+    page.get_by_role("button", name="Save").click()
+    expect(page.locator("#save-status")).to_contain_text("revision 3")
+    stored = httpx.get(f"{ui.base}/api/shows/{show_id}").json()
+    assert not stored["draft"] and not stored["problems"], stored["problems"]
+    turned = stored["show"]["formations"][0]["points"]
+    assert turned != points and _closest_m(turned) >= 3.0 - 1e-9

@@ -6,7 +6,7 @@ import * as api from "./api.js";
 import { toast } from "./dialogs.js";
 import { setError } from "./errors.js";
 import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
-import { closePairs, repairSpacing } from "./spacing.js";
+import { closePairs, repairSpacing, roundKeepingSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 import { flyingCount } from "./groups.js";
@@ -70,7 +70,7 @@ function freeName(show, base, self) {
  */
 function applyImport(st, k, res, made) {
   const f = st.show.formations[k];
-  f.points = roundPoints(res.points);
+  f.points = roundKeepingSpacing(res.points, st.show.settings.min_distance_m);
   f.colors = res.colors;
   const named = res.name && autoNamed(f);
   if (named) f.name = freeName(st.show, /** @type {string} */ (res.name), f);
@@ -344,7 +344,9 @@ export class Sources {
         const p = err.problems && err.problems[0];
         let msg = err.message;
         if (p && p.max_n != null) {
-          msg = `${body.n} drones do not fit at ${body.size_m} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
+          // An empty size asked for the smallest size that fits: the mesh itself holds too few points (its vertices).
+          const at = body.size_m != null ? `at ${body.size_m} m` : `on the ${body.mode} of ${file.name}`;
+          msg = `${body.n} drones do not fit ${at} with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
             (p.fit_size_m != null ? ` ${Math.ceil(p.fit_size_m * 10) / 10} m fits all ${body.n} (or leave the size empty).` : "");
         }
         setError("mesh", msg);
@@ -391,7 +393,7 @@ export class Sources {
     this.state.edit(`Scale ${Math.round(factor * 100)}%`, () => {
       const pts = this.state.formation.points;
       scaleAbout(pts, idx, factor);
-      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+      this.state.formation.points = roundKeepingSpacing(pts, this.state.show.settings.min_distance_m, idx);
     });
   }
 
@@ -407,7 +409,7 @@ export class Sources {
     this.state.edit(`Rotate ${degrees}°`, () => {
       const pts = this.state.formation.points;
       rotateInView(pts, idx, degrees, this.view.view);
-      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+      this.state.formation.points = roundKeepingSpacing(pts, this.state.show.settings.min_distance_m, idx);
     });
   }
 
@@ -458,7 +460,7 @@ export class Sources {
         const res = await api.buildFormation(src.kind, body, file);
         st.edit(`Fit "${f.name}" to ${n} drones`, () => {
           const g = st.show.formations[k];
-          g.points = roundPoints(res.points);
+          g.points = roundKeepingSpacing(res.points, d);
           g.colors = res.colors;
           g.source = { ...src, fingerprint: fingerprint(g.points) };
           if (k === st.current) st.selection = new Set();
