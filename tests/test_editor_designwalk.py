@@ -6,6 +6,8 @@
   rounded to millimetres in the editor, which brought pairs closer than the minimum distance: the save became a
   draft that check, simulate and export refuse; so did turning or nudging such a formation (each edit rounds the
   points it moves); and a refused vertices import said "at undefined m";
+* a source with nothing to place drones on (blank text, an all-black image, an SVG without paths) was answered
+  "at most 0 fit. Use fewer drones or a smaller minimum distance", hiding the server's reason;
 """
 
 from __future__ import annotations
@@ -131,3 +133,30 @@ def test_mesh_at_its_fitting_size_saves_valid(ui: Page, tmp_path: Path):
     assert not stored["draft"] and not stored["problems"], stored["problems"]
     turned = stored["show"]["formations"][0]["points"]
     assert turned != points and _closest_m(turned) >= 3.0 - 1e-9
+
+
+def test_a_source_with_nothing_to_draw_says_why(ui: Page, tmp_path: Path):
+    from PIL import Image
+
+    page = ui.page
+    _open(ui, _eight_drones("Nothing to draw"))
+    Image.new("RGB", (40, 20), "black").save(tmp_path / "black.png")
+    (tmp_path / "empty.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
+                                        "<text>hi</text></svg>")
+    page.locator("summary", has_text="Text").first.click()
+    page.fill("#text-input", "   ")
+    page.get_by_role("button", name="Replace the formation with this text").click()
+    text_error = page.locator('[data-error-for="text"]')
+    expect(text_error).to_contain_text("empty")
+    assert "fewer drones" not in text_error.text_content()
+    page.evaluate("() => { document.querySelector('[data-error-for=\"text\"]').textContent = ''; }")
+    page.get_by_role("button", name="Size the text to fit all drones at the minimum distance").click()
+    expect(text_error).to_contain_text("empty")
+    assert "64 times" not in text_error.text_content()
+    page.locator("summary", has_text="Image / SVG").click()
+    upload_error = page.locator('[data-error-for="upload"]')
+    for name, reason in [("black.png", "no bright or opaque pixels"), ("empty.svg", "no paths or shapes")]:
+        page.set_input_files("#upload-file", str(tmp_path / name))
+        page.get_by_role("button", name="Replace the formation with the uploaded drawing").click()
+        expect(upload_error).to_contain_text(reason)
+        assert "fewer drones" not in upload_error.text_content()

@@ -170,7 +170,9 @@ export class Sources {
         await api.buildFormation(source, { ...body, [sizeKey]: size }, file);
         return true;
       } catch (err) {
-        if (err.problems && err.problems[0] && err.problems[0].max_n != null) return false;
+        const maxN = err.problems && err.problems[0] ? err.problems[0].max_n : null;
+        if (maxN === 0) throw err; // nothing to place drones on at any size: the server's message says why
+        if (maxN != null) return false;
         // Refused for another reason at this size (e.g. it reaches below the ground around the
         // current centre): the drones fit at the spacing; placing it is the next message's job.
         if (err.status === 422) return true;
@@ -265,7 +267,9 @@ export class Sources {
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
-        if (p && p.max_n != null) {
+        // max_n 0: nothing to place drones on at any size (blank text, a black image, an SVG without paths);
+        // the server's message says which.
+        if (p && p.max_n != null && p.max_n > 0) {
           // Say once what fits now and what size would fit them all.
           const size = await this._sizeToFit(source, body, sizeKey, file, p.max_n).catch(() => null);
           msg = `${body.n} drones do not fit at ${body[sizeKey]} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
