@@ -8,6 +8,8 @@
   points it moves); and a refused vertices import said "at undefined m";
 * a source with nothing to place drones on (blank text, an all-black image, an SVG without paths) was answered
   "at most 0 fit. Use fewer drones or a smaller minimum distance", hiding the server's reason;
+* a drone count over the show file's limit (30000 for 300) offered "Fit them", which froze the tab fitting 30000
+  points into every formation; the count is marked at once instead;
 """
 
 from __future__ import annotations
@@ -160,3 +162,21 @@ def test_a_source_with_nothing_to_draw_says_why(ui: Page, tmp_path: Path):
         page.get_by_role("button", name="Replace the formation with the uploaded drawing").click()
         expect(upload_error).to_contain_text(reason)
         assert "fewer drones" not in upload_error.text_content()
+
+
+def test_a_drone_count_over_the_limit_is_marked_not_fitted(ui: Page):
+    page = ui.page
+    _open(ui, _eight_drones("Too many drones"))
+    page.locator("#settings-panel summary").click()
+    page.fill("#set-drones", "30000")
+    page.locator("#set-drones").dispatch_event("change")
+    expect(page.locator('[data-error-for="drones"]')).to_contain_text("20000")
+    # No offer to fit the formations to a count the show file refuses; the page answers at once.
+    page.wait_for_timeout(300)
+    assert not page.locator("#dlg-confirm").is_visible()
+    assert page.evaluate("() => window.swarmshow.state.show.drones") == 30000
+    # Back to a count within the limit: the mark goes, the formations are offered a fit as before.
+    page.fill("#set-drones", "12")
+    page.locator("#set-drones").dispatch_event("change")
+    expect(page.locator("#dlg-confirm")).to_be_visible()
+    expect(page.locator('[data-error-for="drones"]')).to_be_hidden()

@@ -142,6 +142,13 @@ export class SettingsForm {
     }
     if (value === old) return;
     input.classList.remove("has-error");
+    // Outside the field's own range: applied (the save keeps it as a draft) and marked at once, as the save would.
+    const errorEl = this.form.querySelector(`[data-error-for="${CSS.escape(path)}"]`);
+    const lo = input.min !== "" ? Number(input.min) : -Infinity;
+    const hi = input.max !== "" ? Number(input.max) : Infinity;
+    const outside = typeof value === "number" && (value < lo || value > hi);
+    if (errorEl) errorEl.textContent = !outside ? "" : value < lo ? `at least ${lo}` : `at most ${hi}`;
+    if (outside) input.classList.add("has-error");
     const label = input.getAttribute("aria-label") || path;
     st.edit(`Change ${label.toLowerCase()}`, () => {
       setPath(st.show, path, value);
@@ -150,7 +157,8 @@ export class SettingsForm {
         st.show.home.grid = homeGridFor(st.show.home.grid, old, value);
       }
     });
-    if (path === "drones") {
+    // A count the show file refuses is not fitted (30000 points in every formation froze the tab).
+    if (path === "drones" && !outside) {
       const short = st.show.formations.filter((f) => f.points.length < flyingCount(st.show, f)).length;
       if (short) {
         const { choice } = await choose({
