@@ -10,6 +10,8 @@
   "at most 0 fit. Use fewer drones or a smaller minimum distance", hiding the server's reason;
 * a drone count over the show file's limit (30000 for 300) offered "Fit them", which froze the tab fitting 30000
   points into every formation; the count is marked at once instead;
+* a number field of a formation source left empty was sent as 0 and answered in the API's words
+  ("size_m: Input should be greater than or equal to 0.01", "points must be an integer in [2, 1000], got 0");
 """
 
 from __future__ import annotations
@@ -180,3 +182,34 @@ def test_a_drone_count_over_the_limit_is_marked_not_fitted(ui: Page):
     page.locator("#set-drones").dispatch_event("change")
     expect(page.locator("#dlg-confirm")).to_be_visible()
     expect(page.locator('[data-error-for="drones"]')).to_be_hidden()
+
+
+def test_an_empty_source_field_is_named_before_asking_the_server(ui: Page):
+    page = ui.page
+    _open(ui, _eight_drones("Empty fields"))
+    asked: list[str] = []
+    page.on("request", lambda r: asked.append(r.url) if "/api/formations/" in r.url else None)
+    error = page.locator('[data-error-for="shape"]')
+    apply = page.get_by_role("button", name="Replace the formation with this shape")
+    page.fill("#shape-size", "")
+    apply.click()
+    expect(error).to_have_text("Size (m): enter a number.")
+    page.get_by_role("button", name="Size the shape to fit all drones at the minimum distance").click()
+    expect(error).to_have_text("Size (m): enter a number.")
+    page.fill("#shape-size", "40")
+    page.select_option("#shape-kind", "star")
+    page.fill("#shape-param", "")
+    apply.click()
+    expect(error).to_have_text("Tips: enter a number.")
+    page.locator("summary", has_text="Mesh / point cloud").click()
+    page.fill("#mesh-z", "")
+    page.set_input_files("#mesh-file", files=[{"name": "p.xyz", "mimeType": "text/plain", "buffer": b"0 0 0\n"}])
+    page.get_by_role("button", name="Replace the formation with points from the mesh or point file").click()
+    expect(page.locator('[data-error-for="mesh"]')).to_have_text("Centre height (m): enter a number.")
+    assert asked == []
+    # Filled in again, the shape is made.
+    page.locator("summary", has_text="Shape preset").click()
+    page.fill("#shape-param", "5")
+    page.fill("#shape-size", "30")
+    apply.click()
+    expect(page.locator("#toast")).to_contain_text("Shape: star")

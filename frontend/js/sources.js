@@ -32,6 +32,21 @@ function withoutCount(body) {
 }
 
 /**
+ * The label of the first shown number field of `form` left empty that the request needs (a field with a
+ * placeholder, such as the mesh size's "fit", may stay empty), or null: an empty field reads as 0.
+ * @param {HTMLFormElement} form @returns {string|null}
+ */
+export function emptyNumberField(form) {
+  for (const el of form.querySelectorAll("input[type=number]")) {
+    const input = /** @type {HTMLInputElement} */ (el);
+    if (input.value.trim() !== "" || input.placeholder || input.closest("[hidden]")) continue;
+    const label = input.id ? form.querySelector(`label[for="${CSS.escape(input.id)}"]`) : null;
+    return label ? label.textContent.trim() : input.name;
+  }
+  return null;
+}
+
+/**
  * A cheap fingerprint of a point set: count and rounded coordinate sums. A formation whose points
  * still have the fingerprint stored in its `source` was not edited by hand since it was made.
  * @param {number[][]} points
@@ -215,6 +230,8 @@ export class Sources {
     fitButton?.addEventListener("click", async () => {
       setError(key, "");
       if (!this.state.formation) return setError(key, "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError(key, `${empty}: enter a number.`);
       fitButton.disabled = true;
       try {
         const { body, source, file } = request(new FormData(form));
@@ -240,6 +257,8 @@ export class Sources {
       setError(key, "");
       const st = this.state;
       if (!st.formation) return setError(key, "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError(key, `${empty}: enter a number.`);
       const fd = new FormData(form);
       const body = { ...params(fd), n: st.show.drones, min_spacing_m: st.show.settings.min_distance_m };
       let source = key;
@@ -320,6 +339,8 @@ export class Sources {
       setError("mesh", "");
       const st = this.state;
       if (!st.formation) return setError("mesh", "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError("mesh", `${empty}: enter a number.`);
       const fd = new FormData(form);
       const file = /** @type {File} */ (fd.get("file"));
       if (!file || !file.name) return setError("mesh", "Choose a mesh or point file.");
