@@ -12,6 +12,8 @@
   points into every formation; the count is marked at once instead;
 * a number field of a formation source left empty was sent as 0 and answered in the API's words
   ("size_m: Input should be greater than or equal to 0.01", "points must be an integer in [2, 1000], got 0");
+* a transition duration typed wrong ("abc", -1) closed its dialog with a passing toast: the designer had to find
+  the transition and open it again; the dialog now stays open saying what is wrong;
 """
 
 from __future__ import annotations
@@ -213,3 +215,31 @@ def test_an_empty_source_field_is_named_before_asking_the_server(ui: Page):
     page.fill("#shape-size", "30")
     apply.click()
     expect(page.locator("#toast")).to_contain_text("Shape: star")
+
+
+def test_a_wrong_transition_duration_keeps_its_dialog_open(ui: Page):
+    page = ui.page
+    show_id = _open(ui, _eight_drones("Transition duration"))
+    page.get_by_role("button", name="Add a formation").click()
+    page.locator("#timeline-list li.tl-transition").nth(1).click()
+    dialog = page.locator("#dlg-confirm")
+    expect(dialog).to_be_visible()
+    field = page.locator("#confirm-input")
+    for typed, said in [("abc", "must be a number of seconds"), ("-1", "must be at least 0.01 s")]:
+        field.fill(typed)
+        page.get_by_role("button", name="OK").click()
+        expect(dialog).to_be_visible()
+        expect(dialog.get_by_role("alert")).to_contain_text(said)
+    field.fill("9")
+    field.press("Enter")
+    expect(dialog).to_be_hidden()
+    expect(page.locator("#timeline-list li.tl-transition").nth(1)).to_contain_text("9 s fixed")
+    page.get_by_role("button", name="Save").click()
+    expect(page.locator("#save-status")).to_contain_text("Saved")
+    stored = httpx.get(f"{ui.base}/api/shows/{show_id}").json()["show"]
+    assert stored["formations"][1]["transition_s"] == 9
+    # Asked again, the dialog opens without the last message.
+    page.locator("#timeline-list li.tl-transition").nth(1).click()
+    expect(dialog).to_be_visible()
+    expect(dialog.get_by_role("alert")).to_be_hidden()
+    page.get_by_role("button", name="Cancel").click()

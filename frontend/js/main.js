@@ -46,7 +46,7 @@ timeline.onTransition = async (k) => {
     `Transition into "${f.name}"`,
     `Duration in seconds${min != null ? ` (at least ${min.toFixed(1)})` : ""}; blank: as fast as the limits allow`,
     f.transition_s != null ? String(f.transition_s) : "",
-    { allowBlank: true },
+    { allowBlank: true, validate: (t) => { const p = durationProblem(Number(t)); return p ? `The transition ${p}` : null; } },
   );
   if (text === null) return;
   const v = Number(text);
