@@ -14,6 +14,8 @@
   ("size_m: Input should be greater than or equal to 0.01", "points must be an integer in [2, 1000], got 0");
 * a transition duration typed wrong ("abc", -1) closed its dialog with a passing toast: the designer had to find
   the transition and open it again; the dialog now stays open saying what is wrong;
+* a new show with its home grid closer than the 3 m default lowered the show's minimum distance to that spacing
+  without a word (a typo of 1 for 10 halves the safety margin): the editor now says so when it creates the show;
 """
 
 from __future__ import annotations
@@ -243,3 +245,17 @@ def test_a_wrong_transition_duration_keeps_its_dialog_open(ui: Page):
     expect(dialog).to_be_visible()
     expect(dialog.get_by_role("alert")).to_be_hidden()
     page.get_by_role("button", name="Cancel").click()
+
+
+def test_a_new_show_says_when_its_spacing_lowers_the_minimum_distance(ui: Page):
+    page = ui.page
+    page.goto(ui.base + "/")
+    expect(page.locator("#dlg-shows")).to_be_visible()
+    page.fill("#new-name", "Tight home grid")
+    page.fill("#new-drones", "6")
+    page.dispatch_event("#new-drones", "input")
+    page.fill("#new-spacing", "1.5")
+    page.get_by_role("button", name="Create the show").click()
+    expect(page.locator("#show-title")).to_have_text("Tight home grid")
+    expect(page.locator("#toast")).to_contain_text("minimum distance 1.5 m")
+    assert page.evaluate("() => window.swarmshow.state.show.settings.min_distance_m") == 1.5
