@@ -20,7 +20,8 @@ export function toast(message, opts = {}) {
 /**
  * Ask the user to choose. Resolves with the chosen button's value, or null if the dialog is dismissed (Escape).
  * @param {{title: string, message: string, buttons: {label: string, value: string, primary?: boolean}[],
- *          input?: {label: string, value: string}}} spec
+ *          input?: {label: string, value: string}, validate?: (text: string) => string|null}} spec
+ *   validate: what is wrong with the text when the "ok" button is pressed (the dialog stays open saying so), or null
  * @returns {Promise<{choice: string|null, text: string}>}
  */
 export function choose(spec) {
@@ -46,9 +47,26 @@ export function choose(spec) {
     if (b.primary) btn.classList.add("primary");
     box.append(btn);
   }
+  const error = document.getElementById("confirm-error");
+  error.textContent = "";
+  const form = /** @type {HTMLFormElement} */ (document.getElementById("form-confirm"));
+  /** @param {SubmitEvent} e */
+  const check = (e) => {
+    const button = /** @type {HTMLButtonElement|null} */ (e.submitter);
+    const problem = spec.validate && button && button.value === "ok" ? spec.validate(input.value) : null;
+    if (!problem) return;
+    e.preventDefault(); // the dialog stays open with the typed text and what is wrong with it
+    error.textContent = problem;
+    input.focus();
+  };
+  form.addEventListener("submit", check);
   return new Promise((resolve) => {
     dlg.returnValue = "";
-    dlg.addEventListener("close", () => resolve({ choice: dlg.returnValue || null, text: input.value }), { once: true });
+    dlg.addEventListener("close", () => {
+      form.removeEventListener("submit", check);
+      error.textContent = "";
+      resolve({ choice: dlg.returnValue || null, text: input.value });
+    }, { once: true });
     dlg.showModal();
     if (spec.input) input.select();
     else /** @type {HTMLElement|null} */ (box.querySelector(".primary, button"))?.focus();
@@ -68,12 +86,15 @@ export async function confirmAction(title, message, ok = "OK") {
 /**
  * Ask for a line of text.
  * @param {string} title @param {string} label @param {string} value
- * @param {{allowBlank?: boolean}} [opts] allowBlank: an empty answer is "" rather than null
+ * @param {{allowBlank?: boolean, validate?: (text: string) => string|null}} [opts] allowBlank: an empty answer is ""
+ *   rather than null; validate: what is wrong with the trimmed text (the dialog stays open), or null
  * @returns {Promise<string|null>} the trimmed text, or null if cancelled (or blank, unless allowed)
  */
 export async function askText(title, label, value, opts = {}) {
+  const validate = opts.validate;
   const { choice, text } = await choose({
     title, message: "", input: { label, value },
+    validate: validate ? (t) => (t.trim() === "" ? null : validate(t.trim())) : undefined,
     buttons: [{ label: "OK", value: "ok", primary: true }, { label: "Cancel", value: "cancel" }],
   });
   if (choice !== "ok") return null;

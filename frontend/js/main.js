@@ -13,7 +13,7 @@ import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
 import { MotionPanel } from "./motion.js";
 import { MusicLane } from "./music.js";
-import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
+import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
 import { Playhead } from "./playhead.js";
@@ -24,7 +24,7 @@ import { installShortcuts, renderHelp } from "./shortcuts.js";
 import { ShowsDialog } from "./shows.js";
 import { SimulatePanel } from "./simulate.js";
 import { Sources } from "./sources.js";
-import { closePairs } from "./spacing.js";
+import { closePairs, roundKeepingSpacing } from "./spacing.js";
 import { EditorState, durationProblem } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { TOOLS, Tools } from "./tools.js";
@@ -46,7 +46,7 @@ timeline.onTransition = async (k) => {
     `Transition into "${f.name}"`,
     `Duration in seconds${min != null ? ` (at least ${min.toFixed(1)})` : ""}; blank: as fast as the limits allow`,
     f.transition_s != null ? String(f.transition_s) : "",
-    { allowBlank: true },
+    { allowBlank: true, validate: (t) => { const p = durationProblem(Number(t)); return p ? `The transition ${p}` : null; } },
   );
   if (text === null) return;
   const v = Number(text);
@@ -312,7 +312,7 @@ $("btn-rotate-axis").addEventListener("click", () => {
   const idx = targetIndices(state);
   state.edit(`Rotate ${+deg.toFixed(3)}° about ${"xyz"[axis]}`, () => {
     rotateAboutAxis(state.formation.points, idx, axis, deg);
-    for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+    state.formation.points = roundKeepingSpacing(state.formation.points, state.show.settings.min_distance_m, idx);
   });
 });
 $("btn-face-audience").addEventListener("click", () => {
@@ -327,7 +327,7 @@ $("btn-face-audience").addEventListener("click", () => {
   }
   state.edit("Face the audience", () => {
     rotateAboutAxis(state.formation.points, idx, 2, deg);
-    state.formation.points = roundPoints(state.formation.points);
+    state.formation.points = roundKeepingSpacing(state.formation.points, state.show.settings.min_distance_m);
   });
 });
 $("btn-fit-view").addEventListener("click", () => view.fit());
@@ -400,8 +400,8 @@ function nudge(e) {
     for (const i of idx) {
       pts[i][a] += sa * d[0];
       pts[i][b] += sb * d[1];
-      pts[i] = roundPoints([pts[i]])[0];
     }
+    state.formation.points = roundKeepingSpacing(pts, state.show.settings.min_distance_m, idx);
   });
 }
 
@@ -456,13 +456,13 @@ const shortcuts = installShortcuts({
       const idx = targetIndices(state);
       state.edit("Rotate 5°", () => {
         rotateInView(state.formation.points, idx, e.key === "[" ? 5 : -5, view.view);
-        for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+        state.formation.points = roundKeepingSpacing(state.formation.points, state.show.settings.min_distance_m, idx);
       });
     } else if (e.key === "<" || e.key === ">") {
       const idx = targetIndices(state);
       state.edit(e.key === ">" ? "Grow 10%" : "Shrink 10%", () => {
         scaleAbout(state.formation.points, idx, e.key === ">" ? 1.1 : 1 / 1.1);
-        for (const i of idx) state.formation.points[i] = roundPoints([state.formation.points[i]])[0];
+        state.formation.points = roundKeepingSpacing(state.formation.points, state.show.settings.min_distance_m, idx);
       });
     }
   },

@@ -18,6 +18,30 @@ function setPath(obj, path, value) {
   target[last] = value;
 }
 
+/** The show file's cap on home positions: at most 4 per drone, and 16 for a small show (formations/_show.py). */
+const homeSlots = (/** @type {number} */ n) => Math.max(4 * n, 16);
+
+/** The about-square grid for `n` drones (as the new-show form makes). @param {number} n */
+function squareGrid(n) {
+  const cols = Math.ceil(Math.sqrt(n));
+  return { rows: Math.ceil(n / cols), cols };
+}
+
+/**
+ * The home grid after the drone count changed from `oldN` to `newN`: the about-square grid for `newN` when
+ * the grid no longer holds the drones, has more positions than the show file allows, or was the square grid
+ * of `oldN` (so a count typed by mistake and typed again gives the grid back); else the designer's grid.
+ * @param {{rows: number, cols: number}} grid @param {number} oldN @param {number} newN
+ * @returns {any} a new grid object (spacing and centre kept)
+ */
+export function homeGridFor(grid, oldN, newN) {
+  const slots = grid.rows * grid.cols;
+  const auto = squareGrid(oldN);
+  const square = grid.rows === auto.rows && grid.cols === auto.cols;
+  if (slots >= newN && slots <= homeSlots(newN) && !square) return { ...grid };
+  return { ...grid, ...squareGrid(newN) };
+}
+
 /**
  * Fit every formation with fewer points than drones to the drone count (one undo step).
  * @param {import("./state.js").EditorState} state
@@ -118,18 +142,23 @@ export class SettingsForm {
     }
     if (value === old) return;
     input.classList.remove("has-error");
+    // Outside the field's own range: applied (the save keeps it as a draft) and marked at once, as the save would.
+    const errorEl = this.form.querySelector(`[data-error-for="${CSS.escape(path)}"]`);
+    const lo = input.min !== "" ? Number(input.min) : -Infinity;
+    const hi = input.max !== "" ? Number(input.max) : Infinity;
+    const outside = typeof value === "number" && (value < lo || value > hi);
+    if (errorEl) errorEl.textContent = !outside ? "" : value < lo ? `at least ${lo}` : `at most ${hi}`;
+    if (outside) input.classList.add("has-error");
     const label = input.getAttribute("aria-label") || path;
     st.edit(`Change ${label.toLowerCase()}`, () => {
       setPath(st.show, path, value);
-      if (path === "drones" && st.show.home.grid) {
-        const g = st.show.home.grid;
-        if (g.rows * g.cols < value) {
-          g.cols = Math.ceil(Math.sqrt(value));
-          g.rows = Math.ceil(value / g.cols);
-        }
+      // A count the show file accepts: the home grid follows it (both ways; see homeGridFor).
+      if (path === "drones" && st.show.home.grid && Number.isInteger(old) && value >= 1) {
+        st.show.home.grid = homeGridFor(st.show.home.grid, old, value);
       }
     });
-    if (path === "drones") {
+    // A count the show file refuses is not fitted (30000 points in every formation froze the tab).
+    if (path === "drones" && !outside) {
       const short = st.show.formations.filter((f) => f.points.length < flyingCount(st.show, f)).length;
       if (short) {
         const { choice } = await choose({

@@ -212,12 +212,18 @@ export class ShowsDialog {
     if (p.rows * p.cols < p.drones) return setError("new-show", `Home grid ${p.rows} × ${p.cols} has fewer places than ${p.drones} drones`);
     if (!(await this._leaveCurrent())) return;
     try {
-      const rec = await api.createShow(newShowDocument(p));
+      const doc = newShowDocument(p);
+      const rec = await api.createShow(doc);
       this.state.load(rec.show, recordMeta(rec));
       localStorage.setItem("swarmshow.last", rec.id);
       this.dlg.close();
       this.onOpen(rec);
-      toast(`Created "${rec.name}"`);
+      // A home grid closer than the default minimum distance lowers it to the spacing: said, not done silently.
+      const d = doc.settings.min_distance_m;
+      toast(d < DEFAULT_SETTINGS.min_distance_m
+        ? `Created "${rec.name}" with a minimum distance ${d} m between drones (the home grid's spacing; `
+          + `the default is ${DEFAULT_SETTINGS.min_distance_m} m): Show settings to change it`
+        : `Created "${rec.name}"`, { ms: d < DEFAULT_SETTINGS.min_distance_m ? 8000 : 2500 });
     } catch (err) {
       setError("new-show", err.message);
     }

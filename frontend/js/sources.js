@@ -6,7 +6,7 @@ import * as api from "./api.js";
 import { toast } from "./dialogs.js";
 import { setError } from "./errors.js";
 import { VIEW_AXES, fitToCount, rotateInView, roundPoints, scaleAbout } from "./geometry.js";
-import { closePairs, repairSpacing } from "./spacing.js";
+import { closePairs, repairSpacing, roundKeepingSpacing } from "./spacing.js";
 import { targetIndices } from "./colors.js";
 import { formatPoints, parsePoints } from "./pointstext.js";
 import { flyingCount } from "./groups.js";
@@ -29,6 +29,21 @@ const uploads = new Map();
 function withoutCount(body) {
   const { n: _n, min_spacing_m: _d, ...rest } = body;
   return rest;
+}
+
+/**
+ * The label of the first shown number field of `form` left empty that the request needs (a field with a
+ * placeholder, such as the mesh size's "fit", may stay empty), or null: an empty field reads as 0.
+ * @param {HTMLFormElement} form @returns {string|null}
+ */
+export function emptyNumberField(form) {
+  for (const el of form.querySelectorAll("input[type=number]")) {
+    const input = /** @type {HTMLInputElement} */ (el);
+    if (input.value.trim() !== "" || input.placeholder || input.closest("[hidden]")) continue;
+    const label = input.id ? form.querySelector(`label[for="${CSS.escape(input.id)}"]`) : null;
+    return label ? label.textContent.trim() : input.name;
+  }
+  return null;
 }
 
 /**
@@ -70,7 +85,7 @@ function freeName(show, base, self) {
  */
 function applyImport(st, k, res, made) {
   const f = st.show.formations[k];
-  f.points = roundPoints(res.points);
+  f.points = roundKeepingSpacing(res.points, st.show.settings.min_distance_m);
   f.colors = res.colors;
   const named = res.name && autoNamed(f);
   if (named) f.name = freeName(st.show, /** @type {string} */ (res.name), f);
@@ -170,7 +185,9 @@ export class Sources {
         await api.buildFormation(source, { ...body, [sizeKey]: size }, file);
         return true;
       } catch (err) {
-        if (err.problems && err.problems[0] && err.problems[0].max_n != null) return false;
+        const maxN = err.problems && err.problems[0] ? err.problems[0].max_n : null;
+        if (maxN === 0) throw err; // nothing to place drones on at any size: the server's message says why
+        if (maxN != null) return false;
         // Refused for another reason at this size (e.g. it reaches below the ground around the
         // current centre): the drones fit at the spacing; placing it is the next message's job.
         if (err.status === 422) return true;
@@ -213,6 +230,8 @@ export class Sources {
     fitButton?.addEventListener("click", async () => {
       setError(key, "");
       if (!this.state.formation) return setError(key, "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError(key, `${empty}: enter a number.`);
       fitButton.disabled = true;
       try {
         const { body, source, file } = request(new FormData(form));
@@ -238,6 +257,8 @@ export class Sources {
       setError(key, "");
       const st = this.state;
       if (!st.formation) return setError(key, "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError(key, `${empty}: enter a number.`);
       const fd = new FormData(form);
       const body = { ...params(fd), n: st.show.drones, min_spacing_m: st.show.settings.min_distance_m };
       let source = key;
@@ -265,7 +286,9 @@ export class Sources {
       } catch (err) {
         const p = err.problems && err.problems[0];
         let msg = err.message;
-        if (p && p.max_n != null) {
+        // max_n 0: nothing to place drones on at any size (blank text, a black image, an SVG without paths);
+        // the server's message says which.
+        if (p && p.max_n != null && p.max_n > 0) {
           // Say once what fits now and what size would fit them all.
           const size = await this._sizeToFit(source, body, sizeKey, file, p.max_n).catch(() => null);
           msg = `${body.n} drones do not fit at ${body[sizeKey]} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
@@ -316,6 +339,8 @@ export class Sources {
       setError("mesh", "");
       const st = this.state;
       if (!st.formation) return setError("mesh", "Open or create a show first.");
+      const empty = emptyNumberField(form);
+      if (empty) return setError("mesh", `${empty}: enter a number.`);
       const fd = new FormData(form);
       const file = /** @type {File} */ (fd.get("file"));
       if (!file || !file.name) return setError("mesh", "Choose a mesh or point file.");
@@ -344,7 +369,9 @@ export class Sources {
         const p = err.problems && err.problems[0];
         let msg = err.message;
         if (p && p.max_n != null) {
-          msg = `${body.n} drones do not fit at ${body.size_m} m with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
+          // An empty size asked for the smallest size that fits: the mesh itself holds too few points (its vertices).
+          const at = body.size_m != null ? `at ${body.size_m} m` : `on the ${body.mode} of ${file.name}`;
+          msg = `${body.n} drones do not fit ${at} with ${body.min_spacing_m} m between them: at most ${p.max_n} fit.` +
             (p.fit_size_m != null ? ` ${Math.ceil(p.fit_size_m * 10) / 10} m fits all ${body.n} (or leave the size empty).` : "");
         }
         setError("mesh", msg);
@@ -391,7 +418,7 @@ export class Sources {
     this.state.edit(`Scale ${Math.round(factor * 100)}%`, () => {
       const pts = this.state.formation.points;
       scaleAbout(pts, idx, factor);
-      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+      this.state.formation.points = roundKeepingSpacing(pts, this.state.show.settings.min_distance_m, idx);
     });
   }
 
@@ -407,7 +434,7 @@ export class Sources {
     this.state.edit(`Rotate ${degrees}°`, () => {
       const pts = this.state.formation.points;
       rotateInView(pts, idx, degrees, this.view.view);
-      for (const i of idx) pts[i] = roundPoints([pts[i]])[0];
+      this.state.formation.points = roundKeepingSpacing(pts, this.state.show.settings.min_distance_m, idx);
     });
   }
 
@@ -458,7 +485,7 @@ export class Sources {
         const res = await api.buildFormation(src.kind, body, file);
         st.edit(`Fit "${f.name}" to ${n} drones`, () => {
           const g = st.show.formations[k];
-          g.points = roundPoints(res.points);
+          g.points = roundKeepingSpacing(res.points, d);
           g.colors = res.colors;
           g.source = { ...src, fingerprint: fingerprint(g.points) };
           if (k === st.current) st.selection = new Set();

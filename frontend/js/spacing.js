@@ -146,3 +146,21 @@ export function repairSpacing(points, minDistance, opts = {}) {
   const left = closePairs(pts, minDistance);
   return { points: pts, achieved: left.pairs.length ? left.minDistance : Infinity, moved: moved.size };
 }
+
+/**
+ * `points` with those at `indices` (default: all) rounded to millimetres (the show file stays short), unless the
+ * rounding brings a pair closer than `minDistance` that was not: a formation source places its closest pair at
+ * exactly the minimum distance (the smallest size that fits), a grid drawn at the minimum distance has every
+ * neighbour there, and moving each coordinate by up to 0.5 mm moves a distance by up to √3 mm, which the save
+ * refuses (a draft). Then the points stay as they are (a move or turn keeps every distance).
+ * @param {number[][]} points @param {number} minDistance metres @param {Iterable<number>} [indices]
+ * @returns {number[][]} new arrays
+ */
+export function roundKeepingSpacing(points, minDistance, indices) {
+  const rounded = points.map((p) => p.slice());
+  for (const i of indices ?? points.keys()) rounded[i] = rounded[i].map((v) => Math.round(v * 1000) / 1000 + 0);
+  const n = points.length;
+  const before = new Set(closePairs(points, minDistance).pairs.map(([i, j]) => i * n + j));
+  const created = closePairs(rounded, minDistance).pairs.some(([i, j]) => !before.has(i * n + j));
+  return created ? points.map((p) => p.slice()) : rounded;
+}

@@ -6,7 +6,7 @@
 
 import { axisParameter } from "./camera.js";
 import { resamplePolylines, roundPoints } from "./geometry.js";
-import { closePairs } from "./spacing.js";
+import { closePairs, roundKeepingSpacing } from "./spacing.js";
 
 /** Tool names, in the order of the tool buttons. */
 export const TOOLS = ["select", "draw", "place", "erase", "pan"];
@@ -160,7 +160,7 @@ export class Tools {
     if (!g) return;
     if (g.kind === "move") {
       const f = this.state.formation;
-      if (g.moved) for (const i of g.idx) f.points[i] = roundPoints([f.points[i]])[0];
+      if (g.moved) f.points = roundKeepingSpacing(f.points, this.state.show.settings.min_distance_m, g.idx);
       // A drag along an axis pointing into the screen (or back to the start) changes nothing: no undo step.
       if (g.moved && g.idx.some((i, k) => f.points[i].some((v, c) => v !== g.orig[k][c]))) {
         this.state.commit(g.idx.length === 1 ? "Move point" : `Move ${g.idx.length} points`);

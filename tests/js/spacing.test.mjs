@@ -78,3 +78,27 @@ test("repairSpacing leaves the input alone and reaches the minimum on a crowded 
   assert.deepEqual(same.points, sparse);
   assert.equal(same.moved, 0);
 });
+
+test("roundKeepingSpacing: millimetres unless rounding brings a pair closer than the minimum distance", async () => {
+  const { roundKeepingSpacing } = await import("../../frontend/js/spacing.js");
+  const r = rng(7);
+  // Pairs exactly 3 m apart along random directions (a source's closest pair at its fitting size): rounding each
+  // coordinate to 1 mm moves the distance by up to √3 mm, below 3 m for some of them.
+  let kept = 0;
+  for (let trial = 0; trial < 200; trial++) {
+    const a = [r() * 40, r() * 40, 10 + r() * 40];
+    const t = r() * 2 * Math.PI, u = Math.acos(2 * r() - 1);
+    const b = [a[0] + 3 * Math.sin(u) * Math.cos(t), a[1] + 3 * Math.sin(u) * Math.sin(t), a[2] + 3 * Math.cos(u)];
+    const pts = [a, b, [a[0] + 20, a[1], a[2]]];
+    const out = roundKeepingSpacing(pts, 3);
+    assert.equal(brutePairs(out, 3).length, 0, `trial ${trial}: ${JSON.stringify(out)}`);
+    const rounded = out.every((p) => p.every((v) => Math.abs(v * 1000 - Math.round(v * 1000)) < 1e-6));
+    if (!rounded) kept++;
+    // Rounded whenever the rounding keeps the distance (brute force over the rounded points).
+    const mm = pts.map((p) => p.map((v) => Math.round(v * 1000) / 1000));
+    assert.equal(rounded, brutePairs(mm, 3).length === 0);
+  }
+  assert.ok(kept > 10 && kept < 190, `${kept} of 200 kept unrounded`);
+  // Points already too close (typed by hand) are rounded as usual: the repair is the designer's.
+  assert.deepEqual(roundKeepingSpacing([[0, 0, 10.00049], [1, 0, 10]], 3), [[0, 0, 10], [1, 0, 10]]);
+});
