@@ -432,15 +432,15 @@ _PRESET_HELP = (f"With source=simulated: the flight's error-model preset (defaul
                 "simulation): the file holds the single flight the simulation panel flies.")
 
 
-def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool) -> None:
-    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1) and ``fps`` for a format that does not use them, as
-    the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` (``app.exports._core.check_unused_options``): they were
-    dropped without a word."""
+def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool, origin: bool) -> None:
+    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1), ``fps`` and ``origin`` for a format that does not
+    use them, as the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` / ``--origin``
+    (``app.exports._core.check_unused_options``): they were dropped without a word."""
     from app.exports import ExportError
     from app.exports._core import check_unused_options
 
     try:
-        check_unused_options(fmt, scale=scale, offset=offset, fps=fps)
+        check_unused_options(fmt, scale=scale, offset=offset, fps=fps, origin=origin)
     except ExportError as exc:
         raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
 
@@ -463,7 +463,9 @@ async def export_show(
     fps: float | None = Query(None, gt=0, le=1000, description=(
         "Sample rate, Hz, of the formats that sample (skybrush-csv, waypoints-csv, viser-html; the others refuse "
         "it with 422).")),
-    origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
+    origin: str | None = Query(None, description=(
+        "Geographic origin 'lat,lon[,alt_m]' of the formats that place the show on Earth (skyc, qgc-plan, "
+        "qgc-wpl; the others refuse it with 422). Default: the show's settings.geo.")),
     # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
     heading_deg: float | None = Query(None, ge=-360, le=360, description=(
         "Direction of the show's +y axis, degrees clockwise from north (default: the show's settings.geo "
@@ -484,7 +486,8 @@ async def export_show(
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
-    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None)
+    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None,
+                  origin=origin is not None)
     record = deps.store(request).get(show_id)
     if fmt != "show":
         # The show file itself downloads as it is (a draft too: it is the user's work); every other

@@ -15,6 +15,7 @@ from app.cli._common import write_atomically as write_atomically
 from app.exports._core import AUDIO_FORMATS as _AUDIO_FORMATS
 from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_PRESETS, MAX_SEED
 from app.exports._core import FLOWN_FORMATS as _FLOWN_FORMATS
+from app.exports._core import ORIGIN_FORMATS as _ORIGIN_FORMATS
 from app.exports._core import SAMPLED_FORMATS as _SAMPLED_FORMATS
 from app.exports._core import SCALING_FORMATS as _SCALING_FORMATS
 
@@ -132,6 +133,7 @@ def _export(args: argparse.Namespace) -> int:
     unused = [(flag, formats) for flag, given, formats in (
         ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
         ("--fps", args.fps is not None, _SAMPLED_FORMATS),
+        ("--origin", args.origin is not None, _ORIGIN_FORMATS),
         ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
     if unused:
         flag, users = unused[0]

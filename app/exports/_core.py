@@ -52,6 +52,9 @@ FLOWN_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
 #: waypoints where the plan rests).
 SAMPLED_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
 AUDIO_FORMATS: tuple[str, ...] = ("skyc", "viser-html")
+#: Formats that place the show on Earth at ``origin`` (the .skyc's location, QGroundControl's WGS84 waypoints);
+#: the others hold local metres and refuse an origin given to them (the stored ``settings.geo`` is not given).
+ORIGIN_FORMATS: tuple[str, ...] = ("skyc", "qgc-plan", "qgc-wpl")
 
 
 class ExportError(ValueError):
@@ -185,10 +188,11 @@ DEFAULT_ORIGIN_ALT_M = 0.0
 ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
 
 
-def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False) -> None:
+def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False,
+                         origin: bool = False) -> None:
     """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` not the
-    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`.
-    The API, the CLI and :func:`export_plan` alike.
+    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`,
+    ``origin`` outside :data:`ORIGIN_FORMATS`. The API, the CLI and :func:`export_plan` alike.
 
     Raises:
         ExportError: naming the option.
@@ -197,6 +201,7 @@ def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False,
         ("scale", scale, SCALING_FORMATS, "positions of an indoor show"),
         ("offset", offset, SCALING_FORMATS, "positions of an indoor show"),
         ("fps", fps, SAMPLED_FORMATS, "the formats that sample; the others hold the exact trajectories"),
+        ("origin", origin, ORIGIN_FORMATS, "the formats that place the show on Earth; the others hold local metres"),
     ):
         if given and fmt not in users:
             raise ExportError(f"{name} is not used by format {fmt!r} (only by {', '.join(users)}: {what}); drop it",

@@ -98,6 +98,11 @@ def export_show(
     Raises:
         ExportError: unknown format, bad option, or a show that cannot be planned.
     """
+    # An origin given to a format that holds local metres would be dropped without a word; the stored
+    # settings.geo filled in below is the show's own and not checked.
+    if fmt in EXPORT_FORMATS:  # an unknown one is export_plan's to name
+        check_unused_options(fmt, scale=scale != 1.0, offset=any(v != 0.0 for v in offset_m), fps=fps is not None,
+                             origin=origin is not None)
     geo = show.settings.geo
     if origin is None and geo is not None:
         # The show's stored place on Earth, with the heading the caller gave, if any.
@@ -125,9 +130,11 @@ def export_plan(
     exporter = _load_exporter(fmt)
     options = options if options is not None else ExportOptions()
     # Dropped without a word, a show "scaled for indoors" would be written at full size.
-    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
-                         fps=options.fps is not None)
     geo = show.settings.geo
+    stored = (geo.origin_lat_deg, geo.origin_lon_deg, geo.origin_alt_m) if geo is not None else None
+    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
+                         fps=options.fps is not None,
+                         origin=options.origin is not None and tuple(options.origin) != stored)
     if options.origin is None and geo is not None:
         # The show's stored place on Earth, unless the caller gave an origin of its own.
         options = dataclasses.replace(

@@ -68,3 +68,10 @@ test("the rate goes only to the formats that sample (the others hold exact traje
     assert.deepEqual(q, SAMPLED_FORMATS.includes(f) ? { fps: "25" } : {}, f);
   }
 });
+
+test("the editor never sends an origin: the place on Earth is the show's settings.geo (the server refuses an origin given to a format that does not use it)", () => {
+  for (const format of ["show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html"]) {
+    const q = exportQuery(format, { fps: "25", source: "simulated", scale: "0.5", offset: "1,0,0" }, { preset: "ideal", seed: "3" });
+    assert.ok(!("origin" in q), `${format}: ${JSON.stringify(q)}`);
+  }
+});
