@@ -18,6 +18,8 @@ from app.api.models import (
     DEFAULT_FLIGHT_PRESET,
     MAX_SEED,
     CheckOut,
+    ControllerName,
+    DisturbanceName,
     JobOut,
     MonteCarloOptions,
     PresetName,
@@ -478,6 +480,12 @@ async def export_show(
     preset: Annotated[PresetName | None, Query(description=_PRESET_HELP)] = None,
     seed: int | None = Query(None, ge=0, le=MAX_SEED, description=(
         "With source=simulated: the flight's seed (default 0; the same seed flies the same flight).")),
+    controller: Annotated[ControllerName | None, Query(description=(
+        "With source=simulated: the flight's controller (default 'ismc'; 'baseline': cascaded PD), as the "
+        "simulation's."))] = None,
+    disturbance: Annotated[DisturbanceName | None, Query(description=(
+        "With source=simulated: the fleet-wide disturbance; only with preset 'ideal' (implied when no preset is "
+        "given), as the simulation's."))] = None,
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
@@ -524,6 +532,10 @@ async def export_show(
         options["preset"] = preset
     if seed is not None:
         options["seed"] = seed
+    if controller is not None:
+        options["controller"] = controller
+    if disturbance is not None:
+        options["disturbance"] = disturbance
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

@@ -69,6 +69,8 @@ def export_show(
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     preset: str | None = None,
     seed: int | None = None,
+    controller: str | None = None,
+    disturbance: str | None = None,
 ) -> ExportResult:
     """Export a show in one of :data:`EXPORT_FORMATS`.
 
@@ -91,6 +93,8 @@ def export_show(
         preset: with ``source="simulated"``, the flight's error-model preset (None: the single flight's
             default, ``calm-rtk``); ignored when ``flight`` is given.
         seed: with ``source="simulated"``, the flight's seed (None: 0).
+        controller: with ``source="simulated"``, the flight's controller (None: "ismc").
+        disturbance: with ``source="simulated"`` and preset "ideal", the fleet-wide disturbance (None: none).
 
     Returns:
         The exported file.
@@ -110,7 +114,8 @@ def export_show(
         heading_deg = geo.heading_deg if heading_deg is None else heading_deg
     options = ExportOptions(fps=fps, origin=origin, heading_deg=0.0 if heading_deg is None else heading_deg,
                             source=source, audio=audio,
-                            scale=scale, offset_m=offset_m, preset=preset, seed=seed)
+                            scale=scale, offset_m=offset_m, preset=preset, seed=seed, controller=controller,
+                            disturbance=disturbance)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
     )

@@ -75,3 +75,13 @@ test("the editor never sends an origin: the place on Earth is the show's setting
     assert.ok(!("origin" in q), `${format}: ${JSON.stringify(q)}`);
   }
 });
+
+test("the flown trajectories carry the panel's controller, and its disturbance only with preset ideal", () => {
+  const fields = { fps: "", source: "simulated", scale: "", offset: "" };
+  assert.deepEqual(exportQuery("waypoints-csv", fields, { preset: "calm-rtk", seed: "0", controller: "baseline", disturbance: "wind" }),
+    { source: "simulated", preset: "calm-rtk", seed: "0", controller: "baseline" });
+  assert.deepEqual(exportQuery("skybrush-csv", fields, { preset: "ideal", seed: "2", controller: "ismc", disturbance: "wind" }),
+    { source: "simulated", preset: "ideal", seed: "2", controller: "ismc", disturbance: "wind" });
+  // Planned trajectories fly nothing: no controller, no disturbance.
+  assert.deepEqual(exportQuery("waypoints-csv", { source: "planned" }, { preset: "ideal", controller: "baseline", disturbance: "wind" }), {});
+});
