@@ -8,12 +8,13 @@ drones only (above that it needs 800 MB+ and minutes).
 
 from __future__ import annotations
 
+import os
 import time
 
 import pytest
 
 from sim.bench._assignment import bench_assignment
-from sim.bench._shows import benchmark_show
+from sim.bench._shows import bench_show
 
 pytestmark = pytest.mark.slow
 
@@ -43,31 +44,29 @@ def test_bench_assignment_spare_goals_16k(record_result) -> None:
     assert fig["ours_seconds"] <= 5.0
 
 
+#: Drones of the whole-show check (``BENCH_CHECK_DRONES=300`` runs the same assertions on a small show).
+CHECK_DRONES = int(os.environ.get("BENCH_CHECK_DRONES", "10000"))
+#: The exact check must beat a 10 Hz sampled check of the same plan, timed in the same run, by this factor
+#: (README: 12.8-16.3x measured for 10,000 drones, 2 formations; an absolute 5 s bound failed under load).
+MIN_SAMPLED_OVER_EXACT = 10.0
+
+
 @pytest.mark.parametrize("formations", [2, 5])
 def test_bench_check_10k_show(formations: int, record_result) -> None:
-    """``check_plan`` on a 10,000-drone show (minimum-time law: 2 formations plan an 8.7-minute show, 5 longer)."""
-    from sim import check_plan, plan_show
-
-    show = benchmark_show(10000, formations=formations)
-    t0 = time.perf_counter()
-    plan = plan_show(show)
-    t_plan = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    report = check_plan(plan)
-    t_check = time.perf_counter() - t0
-    fig = {
-        "drones": 10000,
-        "formations": formations,
-        "show_duration_s": plan.duration_s,
-        "plan_s": t_plan,
-        "check_s": t_check,
-        "ok": report.ok,
-        "exact_min_distance_m": report.min_distance_m,
-    }
+    """``check_plan`` on a 10,000-drone show (minimum-time law: 2 formations plan an 8.7-minute show, 5 longer),
+    against a 10 Hz sampled check of the same plan in the same process (``sim.bench._shows.bench_show``, what
+    ``swarmshow bench check`` reports): speed as a ratio, never absolute seconds (the CPU is shared)."""
+    fig = bench_show(CHECK_DRONES, formations=formations)
     record_result(fig)
-    assert report.ok
-    assert plan.duration_s >= 500  # 519 s for 2 formations (it was >= 600 under the quintic law)
-    assert t_check <= 5.0
+    assert fig["violations"] == 0
+    # The sampled minimum only bounds the exact one from above (it misses the instants between samples).
+    assert fig["sampled_10hz_min_distance_m"] >= fig["exact_min_distance_m"] - 1e-9
+    if CHECK_DRONES == 10000:
+        assert fig["show_duration_s"] >= 500  # 519 s for 2 formations (it was >= 600 under the quintic law)
+        # The README's figure is for 2 formations; 5 (unmeasured as a ratio yet) must at least beat sampling.
+        assert fig["sampled_over_exact_check"] >= (MIN_SAMPLED_OVER_EXACT if formations == 2 else 1.0), fig
+    # A small show (BENCH_CHECK_DRONES) checks the code above runs; a 10 Hz sampled check of 400 drones costs
+    # about what the exact one does (1.02x measured), so no speed ratio is asserted there.
 
 
 @pytest.mark.parametrize("n", [1000, 5000])

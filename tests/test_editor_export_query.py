@@ -1,5 +1,6 @@
 """The editor's export request, in Chromium against a live server on loopback: the flown trajectories carry the
-simulation panel's preset and seed (the file holds the flight the designer chose), and scale / offset go only to
+simulation panel's preset, seed, controller and (preset "ideal") disturbance (the file holds the flight the
+designer chose), and scale / offset go only to
 the format that applies them (the server refuses them elsewhere with 422)."""
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ def test_export_sends_the_flight_and_the_scaling_where_they_apply(ui: Page):
     expect(page.locator("#show-title")).to_have_text("Export query")
     page.select_option("#sim-preset", "gusty-rtk")
     page.fill("#sim-seed", "17")
+    page.select_option("#sim-controller", "baseline")  # failed before: the export flew ISMC
     page.evaluate("() => { document.getElementById('export-options').open = true; }")
     page.select_option("#exp-source", "simulated")
     page.fill("#exp-scale", "0.5")
@@ -44,7 +46,14 @@ def test_export_sends_the_flight_and_the_scaling_where_they_apply(ui: Page):
 
     query, status = _export(page, "waypoints-csv")
     assert status == 200, page.locator("#export-error").text_content()
-    assert query == {"source": ["simulated"], "preset": ["gusty-rtk"], "seed": ["17"]}, query
+    assert query == {"source": ["simulated"], "preset": ["gusty-rtk"], "seed": ["17"],
+                     "controller": ["baseline"]}, query
+    # The fleet-wide disturbance goes with preset "ideal" only (the others bring their own wind).
+    page.select_option("#sim-preset", "ideal")
+    page.select_option("#sim-disturbance", "wind")
+    query, status = _export(page, "waypoints-csv")
+    assert status == 200, page.locator("#export-error").text_content()
+    assert query["preset"] == ["ideal"] and query["disturbance"] == ["wind"], query
 
     page.select_option("#exp-source", "planned")
     query, status = _export(page, "crazyswarm")

@@ -12,6 +12,7 @@ import pytest
 
 from app.cli import main
 from app.exports import EXPORT_FORMATS, drone_file_stems, export_show, safe_stem
+from app.exports._core import ORIGIN_FORMATS
 from formations import dump_show, parse_show
 from tests.conftest import make_show, ring
 
@@ -86,7 +87,9 @@ def test_drone_stems_are_unique_and_safe():
 
 @pytest.mark.parametrize("fmt", [f for f in EXPORT_FORMATS if f not in ("show", "viser-html")])
 def test_hostile_names_never_escape_the_archive(hostile_show, plan, fmt, tmp_path):
-    result = export_show(hostile_show, fmt, plan=plan, drone_names=HOSTILE, origin=(47.0, 8.0, 400.0))
+    # The origin only where it is used: the other formats refuse it (tests/test_exports_origin_unused.py).
+    result = export_show(hostile_show, fmt, plan=plan, drone_names=HOSTILE,
+                         origin=(47.0, 8.0, 400.0) if fmt in ORIGIN_FORMATS else None)
     assert SAFE.fullmatch(result.filename) and "/" not in result.filename
     assert len(result.filename) <= 100
     with zipfile.ZipFile(io.BytesIO(result.content)) as z:
@@ -112,8 +115,8 @@ def test_cli_writes_each_format(show, tmp_path, capsys):
         out = tmp_path / f"out-{fmt}.bin"
         # --fps only where the format samples: the others refuse it (tests/test_exports_flown_preset.py).
         rate = ["--fps", "2"] if fmt in ("skybrush-csv", "waypoints-csv") else []
-        code = main(["export", str(src), "--format", fmt, "-o", str(out), "--origin", "47.1,8.2,420",
-                     "--heading", "15", *rate])
+        place = ["--origin", "47.1,8.2,420"] if fmt in ORIGIN_FORMATS else []
+        code = main(["export", str(src), "--format", fmt, "-o", str(out), *place, "--heading", "15", *rate])
         assert code == 0, capsys.readouterr().err
         data = out.read_bytes()
         if fmt == "show":

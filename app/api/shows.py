@@ -18,6 +18,8 @@ from app.api.models import (
     DEFAULT_FLIGHT_PRESET,
     MAX_SEED,
     CheckOut,
+    ControllerName,
+    DisturbanceName,
     JobOut,
     MonteCarloOptions,
     PresetName,
@@ -432,15 +434,15 @@ _PRESET_HELP = (f"With source=simulated: the flight's error-model preset (defaul
                 "simulation): the file holds the single flight the simulation panel flies.")
 
 
-def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool) -> None:
-    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1) and ``fps`` for a format that does not use them, as
-    the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` (``app.exports._core.check_unused_options``): they were
-    dropped without a word."""
+def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool, origin: bool) -> None:
+    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1), ``fps`` and ``origin`` for a format that does not
+    use them, as the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` / ``--origin``
+    (``app.exports._core.check_unused_options``): they were dropped without a word."""
     from app.exports import ExportError
     from app.exports._core import check_unused_options
 
     try:
-        check_unused_options(fmt, scale=scale, offset=offset, fps=fps)
+        check_unused_options(fmt, scale=scale, offset=offset, fps=fps, origin=origin)
     except ExportError as exc:
         raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
 
@@ -463,7 +465,9 @@ async def export_show(
     fps: float | None = Query(None, gt=0, le=1000, description=(
         "Sample rate, Hz, of the formats that sample (skybrush-csv, waypoints-csv, viser-html; the others refuse "
         "it with 422).")),
-    origin: str | None = Query(None, description="Geographic origin 'lat,lon[,alt_m]' for GPS formats."),
+    origin: str | None = Query(None, description=(
+        "Geographic origin 'lat,lon[,alt_m]' of the formats that place the show on Earth (skyc, qgc-plan, "
+        "qgc-wpl; the others refuse it with 422). Default: the show's settings.geo.")),
     # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
     heading_deg: float | None = Query(None, ge=-360, le=360, description=(
         "Direction of the show's +y axis, degrees clockwise from north (default: the show's settings.geo "
@@ -476,6 +480,12 @@ async def export_show(
     preset: Annotated[PresetName | None, Query(description=_PRESET_HELP)] = None,
     seed: int | None = Query(None, ge=0, le=MAX_SEED, description=(
         "With source=simulated: the flight's seed (default 0; the same seed flies the same flight).")),
+    controller: Annotated[ControllerName | None, Query(description=(
+        "With source=simulated: the flight's controller (default 'ismc'; 'baseline': cascaded PD), as the "
+        "simulation's."))] = None,
+    disturbance: Annotated[DisturbanceName | None, Query(description=(
+        "With source=simulated: the fleet-wide disturbance; only with preset 'ideal' (implied when no preset is "
+        "given), as the simulation's."))] = None,
 ) -> Response:
     """Download the show as ``fmt``: ``show`` (the show file, straight from the store) or any
     format of ``swarmshow export`` (``skybrush-csv``, ``skyc``, ``crazyswarm``, ``qgc-plan``,
@@ -484,7 +494,8 @@ async def export_show(
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
-    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None)
+    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None,
+                  origin=origin is not None)
     record = deps.store(request).get(show_id)
     if fmt != "show":
         # The show file itself downloads as it is (a draft too: it is the user's work); every other
@@ -521,6 +532,10 @@ async def export_show(
         options["preset"] = preset
     if seed is not None:
         options["seed"] = seed
+    if controller is not None:
+        options["controller"] = controller
+    if disturbance is not None:
+        options["disturbance"] = disturbance
     out = await deps.run(request, tasks.export_task, record.json, fmt, options)
     return Response(out["content"], media_type=out["media_type"], headers={
         "Content-Disposition": f'attachment; filename="{_slug(out["filename"])}"',

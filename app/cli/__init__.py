@@ -20,6 +20,9 @@ from typing import NoReturn
 
 from app.cli._common import CliError, show_library_notes
 
+#: Exit code when the reader of stdout went away (128 + SIGPIPE, as a shell reports a command the pipe ended).
+EXIT_BROKEN_PIPE = 141
+
 # Order is the order shown by ``swarmshow --help``.
 _COMMAND_MODULES: tuple[str, ...] = (
     "app.cli._validate",
@@ -105,14 +108,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (BrokenPipeError, OSError) as exc:
         if not _stdout_failed(exc):
             raise
-        print(f"swarmshow: error: cannot write to stdout: {exc.strerror or exc}", file=sys.stderr)
+        # The reader went away (``swarmshow schema | head -1``): it has what it wanted, so end quietly with
+        # 141 (128 + SIGPIPE, what a shell reports for a command killed by the pipe); a closed or full stdout
+        # is still an error, said in one line.
+        reader_gone = isinstance(exc, BrokenPipeError) or exc.errno == errno.EPIPE
+        if not reader_gone:
+            print(f"swarmshow: error: cannot write to stdout: {exc.strerror or exc}", file=sys.stderr)
         # Python would flush stdout again at exit and print a traceback: point it at /dev/null.
         devnull = os.open(os.devnull, os.O_WRONLY)
         try:
             os.dup2(devnull, sys.stdout.fileno())
         except (OSError, ValueError, AttributeError):
             pass
-        code = 2
+        code = EXIT_BROKEN_PIPE if reader_gone else 2
     except KeyboardInterrupt:
         print("swarmshow: interrupted", file=sys.stderr)
         code = 130

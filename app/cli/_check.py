@@ -62,13 +62,13 @@ def format_report(report) -> str:
             f"  {t.from_!r} -> {t.to!r}: start {t.start_s:.1f} s, {t.duration_s:.1f} s, "
             f"cost {t.assignment_cost_m2:.1f} m²"
             + (f", exact min {t.capt.exact_min_distance_m:.3f} m (CAPT bound {t.capt.guaranteed_min_distance_m:.3f} m)"
-               if t.capt.exact_min_distance_m >= 0 else "")
+               if math.isfinite(t.capt.exact_min_distance_m) else "")
         )
     lines.append("per transition (worst first):")
     for g in report.worst_transitions():
         head = (f"  {'✓' if g.ok else '✗'} {g.kind} {g.from_!r} -> {g.to!r}: {g.duration_s:.1f} s"
                 f"{f' (stagger {g.stagger_s:.1f} s)' if g.stagger_s > 0 else ''}"
-                f"{f', min {g.min_distance_m:.3f} m' if g.min_distance_m >= 0 else ''}")
+                f"{f', min {g.min_distance_m:.3f} m' if math.isfinite(g.min_distance_m) else ''}")
         if not g.ok:
             head += f", {g.violations_total} violation(s)"
         lines.append(head)

@@ -13,8 +13,9 @@ from app.cli._common import write_atomically as write_atomically
 # Formats that apply --scale / --offset, embed --audio, fly --source simulated: the API and the editor
 # read the same lists (app.exports._core).
 from app.exports._core import AUDIO_FORMATS as _AUDIO_FORMATS
-from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_PRESETS, MAX_SEED
+from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_CONTROLLERS, FLIGHT_DISTURBANCES, FLIGHT_PRESETS, MAX_SEED
 from app.exports._core import FLOWN_FORMATS as _FLOWN_FORMATS
+from app.exports._core import ORIGIN_FORMATS as _ORIGIN_FORMATS
 from app.exports._core import SAMPLED_FORMATS as _SAMPLED_FORMATS
 from app.exports._core import SCALING_FORMATS as _SCALING_FORMATS
 
@@ -60,6 +61,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None,
                    help="with --source simulated: the flight's seed (default 0; the same seed flies the same flight "
                    "as swarmshow simulate --seed)")
+    p.add_argument("--controller", choices=FLIGHT_CONTROLLERS, default=None,
+                   help="with --source simulated: the flight's controller (default ismc; baseline: cascaded PD), "
+                   "as swarmshow simulate --controller")
+    p.add_argument("--disturbance", choices=FLIGHT_DISTURBANCES, default=None,
+                   help="with --source simulated: the fleet-wide disturbance, only with --preset ideal (implied "
+                   "without --preset), as swarmshow simulate --disturbance")
     p.add_argument("--audio", default=None, metavar="FILE",
                    help="the show's music (WAV, MP3, OGG or FLAC): embedded by skyc (media.audio) and viser-html")
     p.add_argument("--scale", type=float, default=1.0, metavar="FACTOR",
@@ -132,11 +139,13 @@ def _export(args: argparse.Namespace) -> int:
     unused = [(flag, formats) for flag, given, formats in (
         ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
         ("--fps", args.fps is not None, _SAMPLED_FORMATS),
+        ("--origin", args.origin is not None, _ORIGIN_FORMATS),
         ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
     if unused:
         flag, users = unused[0]
         raise CliError(f"{flag} is not used by format {args.format!r} (only by {', '.join(users)}); drop it")
-    for flag, value in (("--preset", args.preset), ("--seed", args.seed)):
+    for flag, value in (("--preset", args.preset), ("--seed", args.seed), ("--controller", args.controller),
+                        ("--disturbance", args.disturbance)):
         if value is not None and args.source != "simulated":
             raise CliError(f"{flag} chooses the simulated flight; it is only used with --source simulated")
     if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
@@ -162,6 +171,8 @@ def _export(args: argparse.Namespace) -> int:
                 offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
                 preset=args.preset,
                 seed=args.seed,
+                controller=args.controller,
+                disturbance=args.disturbance,
             )
     except ExportError as exc:
         msg = str(exc)

@@ -41,6 +41,9 @@ MAX_SEED = 2**31 - 1
 #: simulation; a test keeps them equal).
 FLIGHT_PRESETS: tuple[str, ...] = ("ideal", "calm-rtk", "gusty-rtk", "gps-only")
 DEFAULT_FLIGHT_PRESET = "calm-rtk"
+#: ``sim.flight.CONTROLLERS`` / ``DISTURBANCES`` (copied for the same reason; the same test keeps them equal).
+FLIGHT_CONTROLLERS: tuple[str, ...] = ("ismc", "baseline")
+FLIGHT_DISTURBANCES: tuple[str, ...] = ("none", "paper", "wind")
 
 #: Which formats take the options that only some formats use. A format given one it does not use refuses
 #: it (``ExportError`` naming the option) rather than drop it without a word: a show "scaled for indoors"
@@ -52,6 +55,9 @@ FLOWN_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
 #: waypoints where the plan rests).
 SAMPLED_FORMATS: tuple[str, ...] = ("skybrush-csv", "waypoints-csv", "viser-html")
 AUDIO_FORMATS: tuple[str, ...] = ("skyc", "viser-html")
+#: Formats that place the show on Earth at ``origin`` (the .skyc's location, QGroundControl's WGS84 waypoints);
+#: the others hold local metres and refuse an origin given to them (the stored ``settings.geo`` is not given).
+ORIGIN_FORMATS: tuple[str, ...] = ("skyc", "qgc-plan", "qgc-wpl")
 
 
 class ExportError(ValueError):
@@ -92,6 +98,11 @@ class ExportOptions:
             ``sim.flight.single_flight_options(preset, ...)`` the editor's simulation panel flies.
         seed: with ``source="simulated"``, the flight's seed (``None``: 0): Monte-Carlo run ``k`` of
             ``seed0`` with ``seed0 + k == seed``.
+        controller: with ``source="simulated"``, the flight's controller (one of :data:`FLIGHT_CONTROLLERS`;
+            ``None``: ``"ismc"``), as the simulation panel's.
+        disturbance: with ``source="simulated"``, the fleet-wide disturbance (one of
+            :data:`FLIGHT_DISTURBANCES`; ``None``: ``"none"``); only with preset ``"ideal"``, which it implies
+            when no preset is given (as ``app.api.models.SimulateOptions``).
     """
 
     fps: float | None = None
@@ -103,6 +114,8 @@ class ExportOptions:
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     preset: str | None = None
     seed: int | None = None
+    controller: str | None = None
+    disturbance: str | None = None
 
     def __post_init__(self) -> None:
         if self.fps is not None:
@@ -147,13 +160,21 @@ class ExportOptions:
 
     def _check_flight(self) -> None:
         """The flight's preset and seed: known, in range, and only for a flown (simulated) source."""
-        for name, value in (("preset", self.preset), ("seed", self.seed)):
+        for name, value in (("preset", self.preset), ("seed", self.seed), ("controller", self.controller),
+                            ("disturbance", self.disturbance)):
             if value is not None and self.source != "simulated":
                 raise ExportError(f"{name} chooses the simulated flight; it is only used with source 'simulated'",
                                   field=name)
         if self.preset is not None and self.preset not in FLIGHT_PRESETS:
             raise ExportError(f"preset must be one of {', '.join(FLIGHT_PRESETS)}, got {self.preset!r}",
                               field="preset")
+        for name, value, known in (("controller", self.controller, FLIGHT_CONTROLLERS),
+                                   ("disturbance", self.disturbance, FLIGHT_DISTURBANCES)):
+            if value is not None and value not in known:
+                raise ExportError(f"{name} must be one of {', '.join(known)}, got {value!r}", field=name)
+        if self.disturbance not in (None, "none") and self.preset not in (None, "ideal"):
+            raise ExportError(f"disturbance {self.disturbance!r} goes only with preset 'ideal': preset "
+                              f"{self.preset!r} brings its own wind field", field="disturbance")
         if self.seed is not None:
             if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
                 raise ExportError(f"seed must be a whole number, got {self.seed!r}", field="seed")
@@ -164,7 +185,10 @@ class ExportOptions:
     @property
     def flight_preset(self) -> str:
         """The error-model preset a flown export flies (:data:`DEFAULT_FLIGHT_PRESET` unless chosen)."""
-        return self.preset if self.preset is not None else DEFAULT_FLIGHT_PRESET
+        if self.preset is not None:
+            return self.preset
+        # A disturbance without a preset flies the ideal vehicle in it (as the simulation's request does).
+        return "ideal" if self.disturbance not in (None, "none") else DEFAULT_FLIGHT_PRESET
 
     @property
     def flight_seed(self) -> int:
@@ -185,10 +209,11 @@ DEFAULT_ORIGIN_ALT_M = 0.0
 ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
 
 
-def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False) -> None:
+def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False,
+                         origin: bool = False) -> None:
     """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` not the
-    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`.
-    The API, the CLI and :func:`export_plan` alike.
+    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`,
+    ``origin`` outside :data:`ORIGIN_FORMATS`. The API, the CLI and :func:`export_plan` alike.
 
     Raises:
         ExportError: naming the option.
@@ -197,6 +222,7 @@ def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False,
         ("scale", scale, SCALING_FORMATS, "positions of an indoor show"),
         ("offset", offset, SCALING_FORMATS, "positions of an indoor show"),
         ("fps", fps, SAMPLED_FORMATS, "the formats that sample; the others hold the exact trajectories"),
+        ("origin", origin, ORIGIN_FORMATS, "the formats that place the show on Earth; the others hold local metres"),
     ):
         if given and fmt not in users:
             raise ExportError(f"{name} is not used by format {fmt!r} (only by {', '.join(users)}: {what}); drop it",
@@ -312,8 +338,10 @@ class ExportContext:
             progress = (lambda f: self.progress(0.8 * f)) if self._progress is not None else None
             # The single flight of the designer's preset and seed (the editor's simulation panel, ``swarmshow
             # simulate --preset P --seed S``), not the ideal vehicle: what the file holds is what they watched.
-            options = single_flight_options(self.options.flight_preset,
-                                            FlightOptions(output_hz=output_hz, seed=self.options.flight_seed))
+            base = FlightOptions(output_hz=output_hz, seed=self.options.flight_seed,
+                                 controller=self.options.controller or "ismc",
+                                 disturbance=self.options.disturbance or "none")
+            options = single_flight_options(self.options.flight_preset, base)
             self._flight = fly_show(self.plan, options, progress=progress)
         return self._flight
 

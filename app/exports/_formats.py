@@ -69,6 +69,8 @@ def export_show(
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     preset: str | None = None,
     seed: int | None = None,
+    controller: str | None = None,
+    disturbance: str | None = None,
 ) -> ExportResult:
     """Export a show in one of :data:`EXPORT_FORMATS`.
 
@@ -91,6 +93,8 @@ def export_show(
         preset: with ``source="simulated"``, the flight's error-model preset (None: the single flight's
             default, ``calm-rtk``); ignored when ``flight`` is given.
         seed: with ``source="simulated"``, the flight's seed (None: 0).
+        controller: with ``source="simulated"``, the flight's controller (None: "ismc").
+        disturbance: with ``source="simulated"`` and preset "ideal", the fleet-wide disturbance (None: none).
 
     Returns:
         The exported file.
@@ -98,6 +102,11 @@ def export_show(
     Raises:
         ExportError: unknown format, bad option, or a show that cannot be planned.
     """
+    # An origin given to a format that holds local metres would be dropped without a word; the stored
+    # settings.geo filled in below is the show's own and not checked.
+    if fmt in EXPORT_FORMATS:  # an unknown one is export_plan's to name
+        check_unused_options(fmt, scale=scale != 1.0, offset=any(v != 0.0 for v in offset_m), fps=fps is not None,
+                             origin=origin is not None)
     geo = show.settings.geo
     if origin is None and geo is not None:
         # The show's stored place on Earth, with the heading the caller gave, if any.
@@ -105,7 +114,8 @@ def export_show(
         heading_deg = geo.heading_deg if heading_deg is None else heading_deg
     options = ExportOptions(fps=fps, origin=origin, heading_deg=0.0 if heading_deg is None else heading_deg,
                             source=source, audio=audio,
-                            scale=scale, offset_m=offset_m, preset=preset, seed=seed)
+                            scale=scale, offset_m=offset_m, preset=preset, seed=seed, controller=controller,
+                            disturbance=disturbance)
     return export_plan(
         show, fmt, options=options, plan=plan, flight=flight, drone_names=drone_names, progress=progress
     )
@@ -125,9 +135,11 @@ def export_plan(
     exporter = _load_exporter(fmt)
     options = options if options is not None else ExportOptions()
     # Dropped without a word, a show "scaled for indoors" would be written at full size.
-    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
-                         fps=options.fps is not None)
     geo = show.settings.geo
+    stored = (geo.origin_lat_deg, geo.origin_lon_deg, geo.origin_alt_m) if geo is not None else None
+    check_unused_options(fmt, scale=options.scale != 1.0, offset=any(v != 0.0 for v in options.offset_m),
+                         fps=options.fps is not None,
+                         origin=options.origin is not None and tuple(options.origin) != stored)
     if options.origin is None and geo is not None:
         # The show's stored place on Earth, unless the caller gave an origin of its own.
         options = dataclasses.replace(

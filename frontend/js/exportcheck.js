@@ -58,11 +58,13 @@ export const SAMPLED_FORMATS = ["skybrush-csv", "waypoints-csv", "viser-html"];
 
 /**
  * The query options of an export of `format`: the export fields the format takes (blank and default ones left
- * out) and, for the flown trajectories, the simulation panel's preset and seed, so that the file holds the
- * single flight the designer chose (the server flies the same one: sim.flight.single_flight_options).
+ * out) and, for the flown trajectories, the simulation panel's preset, seed, controller and (with preset
+ * "ideal", the only one that takes it) disturbance, so that the file holds the single flight the designer chose
+ * (the server flies the same one: sim.flight.single_flight_options).
  * @param {string} format
  * @param {{fps?: string, source?: string, scale?: string, offset?: string}} fields the export options' text
- * @param {{preset?: string, seed?: string}} flight the simulation panel's `#sim-preset` and `#sim-seed`
+ * @param {{preset?: string, seed?: string, controller?: string, disturbance?: string}} flight the simulation
+ *   panel's `#sim-preset`, `#sim-seed`, `#sim-controller` and `#sim-disturbance`
  * @returns {Record<string, string>}
  */
 export function exportQuery(format, fields, flight = {}) {
@@ -75,6 +77,9 @@ export function exportQuery(format, fields, flight = {}) {
     out.source = "simulated";
     if (text(flight.preset) !== "") out.preset = text(flight.preset);
     if (text(flight.seed) !== "") out.seed = text(flight.seed);
+    if (text(flight.controller) !== "") out.controller = text(flight.controller);
+    // Every other preset brings its own wind (the panel disables the field; the server refuses the pair).
+    if (text(flight.preset) === "ideal" && text(flight.disturbance) !== "") out.disturbance = text(flight.disturbance);
   }
   if (SCALING_FORMATS.includes(format)) {
     if (text(fields.scale) !== "" && Number(text(fields.scale)) !== 1) out.scale = text(fields.scale);

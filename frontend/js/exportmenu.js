@@ -113,7 +113,8 @@ export class ExportMenu {
     return exportQuery(format, {
       fps: this.fields.fps.value, source: this.fields.source.value,
       scale: this.fields.scale.value, offset: this.fields.offset.value,
-    }, { preset: value("sim-preset"), seed: value("sim-seed") });
+    }, { preset: value("sim-preset"), seed: value("sim-seed"), controller: value("sim-controller"),
+      disturbance: value("sim-disturbance") });
   }
 
   /** Open the export options at the origin field with `message` under it. @param {string} message */

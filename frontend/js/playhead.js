@@ -5,6 +5,7 @@
 // formation and seeks the preview to its worst violation.
 
 import * as api from "./api.js";
+import { distanceForOrder } from "./summary.js";
 
 /** How often the preview's playhead is read, milliseconds. */
 const POLL_MS = 200;
@@ -15,7 +16,7 @@ const POLL_MS = 200;
  * @returns {any[]}
  */
 export function worstFirst(groups) {
-  const d = (/** @type {any} */ g) => (g.min_distance_m >= 0 ? g.min_distance_m : Infinity);
+  const d = (/** @type {any} */ g) => distanceForOrder(g.min_distance_m);
   return groups.filter((g) => g && !g.ok).sort((a, b) => d(a) - d(b) || a.segment - b.segment);
 }
 

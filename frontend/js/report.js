@@ -4,7 +4,7 @@
 
 import * as api from "./api.js";
 import { clearShowErrors, showShowErrors } from "./errors.js";
-import { fmt, limitRow, plannerText, summaryTable } from "./summary.js";
+import { closestText, distanceForOrder, fmt, limitRow, plannerText, summaryTable } from "./summary.js";
 
 /** @type {[string, string, string, string, "min"|"max", string?][]} label, report key, limit key, unit, sense,
  * the text when the report has no value (null: a one-drone show has no pair) */
@@ -50,7 +50,7 @@ export function formationOfSegment(segments, segment, count) {
  * @returns {any[]}
  */
 export function worstFirst(groups) {
-  const d = (g) => (g.min_distance_m >= 0 ? g.min_distance_m : Infinity);
+  const d = (g) => distanceForOrder(g.min_distance_m);
   return [...groups].sort((a, b) => (a.ok - b.ok) || (d(a) - d(b)) || (a.segment - b.segment));
 }
 
@@ -67,7 +67,7 @@ const END_WHAT = { takeoff: "from the homes", landing: "onto the homes" };
 export function groupTitle(g) {
   const what = g.kind === "hold" ? g.to : END_WHAT[g.kind] || `${g.from} → ${g.to}`;
   const timing = `${fmt(g.duration_s, 1)} s${g.stagger_s > 0 ? ` (+${fmt(g.stagger_s, 1)} s stagger)` : ""}`;
-  const closest = g.min_distance_m >= 0 ? `, closest ${fmt(g.min_distance_m)} m` : "";
+  const closest = closestText(g.min_distance_m);
   const outcome = g.ok ? "✓" : `✗ ${g.violations_total} violation${g.violations_total === 1 ? "" : "s"}`;
   return `${outcome} · ${GROUP_KINDS[g.kind] || g.kind} ${what} · ${timing}${closest}`;
 }

@@ -25,6 +25,26 @@ export function limitRow(label, v, lim, unit, sense, none = "—") {
   return [label, `${value}${lim != null ? ` (${sense === "min" ? "≥" : "≤"} ${fmt(lim, 1)})` : ""}`, bad];
 }
 
+/**
+ * A check group's minimum distance for ordering: the number, or Infinity when there is none (null: no pair,
+ * e.g. a one-drone show; older reports said -1). `null >= 0` is true in JavaScript, so a plain `>= 0` test
+ * ordered "no pair" as a distance of 0, worst of all.
+ * @param {number|null|undefined} v
+ * @returns {number}
+ */
+export function distanceForOrder(v) {
+  return typeof v === "number" && Number.isFinite(v) && v >= 0 ? v : Infinity;
+}
+
+/**
+ * A check group's closest-pair text for its title: ", closest 3.20 m", or ", no pair" when there is none.
+ * @param {number|null|undefined} v the group's `min_distance_m`
+ * @returns {string}
+ */
+export function closestText(v) {
+  return Number.isFinite(distanceForOrder(v)) ? `, closest ${fmt(v)} m` : ", closest: none (no pair)";
+}
+
 /** How the planner flew a transition (``TransitionInfo.resolution`` in sim.plan), in plain words. */
 const PLANNER_TEXT = {
   none: "Every drone flies a straight line, all of them together.",

@@ -76,14 +76,30 @@ _MAX_CELLS = 8192
 _EVAL_BUDGET = 1 << 19
 
 
+def _no_pair_is_null(value: float) -> float | None:
+    """A minimum over no pair (+inf in Python) is ``null`` in JSON, which has no infinity (the -1 once said
+    there read as a distance below every limit); the API's schema says number or null."""
+    return float(value) if math.isfinite(value) else None
+
+
+#: The JSON of a distance that is +inf when there is no pair (fewer than two drones, or not searched).
+_NULL_WITHOUT_PAIR = " +inf in Python and null in JSON when there is no pair."
+
+
 class CaptPremise(BaseModel):
     """CAPT's guarantee beside the exact result for one transition."""
 
-    start_spacing_m: float
-    goal_spacing_m: float
-    guaranteed_min_distance_m: float = Field(description="min(start, goal spacing)/√2, metres.")
-    exact_min_distance_m: float = Field(description="The exact minimum over the transition, metres.")
+    start_spacing_m: float = Field(description="Closest pair of the start positions, metres;" + _NULL_WITHOUT_PAIR)
+    goal_spacing_m: float = Field(description="Closest pair of the goal positions, metres;" + _NULL_WITHOUT_PAIR)
+    guaranteed_min_distance_m: float = Field(description="min(start, goal spacing)/√2, metres;" + _NULL_WITHOUT_PAIR)
+    exact_min_distance_m: float = Field(description="The exact minimum over the transition, metres;"
+                                        + _NULL_WITHOUT_PAIR)
     holds: bool = Field(description="exact >= guaranteed (it must; False would be a planner bug).")
+
+    @field_serializer("start_spacing_m", "goal_spacing_m", "guaranteed_min_distance_m", "exact_min_distance_m",
+                      when_used="json")
+    def _null_without_pair(self, value: float) -> float | None:
+        return _no_pair_is_null(value)
 
 
 class TransitionReport(BaseModel):
@@ -127,8 +143,8 @@ class TransitionCheck(BaseModel):
     stagger_s: float = Field(description="Time the planner added to keep drones apart, s (0 if none or unknown).")
     resolution: str = Field(description="How the planner made it safe (empty: not reported by the planner).")
     ok: bool
-    min_distance_m: float = Field(description="Exact minimum distance in the segment, m (-1: not searched).")
-    min_distance_pair: list[int]
+    min_distance_m: float = Field(description="Exact minimum distance in the segment, m;" + _NULL_WITHOUT_PAIR)
+    min_distance_pair: list[int] = Field(description="The closest pair (i < j); empty when there is none.")
     min_distance_time_s: float
     violations_total: int
     violations: list[Violation] = Field(description="Worst first (smallest distance), at most 50.")
@@ -136,6 +152,10 @@ class TransitionCheck(BaseModel):
     fixes: list[str] = Field(description="Changes to the show that would remove these violations.")
     waves: int = Field(0, description="Takeoff / landing: the drones leave (land) in this many waves, one after "
                        "another (0: all at once).")
+
+    @field_serializer("min_distance_m", when_used="json")
+    def _null_without_pair(self, value: float) -> float | None:
+        return _no_pair_is_null(value)
 
 
 class CheckReport(BaseModel):
@@ -164,10 +184,8 @@ class CheckReport(BaseModel):
     violations_total: int
 
     @field_serializer("min_distance_m", when_used="json")
-    def _no_pair_is_null(self, value: float) -> float | None:
-        """No pair's distance is ``null`` in JSON (which has no infinity; the -1 it used to say read as a
-        distance below every limit). The schema of the API's answer says so (number or null)."""
-        return float(value) if math.isfinite(value) else None
+    def _null_without_pair(self, value: float) -> float | None:
+        return _no_pair_is_null(value)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict with DESIGN.md's key names (``from``, not ``from_``)."""
@@ -176,8 +194,7 @@ class CheckReport(BaseModel):
     def worst_transitions(self) -> list[TransitionCheck]:
         """``by_transition`` with failing ones first, smallest minimum distance first."""
         def key(g: TransitionCheck) -> tuple[bool, float, int]:
-            d = g.min_distance_m if g.min_distance_m >= 0 else math.inf
-            return (g.ok, d, g.segment)
+            return (g.ok, g.min_distance_m, g.segment)
         return sorted(self.by_transition, key=key)
 
 
@@ -482,8 +499,8 @@ def check_plan(plan: ShowPlan, *, progress: Callable[[float], None] | None = Non
             min_duration_s=tr.min_duration_s, assignment_cost_m2=tr.assignment_cost_m2,
             stagger_s=_stagger(tr), resolution=str(_get(tr, "resolution", "") or ""),
             capt=CaptPremise(
-                start_spacing_m=_finite(tr.start_spacing_m), goal_spacing_m=_finite(tr.goal_spacing_m),
-                guaranteed_min_distance_m=_finite(guaranteed), exact_min_distance_m=_finite(exact),
+                start_spacing_m=_inf_if_none(tr.start_spacing_m), goal_spacing_m=_inf_if_none(tr.goal_spacing_m),
+                guaranteed_min_distance_m=_inf_if_none(guaranteed), exact_min_distance_m=_inf_if_none(exact),
                 holds=bool(exact >= guaranteed - 1e-9),
             ),
         ))
@@ -638,8 +655,9 @@ def _by_transition(plan: ShowPlan, violations: list[Violation],
         out.append(TransitionCheck(
             segment=k, kind=seg.kind, **{"from": src}, to=dst, formation=formation, start_s=seg.start_s,
             duration_s=seg.duration_s, stagger_s=_stagger(tr) if tr is not None else 0.0, resolution=resolution,
-            ok=not vs, min_distance_m=_finite(dmin[0]) if dmin else -1.0,
-            min_distance_pair=list(dmin[1]) if dmin else [], min_distance_time_s=dmin[2] if dmin else seg.start_s,
+            ok=not vs, min_distance_m=float(dmin[0]) if dmin else math.inf,
+            min_distance_pair=list(dmin[1]) if dmin and math.isfinite(dmin[0]) else [],
+            min_distance_time_s=dmin[2] if dmin else seg.start_s,
             violations_total=len(vs), violations=vs[:MAX_LISTED_PER_TRANSITION], unresolved=unresolved,
             fixes=_fixes(seg.kind, formation, src, dst, vs, tr, unresolved, s.min_distance_m),
             waves=_waves(plan, seg.kind),
@@ -695,9 +713,10 @@ def _fixes(kind: str, formation: int, src: str, dst: str, vs: list[Violation], t
     return fixes
 
 
-def _finite(x: float) -> float:
-    """JSON has no infinity: a single drone's 'closest pair' is reported as -1."""
-    return float(x) if math.isfinite(x) else -1.0
+def _inf_if_none(x: float) -> float:
+    """A distance over no pair: +inf (NaN or a negative 'none' from older plans too); null in the JSON."""
+    x = float(x)
+    return x if x >= 0 else math.inf
 
 
 def check_show(show: ShowFile, *, progress: Callable[[float], None] | None = None) -> CheckReport:

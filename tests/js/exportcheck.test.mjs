@@ -68,3 +68,20 @@ test("the rate goes only to the formats that sample (the others hold exact traje
     assert.deepEqual(q, SAMPLED_FORMATS.includes(f) ? { fps: "25" } : {}, f);
   }
 });
+
+test("the editor never sends an origin: the place on Earth is the show's settings.geo (the server refuses an origin given to a format that does not use it)", () => {
+  for (const format of ["show", "skybrush-csv", "skyc", "crazyswarm", "qgc-plan", "qgc-wpl", "waypoints-csv", "viser-html"]) {
+    const q = exportQuery(format, { fps: "25", source: "simulated", scale: "0.5", offset: "1,0,0" }, { preset: "ideal", seed: "3" });
+    assert.ok(!("origin" in q), `${format}: ${JSON.stringify(q)}`);
+  }
+});
+
+test("the flown trajectories carry the panel's controller, and its disturbance only with preset ideal", () => {
+  const fields = { fps: "", source: "simulated", scale: "", offset: "" };
+  assert.deepEqual(exportQuery("waypoints-csv", fields, { preset: "calm-rtk", seed: "0", controller: "baseline", disturbance: "wind" }),
+    { source: "simulated", preset: "calm-rtk", seed: "0", controller: "baseline" });
+  assert.deepEqual(exportQuery("skybrush-csv", fields, { preset: "ideal", seed: "2", controller: "ismc", disturbance: "wind" }),
+    { source: "simulated", preset: "ideal", seed: "2", controller: "ismc", disturbance: "wind" });
+  // Planned trajectories fly nothing: no controller, no disturbance.
+  assert.deepEqual(exportQuery("waypoints-csv", { source: "planned" }, { preset: "ideal", controller: "baseline", disturbance: "wind" }), {});
+});
