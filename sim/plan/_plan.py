@@ -448,9 +448,10 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         home, stepping out on its home's side), then ``drones`` to ``pts``; drones in neither set stay put.
         Landing others also in the other order after the step out (the formation's drones first), and then
         all stepping back (+y) whatever their home's side (the others' own paths to their homes may cross
-        on one route and not on the other); the first safe plan, else the one with fewest conflicts, is kept
-        when it has fewer than ``tp``. Returns (the plan kept, where the others end (k, 3); None when ``tp``
-        is kept)."""
+        on one route and not on the other); parking others also by the radial route out of a 3-D formation
+        (:func:`sim.plan._subset.radial_exit`) to a park layer behind the group's start too; the first safe
+        plan, else the one with fewest conflicts, is kept when it has fewer than ``tp``. Returns (the plan
+        kept, where the others end (k, 3); None when ``tp`` is kept)."""
         ends = None
         ways = (((True, False, False), (True, True, False), (False, False, False), (False, True, False)) if land
                 else ((False, False, False), (False, False, True)))
