@@ -254,7 +254,8 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
         sides: step out towards each other's own waiting point (needs ``own``), see above.
         radial: the others leave a 3-D stage by :func:`radial_exit` (outwards from its centre, off the y axis,
             then back behind the park layer ``slots_m``, which must lie behind every drone of ``drones``) instead
-            of the step; the step when that route leaves the altitude band.
+            of the step, its first two moves as one when that straight move is certified clear; the step when
+            that route leaves the altitude band.
 
     Returns:
         (the plan over all N drones, resolution "layers", its goal index into ``points_m`` then the
@@ -305,9 +306,11 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     if route is not None:
         back = route[-1]
         slide[:] = 0.0
-        at_m = [a_m, *route]
+        # The dilation and the move off the axis as one straight move when that is certified clear (shorter).
+        out = schedule_transition(a_m, route[1], lim, min_distance_m=min_distance_m, label=label)
+        at_m = [a_m, *route] if out.unresolved else [a_m, *route[1:]]
         steps = [schedule_transition(at_m[i], at_m[i + 1], lim, min_distance_m=min_distance_m, label=label)
-                 for i in range(len(route))]
+                 for i in range(len(at_m) - 1)]
     else:
         steps = [schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)]
     approach = slots_m.copy()
