@@ -29,7 +29,7 @@ from app.cli import main as cli_main
 from formations import parse_show
 from sim import check_plan, plan_show
 from sim.plan import _plan, _subset, clear_plan_cache
-from tests.test_plan_group_through import _ring_sphere_swap_doc, random_group_doc
+from tests.test_plan_group_through import _ring_sphere_swap_doc, random_group_doc, sphere_park_doc
 
 pytestmark = pytest.mark.slow
 
@@ -103,22 +103,13 @@ def _check(doc: dict, path: Path) -> dict:
     return dict(json.loads(out.getvalue()))
 
 
-def _sphere_park_doc(seed: int) -> dict:
-    """The sphere-swap show up to its ring, the others parking (a known weakness: the step back passes drones of
-    the group inside the sphere)."""
-    doc = _ring_sphere_swap_doc(seed)
-    doc["formations"] = doc["formations"][:2]
-    doc["formations"][1]["others"] = "park"
-    return doc
-
-
 @pytest.mark.parametrize("others", ["park", "land", "swap", "sphere-swap", "sphere-park"])
 def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkeypatch) -> None:
     seeds = range(24)
     # The swap: the prepare-swap transition; "sphere-swap": 60 drones, a sphere, a random group on a tilted ring
     # (others land), a second random group on sphere points (the swap, from the tilted ring).
     into = {"swap": "again", "sphere-swap": "ring2", "sphere-park": "ring"}.get(others, "line")
-    docs = {"sphere-swap": _ring_sphere_swap_doc, "sphere-park": _sphere_park_doc}.get(
+    docs = {"sphere-swap": _ring_sphere_swap_doc, "sphere-park": sphere_park_doc}.get(
         others, lambda seed: random_group_doc(others, seed))
     safe = {"show": 0, "into": 0, "into_one_window": 0}
     staged_s: list[float] = []
@@ -148,5 +139,4 @@ def test_bench_random_groups_staged(others: str, record_result, tmp_path, monkey
                    "transition_s_mean": float(np.mean(staged_s)),
                    "transition_s_one_window_mean": float(np.mean(single_s)),
                    "over_one_window_median": float(np.median(ratio)), "over_one_window_max": float(ratio.max())})
-    if others != "sphere-park":  # not solved yet (README)
-        assert safe["show"] == len(seeds)
+    assert safe["show"] == len(seeds)

@@ -412,3 +412,67 @@ def test_swap_respects_a_forced_transition_s():
     doc["formations"][3]["transition_s"] = err.value.minimum_s
     at_min = next(t for t in plan_show(parse_show(doc)).transitions if t.to_name == "again")
     assert at_min.duration_s == pytest.approx(err.value.minimum_s, abs=1e-6)
+
+
+def sphere_park_doc(seed: int) -> dict:
+    """The sphere-swap show up to its ring (a random group of 10-25 of 60 sphere drones on a tilted ring inside the
+    sphere), the others parking."""
+    doc = _ring_sphere_swap_doc(seed)
+    doc["formations"] = doc["formations"][:2]
+    doc["formations"][1]["others"] = "park"
+    return doc
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_others_park_out_of_a_sphere_radially(seed):
+    """Groups of 17 and 23 of 60 sphere drones fly a ring inside the sphere, the others park: the step back (one
+    +y translation) passed group drones inside the sphere and the park layer (behind the ring only) cut through
+    it, so the staged plan kept more conflicts than the one window, which left 6-7 violations (failed before).
+    The others now leave radially (sim.plan._subset.radial_exit) to a layer behind the group's start too.
+    Safe by the exact check and dense sampling; the others end behind everything the group sweeps."""
+    doc = sphere_park_doc(seed)
+    plan = plan_show(parse_show(doc))
+    into = next(t for t in plan.transitions if t.to_name == "ring")
+    assert into.unresolved == ()
+    report = check_plan(plan)
+    assert report.ok, [(v.kind, v.drones, v.time_s, v.value) for v in report.violations][:5]
+    assert _dense_window_min(plan, into.start_s, into.start_s + into.duration_s) >= MIN_D - 1e-3
+    group = np.asarray(doc["groups"]["g"])
+    others = np.setdiff1d(np.arange(60), group)
+    hold = next(s for s in plan.segments if s.kind == "hold" and s.label == "ring")
+    p = plan.evaluate(np.array([hold.start_s + 0.5])).positions_m[0]
+    swept = np.concatenate([np.asarray(doc["formations"][0]["points"])[group], doc["formations"][1]["points"]])
+    assert p[others, 1].min() >= swept[:, 1].max() + 2 * MIN_D - 1e-6
+
+
+def test_radial_exit_moves_keep_every_distance_and_clear_the_staying_drones():
+    """Each of the three moves of radial_exit, flown as synchronised straight lines and sampled densely (brute
+    force over every pair): during the dilation no pair's distance ever falls below its start value (a uniform
+    dilation of a sphere only grows them), during the last two moves each other stays at least the gap
+    (2 x min distance) from every staying drone and no pair comes within the min distance, and the others end
+    behind the park layer's y; out of the altitude band it gives None."""
+    from sim.plan._subset import radial_exit
+
+    rng = np.random.default_rng(11)
+    for _case in range(6):
+        a = fibonacci_sphere(60, 15.0, (0, 0, 35))
+        drones = np.sort(rng.choice(60, int(rng.integers(10, 26)), replace=False))
+        others = np.setdiff1d(np.arange(60), drones)
+        park_y = 15.0 + 2 * MIN_D
+        route = radial_exit(a, drones, others, park_y, min_distance_m=MIN_D, floor_m=2.0, ceiling_m=120.0)
+        assert route is not None
+        d0 = np.linalg.norm(a[:, None] - a[None], axis=-1)
+        off = ~np.eye(60, dtype=bool)
+        at = a
+        for k, nxt in enumerate(route):
+            np.testing.assert_array_equal(nxt[drones], a[drones])  # the group stays
+            for u in np.linspace(0.0, 1.0, 201):
+                p = at + u * (nxt - at)
+                d = np.linalg.norm(p[:, None] - p[None], axis=-1)
+                if k == 0:
+                    assert np.all(d[off] >= d0[off] - 1e-9)
+                else:
+                    assert d[off].min() >= MIN_D and d[np.ix_(others, drones)].min() >= 2 * MIN_D - 1e-9
+            at = nxt
+        assert route[-1][others, 1].min() >= park_y - 1e-9
+    assert radial_exit(a, drones, others, park_y, min_distance_m=MIN_D, floor_m=2.0, ceiling_m=50.0) is None

@@ -448,16 +448,23 @@ def plan_show(show: ShowFile, *, enforce_limits: bool = True, progress: Progress
         home, stepping out on its home's side), then ``drones`` to ``pts``; drones in neither set stay put.
         Landing others also in the other order after the step out (the formation's drones first), and then
         all stepping back (+y) whatever their home's side (the others' own paths to their homes may cross
-        on one route and not on the other); the first safe plan, else the one with fewest conflicts, is kept
-        when it has fewer than ``tp``. Returns (the plan kept, where the others end (k, 3); None when ``tp``
-        is kept)."""
+        on one route and not on the other); parking others also by the radial route out of a 3-D formation
+        (:func:`sim.plan._subset.radial_exit`) to a park layer behind the group's start too; the first safe
+        plan, else the one with fewest conflicts, is kept when it has fewer than ``tp``. Returns (the plan
+        kept, where the others end (k, 3); None when ``tp`` is kept)."""
         ends = None
-        ways = ((True, False), (True, True), (False, False), (False, True)) if land else ((False, False),)
-        for sides, flyers_first in ways:
-            cand, parked = staged_subset(start, pts, drones, slots, lim, min_distance_m=s.min_distance_m,
-                                         ceiling_m=s.max_altitude_m, floor_m=s.min_altitude_m, label=label,
-                                         sync_s=tp.sync_s, own=land, sides=sides, flyers_first=flyers_first,
-                                         others=others)
+        ways = (((True, False, False), (True, True, False), (False, False, False), (False, True, False)) if land
+                else ((False, False, False), (False, False, True)))
+        # Parking others also by the radial route out of a 3-D formation (sim.plan._subset.radial_exit), to a park
+        # layer behind the group's start too: the step back (one translation) passes group drones inside the
+        # formation, and the layer behind the next formation alone may cut through the previous one.
+        deep = (park_slots(pts, len(others), min_distance_m=s.min_distance_m, floor_m=s.min_altitude_m,
+                           ceiling_m=s.max_altitude_m, behind_m=start[drones]) if not land else slots)
+        for sides, flyers_first, radial in ways:
+            cand, parked = staged_subset(start, pts, drones, deep if radial else slots, lim,
+                                         min_distance_m=s.min_distance_m, ceiling_m=s.max_altitude_m,
+                                         floor_m=s.min_altitude_m, label=label, sync_s=tp.sync_s, own=land,
+                                         sides=sides, flyers_first=flyers_first, others=others, radial=radial)
             if len(cand.unresolved) < len(tp.unresolved):
                 tp, ends = cand, parked
             if not tp.unresolved:

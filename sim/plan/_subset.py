@@ -63,17 +63,20 @@ def choose_drones(starts_m: np.ndarray, points_m: np.ndarray, count: int) -> tup
 
 
 def park_slots(points_m: np.ndarray, count: int, *, min_distance_m: float, floor_m: float,
-               ceiling_m: float) -> np.ndarray:
+               ceiling_m: float, behind_m: np.ndarray | None = None) -> np.ndarray:
     """``count`` parking slots in a vertical x-z layer behind the formation ``points_m`` (M, 3), (count, 3) metres.
 
     The layer lies ``PARK_OFFSET_FACTOR`` x min_distance_m beyond the formation's largest y (away from
-    the audience), centred on its x and z; slots are ``PARK_SPACING_FACTOR`` x min_distance_m apart,
-    between ``floor_m`` and ``ceiling_m`` (a wider layer when the height does not fit a square one).
+    the audience), and beyond the largest y of ``behind_m`` (P, 3) too when given (e.g. where the formation's
+    drones start: then the layer lies outside everything they sweep), centred on the formation's x and z;
+    slots are ``PARK_SPACING_FACTOR`` x min_distance_m apart, between ``floor_m`` and ``ceiling_m`` (a wider
+    layer when the height does not fit a square one).
     """
     if count == 0:
         return np.zeros((0, 3))
     gap = PARK_SPACING_FACTOR * min_distance_m
-    y = float(points_m[:, 1].max()) + PARK_OFFSET_FACTOR * min_distance_m
+    deepest = points_m if behind_m is None or not len(behind_m) else np.concatenate([points_m, behind_m])
+    y = float(deepest[:, 1].max()) + PARK_OFFSET_FACTOR * min_distance_m
     z_lo, z_hi = floor_m + gap, ceiling_m - gap
     rows_fit = max(1, int(math.floor((z_hi - z_lo) / gap)) + 1) if z_hi > z_lo else 1
     rows = min(rows_fit, max(1, math.ceil(math.sqrt(count))))
@@ -167,10 +170,54 @@ def _step_sides(a_m: np.ndarray, others: np.ndarray, still: np.ndarray, front: n
     return np.asarray(front ^ flip, dtype=bool)
 
 
+def radial_exit(a_m: np.ndarray, drones: np.ndarray, others: np.ndarray, park_y_m: float, *, min_distance_m: float,
+                floor_m: float, ceiling_m: float) -> list[np.ndarray] | None:
+    """Where the ``others`` (k,) go, in three straight moves, to leave a 3-D formation whose ``drones`` (n,) stay in
+    it, until they lie behind ``park_y_m`` (the park layer's y, beyond every drone that stays): (3,) of (N, 3)
+    positions after each move, metres; None when a move would leave the altitude band [floor_m, ceiling_m] (or a
+    drone sits on the centre).
+
+    1. A uniform dilation of the others about the formation's centre c (the mean of the moving drones), until the
+       nearest lies ``PARK_OFFSET_FACTOR`` x min_distance_m beyond the farthest staying drone from c (radius R1):
+       every distance between two others grows by the factor, and between an other p and a staying q,
+       |s p - q|² (about c) grows with s >= 1 whenever |p|² >= p·q, e.g. every drone of a sphere.
+    2. Out from the y axis through c in x-z (y kept) to at least R1 from it: |p - c| only grows, so the others
+       stay outside the ball of radius R1 that holds every staying drone.
+    3. One translation along +y for all of them (their distances kept) until the nearest is behind ``park_y_m``:
+       outside the cylinder of radius R1 about that axis, so at least R1 - R (the gap) from the staying drones.
+
+    From there to the park layer every straight path lies in the half-space y >= ``park_y_m`` (convex), behind
+    the staying drones. Each move is still certified by :func:`schedule_transition` (what it cannot keep is in the
+    legs' ``unresolved``; the planner keeps the staged plan with fewest conflicts).
+    """
+    moving = np.concatenate([drones, others])
+    centre = a_m[moving].mean(axis=0)
+    gap_m = PARK_OFFSET_FACTOR * min_distance_m
+    reach_m = float(np.linalg.norm(a_m[drones] - centre, axis=1).max(initial=0.0)) + gap_m
+    radius_m = np.linalg.norm(a_m[others] - centre, axis=1)
+    if not len(others) or float(radius_m.min()) < 1e-6:
+        return None
+    dilated = a_m.copy()
+    dilated[others] = centre + max(1.0, reach_m / float(radius_m.min())) * (a_m[others] - centre)
+    out = dilated.copy()
+    xz = out[others][:, [0, 2]] - centre[[0, 2]]  # (k, 2)
+    rho_m = np.hypot(xz[:, 0], xz[:, 1])
+    on_axis = rho_m < 1e-9
+    xz[on_axis] = (0.0, 1.0)  # straight up: any direction leaves the axis
+    rho_m[on_axis] = 1.0
+    out[others[:, None], [0, 2]] = centre[[0, 2]] + xz * (np.maximum(rho_m, reach_m) / rho_m)[:, None]
+    behind = out.copy()
+    behind[others, 1] += max(0.0, park_y_m - float(out[others, 1].min()))
+    z_m = np.concatenate([dilated[others, 2], out[others, 2]])
+    if float(z_m.min()) < floor_m or float(z_m.max()) > ceiling_m:
+        return None
+    return [dilated, out, behind]
+
+
 def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slots_m: np.ndarray, lim: Limits, *,
                   min_distance_m: float, ceiling_m: float, floor_m: float, label: str,
                   sync_s: float, own: bool = False, flyers_first: bool = False, others: np.ndarray | None = None,
-                  sides: bool = False) -> tuple[TransitionPlan, np.ndarray]:
+                  sides: bool = False, radial: bool = False) -> tuple[TransitionPlan, np.ndarray]:
     """Into a subset formation whose others park (or land), in stages: the others step out of the stage, then
     fly to the park slots (or over their homes) while the formation's drones wait where they are, then the
     formation's drones fly to their points while the others wait there (each stage :func:`plan_movers`).
@@ -205,6 +252,10 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
         others: (k,) the drones that go to ``slots_m`` (default: every drone not in ``drones``); any drone in
             neither stays where it is throughout (e.g. one landed on its home), a fixed obstacle.
         sides: step out towards each other's own waiting point (needs ``own``), see above.
+        radial: the others leave a 3-D stage by :func:`radial_exit` (outwards from its centre, off the y axis,
+            then back behind the park layer ``slots_m``, which must lie behind every drone of ``drones``) instead
+            of the step, its first two moves as one when that straight move is certified clear; the step when
+            that route leaves the altitude band.
 
     Returns:
         (the plan over all N drones, resolution "layers", its goal index into ``points_m`` then the
@@ -248,9 +299,22 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
         back[others] += (shift_y / dir_m[1])[:, None] * dir_m[None, :]
         if floor_m <= float(back[others, 2].min()) and float(back[others, 2].max()) <= ceiling_m:
             break  # else straight along y (a tilted formation's normal would leave the altitude band)
+    route = None
+    if radial and not sides:
+        route = radial_exit(a_m, drones, others, float(slots_m[:, 1].min()), min_distance_m=min_distance_m,
+                            floor_m=floor_m, ceiling_m=ceiling_m)
+    if route is not None:
+        back = route[-1]
+        slide[:] = 0.0
+        # The dilation and the move off the axis as one straight move when that is certified clear (shorter).
+        out = schedule_transition(a_m, route[1], lim, min_distance_m=min_distance_m, label=label)
+        at_m = [a_m, *route] if out.unresolved else [a_m, *route[1:]]
+        steps = [schedule_transition(at_m[i], at_m[i + 1], lim, min_distance_m=min_distance_m, label=label)
+                 for i in range(len(at_m) - 1)]
+    else:
+        steps = [schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)]
     approach = slots_m.copy()
     approach[:, 1] += slide
-    step = schedule_transition(a_m, back, lim, min_distance_m=min_distance_m, label=label)
 
     def clear_stage(at: np.ndarray) -> tuple[list[Schedule], np.ndarray, np.ndarray]:
         """The others from ``at`` to their slots (via the shifted approach points, then the slide in)."""
@@ -266,12 +330,12 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
         fly_legs, flown, point_of = plan_movers(back, points_m, drones, lim, min_distance_m=min_distance_m,
                                                 ceiling_m=ceiling_m, floor_m=floor_m, label=label)
         park_legs, _, slot_of = clear_stage(flown)
-        stages = (step, *fly_legs, *park_legs)
+        stages = (*steps, *fly_legs, *park_legs)
     else:
         park_legs, parked, slot_of = clear_stage(back)
         fly_legs, _, point_of = plan_movers(parked, points_m, drones, lim, min_distance_m=min_distance_m,
                                             ceiling_m=ceiling_m, floor_m=floor_m, label=label)
-        stages = (step, *park_legs, *fly_legs)
+        stages = (*steps, *park_legs, *fly_legs)
     goal_index = np.full(n, -1, dtype=np.int64)
     goal_index[drones] = point_of
     goal_index[others] = len(points_m) + np.arange(len(others))
@@ -279,4 +343,4 @@ def staged_subset(a_m: np.ndarray, points_m: np.ndarray, drones: np.ndarray, slo
     return TransitionPlan(legs, goal_index, "layers", sync_s), np.asarray(slots_m[slot_of], dtype=np.float64)
 
 
-__all__ = ["choose_drones", "park_slots", "plan_movers", "staged_subset", "step_direction"]
+__all__ = ["choose_drones", "park_slots", "plan_movers", "radial_exit", "staged_subset", "step_direction"]
