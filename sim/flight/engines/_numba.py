@@ -98,6 +98,23 @@ attitude's state-only part (sin/cos, W, its ``sig`` factors) ahead of the positi
 the source, so that it could fill the window while the position chain waits: 0.97x (LLVM's
 scheduler reorders the block anyway).
 
+Multi-rate (``IsmcGains.position_rate_hz``, default 250 Hz): the outer loop (the controller's
+reference, the position law with its ``sig`` = exp(h log), the limiter, the attitude resolution's
+square root, division, asin and atan2, their integrators) runs at steps k = 0 mod K only, its
+outputs held in the controller state in between (the command filter's input ramps between two
+runs' Θ_ref); the command filter, the attitude law, the allocation, the estimator and the plant
+run every 1 ms step, so a drone-step is still a full step of rigid-body flight with every error
+model. The condition is uniform over the lanes, so it sits outside the lane loop: the step loop
+has two lane loops, each the body :func:`_lane_step` inlined with ``outer`` a constant (True or
+False), both branch-free and vectorised (two bodies to compile: ~5 min of CPU on this loaded
+machine, against the 1-2 min of the single body).
+Measured first (a throwaway copy of this kernel with the outer loop removed, alternating
+single-thread rounds in one process, kernel CPU time, 4,000 drones, gusty-rtk): the lane step
+without the outer loop ran at 1.74x the full step (range 1.73-1.75 over 6 rounds), so the outer
+loop is ~43 % of the step. As built (``benchmarks/bench_precision.py -k float32_against``, 6
+rounds): 250 Hz 1.44x the kernel with every loop at 1 kHz (1.43-1.46); the float32 kernel at
+250 Hz 1.76x the float64 1 kHz one (in an earlier run of the same rounds, 100 Hz: 1.47x, 1.99x).
+
 Single precision: :mod:`sim.flight.engines._numba_f32` is this step with the control laws in
 float32 (``precision="float32"``, opt-in): 1.30-1.41x this kernel, within 1 mm of its flights,
 without the 1e-9 agreement with the reference (measurements and the per-quantity choice there).
