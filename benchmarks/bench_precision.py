@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -62,7 +63,7 @@ def test_bench_kernel_float32_against_float64(record_result) -> None:
 
     import sim.flight.engines._numba as k64
     import sim.flight.engines._numba_f32 as k32
-    from sim.flight import TrackingReference, error_preset, simulate
+    from sim.flight import IsmcGains, TrackingReference, error_preset, simulate
 
     n, rounds = 4000, 6
     rng = np.random.default_rng(0)
@@ -71,7 +72,7 @@ def test_bench_kernel_float32_against_float64(record_result) -> None:
     errors = error_preset("gusty-rtk")
     spent = [0.0]
     saved = {"float64": k64._kernel, "float32": k32._kernel}
-    modules = {"float64": k64, "float32": k32}
+    modules: dict[str, Any] = {"float64": k64, "float32": k32}
 
     def timed(kernel):  # type: ignore[no-untyped-def]
         def run(*args):  # type: ignore[no-untyped-def]
@@ -82,25 +83,36 @@ def test_bench_kernel_float32_against_float64(record_result) -> None:
 
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
-    rates: dict[str, list[float]] = {"float64": [], "float32": []}
+    # Each precision at the default outer-loop rate (250 Hz) and with every loop at 1 kHz.
+    variants = {"float64": ("float64", None), "float32": ("float32", None),
+                "float64_1khz": ("float64", IsmcGains(position_rate_hz=None)),
+                "float32_1khz": ("float32", IsmcGains(position_rate_hz=None))}
+    rates: dict[str, list[float]] = {v: [] for v in variants}
     try:
-        for p in rates:  # compile or load
+        for p in modules:  # compile or load
             simulate(ref.subset(np.arange(8)), duration_s=0.01, engine="numba", errors=errors, precision=p)
         for _ in range(rounds):
-            for p, mod in modules.items():
+            for v, (p, gains) in variants.items():
+                mod = modules[p]
                 mod._kernel = timed(saved[p])
                 spent[0] = 0.0
                 try:
-                    simulate(ref, duration_s=0.3, engine="numba", output_every=40, errors=errors, precision=p)
+                    simulate(ref, duration_s=0.3, engine="numba", output_every=40, errors=errors, precision=p,
+                             gains=gains)
                 finally:
                     mod._kernel = saved[p]
-                rates[p].append(n * 301 / spent[0])
+                rates[v].append(n * 301 / spent[0])
     finally:
         numba.set_num_threads(threads)
     ratio = np.array(rates["float32"]) / np.array(rates["float64"])
-    fig = {"drones": n, "preset": "gusty-rtk", "rounds": rounds, "threads": 1,
+    fig: dict[str, Any] = {"drones": n, "preset": "gusty-rtk", "rounds": rounds, "threads": 1,
            "float64_drone_steps_per_cpu_s": float(np.median(rates["float64"])),
            "float32_drone_steps_per_cpu_s": float(np.median(rates["float32"])),
            "ratio_median": float(np.median(ratio)), "ratio_min": float(ratio.min()), "ratio_max": float(ratio.max())}
+    base = np.array(rates["float64_1khz"])
+    for v in ("float64", "float32", "float32_1khz"):  # against float64 with every loop at 1 kHz
+        r = np.array(rates[v]) / base
+        fig[f"{v}_over_float64_1khz_median"] = float(np.median(r))
+        fig[f"{v}_over_float64_1khz_range"] = [float(r.min()), float(r.max())]
     record_result(fig)
     assert fig["ratio_median"] > 1.1

@@ -47,6 +47,8 @@ class BaselineGains:
         kp_att: Attitude gain (1/s²).
         kd_att: Attitude-rate gain (1/s).
         filter: The same Θ_ref command filter as the ISMC.
+        position_rate_hz: Rate of the outer loop (Hz), as :class:`IsmcGains` (None: every step,
+            the paper's comparison).
     """
 
     kp: float = 5.0
@@ -59,11 +61,12 @@ class BaselineGains:
     kp_att: float = 12.0
     kd_att: float = 5.0
     filter: CommandFilter = CommandFilter()
+    position_rate_hz: float | None = 250.0
 
     @classmethod
     def paper(cls) -> BaselineGains:
         """The PD the paper scenario compares against (no integral term)."""
-        return cls(ki=0.0, min_thrust_accel_mps2=-math.inf, max_tilt_rad=math.pi / 2)
+        return cls(ki=0.0, min_thrust_accel_mps2=-math.inf, max_tilt_rad=math.pi / 2, position_rate_hz=None)
 
     def as_ismc(self) -> IsmcGains:
         """The equivalent ISMC gains (r = 1, α = β = 0, plus k_i) the engines run."""
@@ -74,4 +77,5 @@ class BaselineGains:
             attitude=AttitudeGains(k3=self.kp_att, k4=self.kd_att, r3=1.0, r4=1.0, beta=0.0),
             filter=self.filter,
             kind="baseline",
+            position_rate_hz=self.position_rate_hz,
         )

@@ -155,6 +155,19 @@ class IsmcGains:
             roll and pitch; the default) or
             ``"clip"`` (each rotor on its own; :meth:`paper` selects it: the paper models no
             allocation).
+        position_rate_hz: Rate of the outer loop (Hz): the controller's reference, the position
+            law, the thrust/tilt limiter and the attitude resolution (eq. 51) run every
+            ``K = 1 / (position_rate_hz · dt)`` control steps and their outputs (u, Θ_ref's roll
+            and pitch) are held in between (zero-order hold); the command filter, the attitude
+            law, the allocation, the estimator and the plant run every step. ``None``: every
+            step (the paper's single-rate loop, :meth:`paper`). Flight stacks run the position
+            loop slower than the attitude loop: PX4's position controller wakes on each
+            ``vehicle_local_position`` (its poll's wakeup source, ``mc_pos_control_main.cpp``),
+            which EKF2 publishes at the IMU integration rate, 250 Hz historically (PX4 PR #14759,
+            Daniel Agar, 2020: it "controls the vehicle_attitude publication rate and subsequently
+            how fast the attitude controllers run"; 400 and 200 Hz were the alternatives weighed,
+            the rate loop at 800 Hz). 250 Hz (K = 4 at dt = 1 ms) is the default; the tracking
+            cost against 1 kHz is measured in ``tests/test_flight_multirate.py``.
     """
 
     position: PositionGains = PositionGains()
@@ -163,8 +176,13 @@ class IsmcGains:
     kind: str = "ismc"
     switching: str = "boundary"
     mixer: str = "desaturate"
+    position_rate_hz: float | None = 250.0
 
     def __post_init__(self) -> None:
+        if self.position_rate_hz is not None and not (
+                isinstance(self.position_rate_hz, (int, float)) and np.isfinite(self.position_rate_hz)
+                and self.position_rate_hz > 0):
+            raise ValueError(f"position_rate_hz must be > 0 or None, got {self.position_rate_hz}")
         if self.mixer not in MIXERS:
             raise ValueError(f"unknown mixer {self.mixer!r} (expected one of {', '.join(MIXERS)})")
         if self.switching not in SWITCHING_LAWS:
@@ -181,7 +199,22 @@ class IsmcGains:
         """The paper's controller exactly: its gains, the discontinuous switching law, no thrust or tilt limits,
         each rotor clipped on its own."""
         return cls(position=PositionGains(min_thrust_accel_mps2=-np.inf, max_tilt_rad=np.pi / 2), switching=switching,
-                   mixer="clip")
+                   mixer="clip", position_rate_hz=None)
+
+    def outer_every(self, dt_s: float) -> int:
+        """Control steps per run of the outer (position) loop, ``K`` (1: every step).
+
+        Raises:
+            ValueError: ``position_rate_hz`` above the control rate or not dividing it.
+        """
+        if self.position_rate_hz is None:
+            return 1
+        ratio = 1.0 / (self.position_rate_hz * dt_s)
+        k = round(ratio)
+        if k < 1 or abs(ratio - k) > 1e-9 * ratio:
+            raise ValueError(f"position_rate_hz must divide the control rate {1.0 / dt_s:g} Hz, "
+                             f"got {self.position_rate_hz}")
+        return int(k)
 
     def switch_eps(self, dt_s: float) -> tuple[float, float, float, float]:
         """Boundary layers of the switching directions: ``(s, s - s_prev)`` of position, then attitude.
@@ -190,26 +223,31 @@ class IsmcGains:
         difference ``s - s_prev ≈ ṡ dt`` the layer ``φ_d dt`` with ``φ_d = √(gain φ) / 4``,
         which makes the linearised law inside both layers, ``s̈ = -(gain/φ) s - (gain/(2 φ_d)) ṡ``,
         critically damped (natural frequency ``√(gain/φ)``: 22 rad/s for α = 5, φ = 1e-2).
+        The position loop's step is its own, ``K dt`` (:meth:`outer_every`): s_prev is the
+        previous outer step's s.
         """
         if self.switching == "sign":
             return SWITCH_EPS, SWITCH_EPS, SWITCH_EPS, SWITCH_EPS
         out: list[float] = []
         for gain, phi in ((self.position.alpha, self.position.boundary_layer),
                           (self.attitude.beta, self.attitude.boundary_layer)):
-            out += [phi, max(np.sqrt(gain * phi) / 4.0 * dt_s, SWITCH_EPS)]
+            step_s = self.outer_every(dt_s) * dt_s if not out else dt_s
+            out += [phi, max(np.sqrt(gain * phi) / 4.0 * step_s, SWITCH_EPS)]
         return out[0], out[1], out[2], out[3]
 
     def as_vector(self, dt_s: float = 1e-3) -> np.ndarray:
         """Pack for the fused kernel (``dt_s`` scales the layers on ``s - s_prev``).
 
         Layout: ``[k1,k2,r1,r2,α,k3,k4,r3,r4,β,ω_n,ζ, φp_s,φp_q,φa_s,φa_q, k_i,i_lim,i_zone, u_z_min,tan_tilt_max,
-        desaturate]`` (the last 1.0 for ``mixer="desaturate"``, 0.0 for ``"clip"``).
+        desaturate, K]`` (``desaturate`` 1.0 for ``mixer="desaturate"``, 0.0 for ``"clip"``; K the
+        outer loop's steps, :meth:`outer_every`).
         """
         p, a, f = self.position, self.attitude, self.filter
         return np.array(
             [p.k1, p.k2, p.r1, p.r2, p.alpha, a.k3, a.k4, a.r3, a.r4, a.beta,
              f.omega_n_rad_s, f.zeta, *self.switch_eps(dt_s), p.ki, p.integral_limit, p.integral_zone,
-             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad)), 1.0 if self.mixer == "desaturate" else 0.0],
+             p.min_thrust_accel_mps2, float(np.tan(p.max_tilt_rad)), 1.0 if self.mixer == "desaturate" else 0.0,
+             float(self.outer_every(dt_s))],
             dtype=np.float64,
         )
 

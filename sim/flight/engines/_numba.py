@@ -98,6 +98,23 @@ attitude's state-only part (sin/cos, W, its ``sig`` factors) ahead of the positi
 the source, so that it could fill the window while the position chain waits: 0.97x (LLVM's
 scheduler reorders the block anyway).
 
+Multi-rate (``IsmcGains.position_rate_hz``, default 250 Hz): the outer loop (the controller's
+reference, the position law with its ``sig`` = exp(h log), the limiter, the attitude resolution's
+square root, division, asin and atan2, their integrators) runs at steps k = 0 mod K only, its
+outputs held in the controller state in between (the command filter's input ramps between two
+runs' Θ_ref); the command filter, the attitude law, the allocation, the estimator and the plant
+run every 1 ms step, so a drone-step is still a full step of rigid-body flight with every error
+model. The condition is uniform over the lanes, so it sits outside the lane loop: the step loop
+has two lane loops, each the body :func:`_lane_step` inlined with ``outer`` a constant (True or
+False), both branch-free and vectorised (two bodies to compile: ~5 min of CPU on this loaded
+machine, against the 1-2 min of the single body).
+Measured first (a throwaway copy of this kernel with the outer loop removed, alternating
+single-thread rounds in one process, kernel CPU time, 4,000 drones, gusty-rtk): the lane step
+without the outer loop ran at 1.74x the full step (range 1.73-1.75 over 6 rounds), so the outer
+loop is ~43 % of the step. As built (``benchmarks/bench_precision.py -k float32_against``, 6
+rounds): 250 Hz 1.44x the kernel with every loop at 1 kHz (1.43-1.46); the float32 kernel at
+250 Hz 1.76x the float64 1 kHz one (in an earlier run of the same rounds, 100 Hz: 1.47x, 1.99x).
+
 Single precision: :mod:`sim.flight.engines._numba_f32` is this step with the control laws in
 float32 (``precision="float32"``, opt-in): 1.30-1.41x this kernel, within 1 mm of its flights,
 without the 1e-9 agreement with the reference (measurements and the per-quantity choice there).
@@ -150,16 +167,22 @@ from sim.flight.engines._state import (
     C_INNOV,
     C_IPOS,
     C_LAST_THRUST,
+    C_LIMHOLD,
     C_LIMITED,
     C_PHAT,
+    C_PUSHHOLD,
     C_RESET,
+    C_RHOLD,
     C_ROTOR,
+    C_RPREV,
     C_SAPREV,
     C_SPREV,
     C_THC,
     C_THC_DOT,
     C_UD,
     C_UDA,
+    C_UHOLD,
+    C_UNORM,
     C_VHAT,
     CTRL_SIZE,
     D_CLOCK,
@@ -475,6 +498,484 @@ def _block_window(sc: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxtc: np.nda
     return lo, hi
 
 
+@nb.njit(inline="always", cache=True)
+def _lane_step(sc: np.ndarray, lane: int, outer: bool, epoch: bool, cst: tuple[float, ...],
+               flg: tuple[bool, ...], stp: tuple[float, ...]) -> None:
+    """One control + integration step of one lane (the kernel's vector part), in place in the scratch.
+
+    ``outer`` (a constant at each call: the kernel has one lane loop with True, one with False, the
+    branch outside the loops, so each loop's body is branch-free and vectorises) runs the outer
+    loop: the controller's reference, the position law, the limiter, the attitude resolution and
+    their integrators (``IsmcGains.position_rate_hz``); without it their outputs held in the
+    controller state are used (zero-order hold). ``cst``: the kernel's constants, ``flg``: its
+    switches, ``stp``: the step's uniform inputs (see ``_kernel``). Inlined (numba IR), so the
+    tuples cost nothing.
+    """
+    L = LANES
+    (m, ix, iy, iz, g, arm, kf, km, pg, wmax2, k1, k2, h1, h2, alpha, k3, k4, h3, h4, beta_g, wn, zeta,
+     eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone, uz_min, tan_tilt, wmax2_yaw, inv_ix, inv_iy, inv_iz,
+     inv_2akf, inv_4km, limit, ground_z, reset_v, dt, dto, drag, wrad, est_kp, est_kv, gate_h, gate_v,
+     gate_n) = cst
+    desat, use_clock, use_gnss, use_motor, use_drag = flg
+    (t, off0, off1, off2, off3, off4, off5, off6, off7, off8, rps, ysin, ycos, dx0, dx1, dx2, dw0, dw1, dw2,
+     d2x, d2y, d2z, kf_step, t_batt, fw, wgt) = stp
+    px, py, pz = sc[0 * L + lane], sc[1 * L + lane], sc[2 * L + lane]
+    vx, vy, vz = sc[3 * L + lane], sc[4 * L + lane], sc[5 * L + lane]
+    ph, th, ps = sc[6 * L + lane], sc[7 * L + lane], sc[8 * L + lane]
+    wx, wy, wz = sc[9 * L + lane], sc[10 * L + lane], sc[11 * L + lane]
+    alive = sc[F_ALIVE * L + lane] > 0.5
+    tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
+
+    # The plan at the true time (+ the shared offset): the flown error is measured
+    # against it.
+    prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(sc, F_REF, lane, t, tf, tl)
+    prx, pry, prz = prx + off0, pry + off1, prz + off2
+    qx, qy, qz = px - prx, py - pry, pz - prz
+    err = math.sqrt(qx * qx + qy * qy + qz * qz)
+    err_ok = err <= limit  # false for NaN (a non-finite reference) or a runaway drone
+    # Through the show's ground (-inf: none); false for NaN, which is caught as non-finite.
+    below = pz < ground_z
+    err_ok = err_ok & (pz >= ground_z)
+    if outer:  # the controller's reference: the outer loop's input
+        if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
+            prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(
+                sc, F_REFC, lane, t + sc[(F_DRONE + D_CLOCK) * L + lane], tf, tl)
+            prx, pry, prz = prx + off0, pry + off1, prz + off2
+        vrx, vry, vrz = vrx + off3, vry + off4, vrz + off5
+        arx, ary, arz = arx + off6, ary + off7, arz + off8
+
+    # What the controller sees: the GNSS/accelerometer estimate, or the true state.
+    ph0 = sc[(F_CTRL + C_PHAT) * L + lane]
+    ph1 = sc[(F_CTRL + C_PHAT + 1) * L + lane]
+    ph2 = sc[(F_CTRL + C_PHAT + 2) * L + lane]
+    in0 = sc[(F_CTRL + C_INNOV) * L + lane]
+    in1 = sc[(F_CTRL + C_INNOV + 1) * L + lane]
+    in2 = sc[(F_CTRL + C_INNOV + 2) * L + lane]
+    gcount = sc[(F_CTRL + C_GATE) * L + lane]
+    rs0 = sc[(F_CTRL + C_RESET) * L + lane]
+    rs1 = sc[(F_CTRL + C_RESET + 1) * L + lane]
+    rs2 = sc[(F_CTRL + C_RESET + 2) * L + lane]
+    if epoch:
+        in0 = (px + sc[(F_GNSS + 0) * L + lane]) - ph0
+        in1 = (py + sc[(F_GNSS + 1) * L + lane]) - ph1
+        in2 = (pz + sc[(F_GNSS + 2) * L + lane]) - ph2
+        # Innovation gate (as the numpy step): reject beyond k σ and count; after
+        # gate_n consecutive rejections reset p̂ to the fix, the jump to C_RESET.
+        inside = (abs(in0) <= gate_h) & (abs(in1) <= gate_h) & (abs(in2) <= gate_v)
+        gcount = 0.0 if inside else gcount + 1.0
+        reset = gcount >= gate_n
+        gcount = 0.0 if reset else gcount
+        ph0 = ph0 + in0 if reset else ph0
+        ph1 = ph1 + in1 if reset else ph1
+        ph2 = ph2 + in2 if reset else ph2
+        rs0 = rs0 + in0 if reset else rs0
+        rs1 = rs1 + in1 if reset else rs1
+        rs2 = rs2 + in2 if reset else rs2
+        in0 = in0 if inside else 0.0
+        in1 = in1 if inside else 0.0
+        in2 = in2 if inside else 0.0
+    if use_gnss:
+        # The controller sees p̂ less the part of a reset not yet shed (0 without one).
+        cpx, cpy, cpz = ph0 - rs0, ph1 - rs1, ph2 - rs2
+        rs0 = rs0 - min(max(rs0, -reset_v * dt), reset_v * dt)
+        rs1 = rs1 - min(max(rs1, -reset_v * dt), reset_v * dt)
+        rs2 = rs2 - min(max(rs2, -reset_v * dt), reset_v * dt)
+        cvx = sc[(F_CTRL + C_VHAT) * L + lane]
+        cvy = sc[(F_CTRL + C_VHAT + 1) * L + lane]
+        cvz = sc[(F_CTRL + C_VHAT + 2) * L + lane]
+    else:
+        cpx, cpy, cpz, cvx, cvy, cvz = px, py, pz, vx, vy, vz
+    if outer:
+        e1x, e1y, e1z = cpx - prx, cpy - pry, cpz - prz
+
+        # ---- position ISMC (spec 4)
+        ud0 = sc[(F_CTRL + C_UD) * L + lane]
+        ud1 = sc[(F_CTRL + C_UD + 1) * L + lane]
+        ud2 = sc[(F_CTRL + C_UD + 2) * L + lane]
+        ie0 = sc[(F_CTRL + C_IERR) * L + lane]
+        ie1 = sc[(F_CTRL + C_IERR + 1) * L + lane]
+        ie2 = sc[(F_CTRL + C_IERR + 2) * L + lane]
+        e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
+        fx, fy, fz = -arx, -ary, -arz - g
+        unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
+            e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, h1, h2,
+            sc[(F_CTRL + C_E2_0) * L + lane], sc[(F_CTRL + C_E2_0 + 1) * L + lane],
+            sc[(F_CTRL + C_E2_0 + 2) * L + lane],
+            sc[(F_CTRL + C_IPOS) * L + lane], sc[(F_CTRL + C_IPOS + 1) * L + lane],
+            sc[(F_CTRL + C_IPOS + 2) * L + lane],
+            sc[(F_CTRL + C_SPREV) * L + lane], sc[(F_CTRL + C_SPREV + 1) * L + lane],
+            sc[(F_CTRL + C_SPREV + 2) * L + lane], alpha, eps_p, eps_pq,
+        )
+        ux = unx + ud0
+        uy = uny + ud1
+        uz = unz + ud2
+        ux = ux - ki * ie0  # the PID baseline's integral (0 for the ISMC)
+        uy = uy - ki * ie1
+        uz = uz - ki * ie2
+        # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
+        wux, wuy, wuz = ux, uy, uz
+        floor_hit = uz < uz_min
+        uz = uz_min if floor_hit else uz
+        # ||u_xy|| > u_z tan(tilt) compared squared where the bound is >= 0 (the paper's
+        # gains have no floor: a negative bound is always hit, as in the reference), and
+        # the scale by rsqrt: no square root or division (the divider is the bottleneck).
+        hxy2 = ux * ux + uy * uy
+        lim_xy = uz * tan_tilt
+        hxy = math.sqrt(hxy2)
+        tilt_hit = hxy > lim_xy
+        tsc = lim_xy / hxy
+        ux = ux * tsc if tilt_hit else ux
+        uy = uy * tsc if tilt_hit else uy
+        limited = floor_hit | tilt_hit
+        # While limited, s integrates the nominal law minus what the limiter took away.
+        inx = unx + (ux - wux) if limited else unx
+        iny = uny + (uy - wuy) if limited else uny
+        inz = unz + (uz - wuz) if limited else unz
+    else:  # zero-order hold of the outer loop's outputs (unused names: 0, the commits skip them)
+        ux = sc[(F_CTRL + C_UHOLD) * L + lane]
+        uy = sc[(F_CTRL + C_UHOLD + 1) * L + lane]
+        uz = sc[(F_CTRL + C_UHOLD + 2) * L + lane]
+        limited = sc[(F_CTRL + C_LIMHOLD) * L + lane] > 0.5
+        e1x, e1y, e1z = 0.0, 0.0, 0.0
+        fx, fy, fz = 0.0, 0.0, 0.0
+        sx, sy, sz = 0.0, 0.0, 0.0
+        inx, iny, inz = 0.0, 0.0, 0.0
+        wpx, wpy, wpz = 0.0, 0.0, 0.0
+        ud0, ud1, ud2 = 0.0, 0.0, 0.0
+        ie0, ie1, ie2 = 0.0, 0.0, 0.0
+
+    sph, cph = vsincos(ph)
+    sth, cth = vsincos(th)
+    sps, cps = vsincos(ps)
+    zbx = cph * sth * cps + sph * sps
+    zby = cph * sth * sps - sph * cps
+    zbz = cph * cth
+    thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
+
+    # ---- attitude resolution (spec 5) and command filter
+    if outer:
+        un2 = ux * ux + uy * uy + uz * uz
+        un = math.sqrt(un2)
+        ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
+        ratio = min(max(ratio, -1.0), 1.0)
+        rph = vasin(ratio)
+        rth = vatan2(ux * ycos + uy * ysin, uz)
+        rpp = sc[(F_CTRL + C_RHOLD) * L + lane]  # the previous run's, the ramp's start
+        rtp = sc[(F_CTRL + C_RHOLD + 1) * L + lane]
+    else:
+        rph = sc[(F_CTRL + C_RHOLD) * L + lane]
+        rth = sc[(F_CTRL + C_RHOLD + 1) * L + lane]
+        rpp = sc[(F_CTRL + C_RPREV) * L + lane]
+        rtp = sc[(F_CTRL + C_RPREV + 1) * L + lane]
+        un = sc[(F_CTRL + C_UNORM) * L + lane]
+    cx = sc[(F_CTRL + C_THC) * L + lane]
+    cy = sc[(F_CTRL + C_THC + 1) * L + lane]
+    cz = sc[(F_CTRL + C_THC + 2) * L + lane]
+    cdx = sc[(F_CTRL + C_THC_DOT) * L + lane]
+    cdy = sc[(F_CTRL + C_THC_DOT + 1) * L + lane]
+    cdz = sc[(F_CTRL + C_THC_DOT + 2) * L + lane]
+    # The filter's input ramps from the previous run's Θ_ref to this one's over the K steps (wgt: the
+    # part still to come, 0 at K = 1; as the numpy step). Held as a step, the 300 rad/s filter turned
+    # each run's jump into torque spikes that saturated the rotors.
+    rph_out, rth_out = rph, rth
+    rph = rph - wgt * (rph - rpp)
+    rth = rth - wgt * (rth - rtp)
+    cddx = wn * wn * (rph - cx) - 2.0 * zeta * wn * cdx
+    cddy = wn * wn * (rth - cy) - 2.0 * zeta * wn * cdy
+    cddz = wn * wn * (rps - cz) - 2.0 * zeta * wn * cdz
+
+    # ---- attitude ISMC (spec 6)
+    # One division for every 1/cos θ term (W, Ẇ): divisions dominate the arithmetic.
+    icth = 1.0 / cth
+    tth = sth * icth
+    w01, w02 = sph * tth, cph * tth
+    w11, w12 = cph, -sph
+    w21, w22 = sph * icth, cph * icth
+    edx = wx + w01 * wy + w02 * wz
+    edy = w11 * wy + w12 * wz
+    edz = w21 * wy + w22 * wz
+    e3x, e3y, e3z = ph - cx, th - cy, ps - cz
+    e4x, e4y, e4z = edx - cdx, edy - cdy, edz - cdz
+    gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
+    gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
+    gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
+    # Ẇ Ω (see sim.flight._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
+    sec2 = icth * icth
+    wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
+    wd1 = -sph * edx * wy - cph * edx * wz
+    wd2 = (w22 * edx + sph * sth * sec2 * edy) * wy + (
+        -w21 * edx + cph * sth * sec2 * edy
+    ) * wz
+    fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
+    fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
+    faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
+    unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
+        e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, h3, h4,
+        sc[(F_CTRL + C_E4_0) * L + lane], sc[(F_CTRL + C_E4_0 + 1) * L + lane],
+        sc[(F_CTRL + C_E4_0 + 2) * L + lane],
+        sc[(F_CTRL + C_IATT) * L + lane], sc[(F_CTRL + C_IATT + 1) * L + lane],
+        sc[(F_CTRL + C_IATT + 2) * L + lane],
+        sc[(F_CTRL + C_SAPREV) * L + lane], sc[(F_CTRL + C_SAPREV + 1) * L + lane],
+        sc[(F_CTRL + C_SAPREV + 2) * L + lane], beta_g, eps_a, eps_aq,
+    )
+    uda0 = sc[(F_CTRL + C_UDA) * L + lane]
+    uda1 = sc[(F_CTRL + C_UDA + 1) * L + lane]
+    uda2 = sc[(F_CTRL + C_UDA + 2) * L + lane]
+    uax = unax + uda0
+    uay = unay + uda1
+    uaz = unaz + uda2
+    # τ = I W⁻¹ u_a
+    tcx = ix * (uax - sth * uaz)
+    tcy = iy * (cph * uay + sph * cth * uaz)
+    tcz = iz * (-sph * uay + cph * cth * uaz)
+
+    # ---- rotors ("+" mixer of sim.flight._quadrotor), allocation, what acts
+    # The thrust share is divided, as in the reference mixer: that rounding is what
+    # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
+    # The torque shares (0 in hover) multiply by hoisted reciprocals.
+    base = thrust_cmd / (4.0 * kf)
+    roll = tcx * inv_2akf
+    pitch = tcy * inv_2akf
+    yw = tcz * inv_4km
+    o1, o2, o3, o4, thrust_short, clipped = _allocate(base, roll, pitch, yw, wmax2, wmax2_yaw, desat)
+    # Anti-windup flags (as the numpy step): the position loop freezes when the command
+    # is limited or not delivered, the attitude loop when its torque is not (``clipped``).
+    sat = (limited | thrust_short) | clipped
+    # At the authority limit and pushing back (as the numpy step): "overpowered" vs "runaway".
+    lf_old = sc[(F_CTRL + C_LIMITED) * L + lane]
+    if outer:
+        push = (ux * e1x + uy * e1y + uz * e1z) - g * e1z < 0.0
+    else:
+        push = sc[(F_CTRL + C_PUSHHOLD) * L + lane] > 0.5
+    follows = ux * zbx + uy * zby + uz * zbz > LIMITED_ALIGN_COS * un
+    held = 1.0 if sat & push & follows else 0.0
+    lf_new = lf_old + (dt / LIMITED_TAU_S) * (held - lf_old)
+    if use_motor:  # first-order lag of the squared rotor speeds toward the command
+        mot = sc[(F_DRONE + D_MOTOR) * L + lane]
+        ro1 = sc[(F_CTRL + C_ROTOR) * L + lane]
+        ro2 = sc[(F_CTRL + C_ROTOR + 1) * L + lane]
+        ro3 = sc[(F_CTRL + C_ROTOR + 2) * L + lane]
+        ro4 = sc[(F_CTRL + C_ROTOR + 3) * L + lane]
+        o1 = ro1 + mot * (o1 - ro1)
+        o2 = ro2 + mot * (o2 - ro2)
+        o3 = ro3 + mot * (o3 - ro3)
+        o4 = ro4 + mot * (o4 - ro4)
+    # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
+    rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t_batt)
+    thrust = kf * (o1 + o2 + o3 + o4) * rg
+    tqx = arm * kf * (o2 - o4) * rg
+    tqy = arm * kf * (o3 - o1) * rg
+    tqz = km * (o1 - o2 + o3 - o4) * rg
+
+    # ---- plant, semi-implicit Euler with the inputs held
+    pix = sc[(F_DRONE + D_IX) * L + lane]
+    piy = sc[(F_DRONE + D_IY) * L + lane]
+    piz = sc[(F_DRONE + D_IZ) * L + lane]
+    tpm = thrust * sc[(F_INV + 3) * L + lane]
+    ax = tpm * zbx + dx0 + drag * (dw0 - vx)
+    ay = tpm * zby + dx1 + drag * (dw1 - vy)
+    az = tpm * zbz + dx2 + drag * (dw2 - vz)
+    if use_drag:  # quadratic drag on the air-relative velocity
+        wa0, wa1, wa2 = sc[F_WA * L + lane], sc[(F_WA + 1) * L + lane], sc[(F_WA + 2) * L + lane]
+        wb0, wb1, wb2 = sc[F_WB * L + lane], sc[(F_WB + 1) * L + lane], sc[(F_WB + 2) * L + lane]
+        # The wind at the flown position: the table's (at the plan, linear on its grid) plus
+        # the first-order terms of the displacement q, clamped (_tables.flown_wind).
+        dqx, dqy, dqz = min(max(qx, -wrad), wrad), min(max(qy, -wrad), wrad), min(max(qz, -wrad), wrad)
+        hz = SHEAR_LINEAR_RADIUS_FRACTION * (pz - qz)  # pz - qz: the planned height at t
+        dsz = min(max(qz, -hz), hz)
+        oj = F_WJ * L + lane
+        jx = (sc[oj] * dqx + sc[oj + L] * dqy + sc[oj + 2 * L] * dqz) + sc[oj + 9 * L] * dsz
+        jy = (sc[oj + 3 * L] * dqx + sc[oj + 4 * L] * dqy + sc[oj + 5 * L] * dqz) + sc[oj + 10 * L] * dsz
+        jz = sc[oj + 6 * L] * dqx + sc[oj + 7 * L] * dqy + sc[oj + 8 * L] * dqz
+        rlx = vx - ((wa0 + fw * (wb0 - wa0)) + jx)
+        rly = vy - ((wa1 + fw * (wb1 - wa1)) + jy)
+        rlz = vz - ((wa2 + fw * (wb2 - wa2)) + jz)
+        dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
+        ax -= dsp * rlx
+        ay -= dsp * rly
+        az -= dsp * rlz
+    az -= pg
+    odx = (tqx - (wy * (wz * piz) - wz * (wy * piy))) * sc[F_INV * L + lane] + (d2x - sth * d2z)
+    ody = (tqy - (wz * (wx * pix) - wx * (wz * piz))) * sc[(F_INV + 1) * L + lane] + (
+        cph * d2y + sph * cth * d2z)
+    odz = (tqz - (wx * (wy * piy) - wy * (wx * pix))) * sc[(F_INV + 2) * L + lane] + (
+        -sph * d2y + cph * cth * d2z)
+    nvx, nvy, nvz = vx + dt * ax, vy + dt * ay, vz + dt * az
+    npx, npy, npz = px + dt * nvx, py + dt * nvy, pz + dt * nvz
+    nwx, nwy, nwz = wx + dt * odx, wy + dt * ody, wz + dt * odz
+    nph = ph + dt * (nwx + w01 * nwy + w02 * nwz)
+    nth = th + dt * (w11 * nwy + w12 * nwz)
+    nps = ps + dt * (w21 * nwy + w22 * nwz)
+    if use_gnss:  # estimator: accelerometer prediction plus the held innovation
+        nvh0 = cvx + dt * (ax + est_kv * in0)
+        nvh1 = cvy + dt * (ay + est_kv * in1)
+        nvh2 = cvz + dt * (az + est_kv * in2)
+        nph0 = ph0 + dt * (nvh0 + est_kp * in0)
+        nph1 = ph1 + dt * (nvh1 + est_kp * in1)
+        nph2 = ph2 + dt * (nvh2 + est_kp * in2)
+    else:
+        nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
+
+    # ---- controller state candidates
+    if outer:  # the outer loop's integrators, with its own step K dt
+        ipx = sc[(F_CTRL + C_IPOS) * L + lane] + dto * (inx + fx)
+        ipy = sc[(F_CTRL + C_IPOS + 1) * L + lane] + dto * (iny + fy)
+        ipz = sc[(F_CTRL + C_IPOS + 2) * L + lane] + dto * (inz + fz)
+    else:
+        ipx, ipy, ipz = 0.0, 0.0, 0.0
+    iax = sc[(F_CTRL + C_IATT) * L + lane] + dt * (unax + fax)
+    iay = sc[(F_CTRL + C_IATT + 1) * L + lane] + dt * (unay + fay)
+    iaz = sc[(F_CTRL + C_IATT + 2) * L + lane] + dt * (unaz + faz)
+    ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
+    ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
+    # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
+    # while the command is limited or not delivered, the attitude u_d only while its
+    # torque is not.
+    if outer:
+        nie0 = min(max(ie0 + dto * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
+        nie1 = min(max(ie1 + dto * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
+        nie2 = min(max(ie2 + dto * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
+        nie0 = ie0 if sat else nie0
+        nie1 = ie1 if sat else nie1
+        nie2 = ie2 if sat else nie2
+        udx = ud0 if sat else ud0 + dto * wpx
+        udy = ud1 if sat else ud1 + dto * wpy
+        udz = ud2 if sat else ud2 + dto * wpz
+    else:
+        nie0, nie1, nie2 = 0.0, 0.0, 0.0
+        udx, udy, udz = 0.0, 0.0, 0.0
+    uadx = uda0 if clipped else uda0 + dt * wax
+    uady = uda1 if clipped else uda1 + dt * way
+    uadz = uda2 if clipped else uda2 + dt * waz
+
+    # Telemetry of this step (copied out at frame steps for the drones that flew it).
+    sc[(F_TEL + 0) * L + lane] = qx
+    sc[(F_TEL + 1) * L + lane] = qy
+    sc[(F_TEL + 2) * L + lane] = qz
+    sc[(F_TEL + 3) * L + lane] = e3x
+    sc[(F_TEL + 4) * L + lane] = e3y
+    sc[(F_TEL + 5) * L + lane] = e3z
+    sc[(F_TEL + 6) * L + lane] = ph - rph
+    sc[(F_TEL + 7) * L + lane] = th - rth
+    sc[(F_TEL + 8) * L + lane] = ps - rps
+    sc[(F_TEL + 9) * L + lane] = thrust
+    sc[(F_TEL + 10) * L + lane] = tqx
+    sc[(F_TEL + 11) * L + lane] = tqy
+    sc[(F_TEL + 12) * L + lane] = tqz
+    sc[(F_TEL + 13) * L + lane] = 1.0 if sat else 0.0
+    sc[F_TELOK * L + lane] = 1.0 if alive & err_ok else 0.0
+
+    # A step that is not finite everywhere is not committed (the drone stops here).
+    # (Any NaN or inf makes the sum non-finite; independent partial sums keep the
+    # dependency chain short.)
+    check = (((npx + npy + npz) + (nvx + nvy + nvz)) + ((nph + nth + nps) + (nwx + nwy + nwz))
+             + ((ipx + ipy + ipz) + (iax + iay + iaz)) + ((udx + udy + udz) + (uadx + uady + uadz))
+             + ((ncx + ncy + ncz) + (ncdx + ncdy + ncdz)) + ((sx + sy + sz) + (sax + say + saz))
+             + thrust + ((nph0 + nph1 + nph2) + (nvh0 + nvh1 + nvh2)) + (nie0 + nie1 + nie2))
+    finite = math.isfinite(check)
+    ok = alive & err_ok & finite
+    died = alive and not ok
+    sc[F_ALIVE * L + lane] = 1.0 if ok else 0.0
+    sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
+    far = DIVERGED_OVERPOWERED if lf_old > LIMITED_FRACTION else DIVERGED_RUNAWAY
+    why = far if (not err_ok) and err > limit else DIVERGED_NONFINITE
+    why = DIVERGED_GROUND if below else why
+    sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
+
+    # Statistics and the commit, for the drones that flew this step.
+    so = F_STAT * L + lane
+    ssum, smax = sc[so + STAT_SUMSQ * L], sc[so + STAT_MAX * L]
+    sdth, scount = sc[so + STAT_DTHRUST * L], sc[so + STAT_COUNT * L]
+    last_thrust = sc[(F_CTRL + C_LAST_THRUST) * L + lane]
+    sc[so + STAT_SUMSQ * L] = ssum + err * err if ok else ssum
+    sc[so + STAT_MAX * L] = max(smax, err) if ok else smax
+    sc[so + STAT_DTHRUST * L] = max(sdth, abs(thrust - last_thrust)) if ok else sdth
+    sc[so + STAT_COUNT * L] = scount + 1.0 if ok else scount
+
+    _commit(sc, F_STATE + 0, lane, npx, ok)
+    _commit(sc, F_STATE + 1, lane, npy, ok)
+    _commit(sc, F_STATE + 2, lane, npz, ok)
+    _commit(sc, F_STATE + 3, lane, nvx, ok)
+    _commit(sc, F_STATE + 4, lane, nvy, ok)
+    _commit(sc, F_STATE + 5, lane, nvz, ok)
+    _commit(sc, F_STATE + 6, lane, nph, ok)
+    _commit(sc, F_STATE + 7, lane, nth, ok)
+    _commit(sc, F_STATE + 8, lane, nps, ok)
+    _commit(sc, F_STATE + 9, lane, nwx, ok)
+    _commit(sc, F_STATE + 10, lane, nwy, ok)
+    _commit(sc, F_STATE + 11, lane, nwz, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IPOS, lane, ipx, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IPOS + 1, lane, ipy, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IPOS + 2, lane, ipz, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_UD, lane, udx, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_UD + 1, lane, udy, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_UD + 2, lane, udz, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_SPREV, lane, sx, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_SPREV + 1, lane, sy, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_SPREV + 2, lane, sz, ok)
+    _commit(sc, F_CTRL + C_IATT, lane, iax, ok)
+    _commit(sc, F_CTRL + C_IATT + 1, lane, iay, ok)
+    _commit(sc, F_CTRL + C_IATT + 2, lane, iaz, ok)
+    _commit(sc, F_CTRL + C_UDA, lane, uadx, ok)
+    _commit(sc, F_CTRL + C_UDA + 1, lane, uady, ok)
+    _commit(sc, F_CTRL + C_UDA + 2, lane, uadz, ok)
+    _commit(sc, F_CTRL + C_SAPREV, lane, sax, ok)
+    _commit(sc, F_CTRL + C_SAPREV + 1, lane, say, ok)
+    _commit(sc, F_CTRL + C_SAPREV + 2, lane, saz, ok)
+    _commit(sc, F_CTRL + C_THC, lane, ncx, ok)
+    _commit(sc, F_CTRL + C_THC + 1, lane, ncy, ok)
+    _commit(sc, F_CTRL + C_THC + 2, lane, ncz, ok)
+    _commit(sc, F_CTRL + C_THC_DOT, lane, ncdx, ok)
+    _commit(sc, F_CTRL + C_THC_DOT + 1, lane, ncdy, ok)
+    _commit(sc, F_CTRL + C_THC_DOT + 2, lane, ncdz, ok)
+    _commit(sc, F_CTRL + C_LAST_THRUST, lane, thrust, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IERR, lane, nie0, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IERR + 1, lane, nie1, ok)
+    if outer:
+        _commit(sc, F_CTRL + C_IERR + 2, lane, nie2, ok)
+    _commit(sc, F_CTRL + C_PHAT, lane, nph0, ok)
+    _commit(sc, F_CTRL + C_PHAT + 1, lane, nph1, ok)
+    _commit(sc, F_CTRL + C_PHAT + 2, lane, nph2, ok)
+    _commit(sc, F_CTRL + C_VHAT, lane, nvh0, ok)
+    _commit(sc, F_CTRL + C_VHAT + 1, lane, nvh1, ok)
+    _commit(sc, F_CTRL + C_VHAT + 2, lane, nvh2, ok)
+    _commit(sc, F_CTRL + C_INNOV, lane, in0, ok)
+    _commit(sc, F_CTRL + C_INNOV + 1, lane, in1, ok)
+    _commit(sc, F_CTRL + C_INNOV + 2, lane, in2, ok)
+    _commit(sc, F_CTRL + C_ROTOR, lane, o1, ok)
+    _commit(sc, F_CTRL + C_ROTOR + 1, lane, o2, ok)
+    _commit(sc, F_CTRL + C_ROTOR + 2, lane, o3, ok)
+    _commit(sc, F_CTRL + C_ROTOR + 3, lane, o4, ok)
+    _commit(sc, F_CTRL + C_GATE, lane, gcount, ok)
+    _commit(sc, F_CTRL + C_RESET, lane, rs0, ok)
+    _commit(sc, F_CTRL + C_RESET + 1, lane, rs1, ok)
+    _commit(sc, F_CTRL + C_RESET + 2, lane, rs2, ok)
+    _commit(sc, F_CTRL + C_LIMITED, lane, lf_new, ok)
+
+    if outer:  # the held outputs of the outer loop
+        _commit(sc, F_CTRL + C_UHOLD, lane, ux, ok)
+        _commit(sc, F_CTRL + C_UHOLD + 1, lane, uy, ok)
+        _commit(sc, F_CTRL + C_UHOLD + 2, lane, uz, ok)
+        _commit(sc, F_CTRL + C_RHOLD, lane, rph_out, ok)
+        _commit(sc, F_CTRL + C_RHOLD + 1, lane, rth_out, ok)
+        _commit(sc, F_CTRL + C_RPREV, lane, rpp, ok)
+        _commit(sc, F_CTRL + C_RPREV + 1, lane, rtp, ok)
+        _commit(sc, F_CTRL + C_UNORM, lane, un, ok)
+        _commit(sc, F_CTRL + C_LIMHOLD, lane, 1.0 if limited else 0.0, ok)
+        _commit(sc, F_CTRL + C_PUSHHOLD, lane, 1.0 if push else 0.0, ok)
+
+
 @nb.njit(parallel=True, cache=True, error_model="numpy",
          fastmath={"nsz", "afn", "contract", "reassoc"})
 def _kernel(
@@ -507,6 +1008,13 @@ def _kernel(
     n_wind = wtab.shape[0]
     blocks = (n + LANES - 1) // LANES
     L = LANES
+    kev = int(gn[22])  # the outer loop runs every kev steps (IsmcGains.outer_every), with step dto
+    dto = float(kev) * dt
+    cst = (m, ix, iy, iz, g, arm, kf, km, pg, wmax2, k1, k2, h1, h2, alpha, k3, k4, h3, h4, beta_g, wn, zeta,
+           eps_p, eps_pq, eps_a, eps_aq, ki, ilim, izone, uz_min, tan_tilt, wmax2_yaw, inv_ix, inv_iy, inv_iz,
+           inv_2akf, inv_4km, limit, ground_z, reset_v, dt, dto, drag, wrad, est_kp, est_kv, gate_h, gate_v,
+           gate_n)
+    flg = (desat, use_clock, use_gnss, use_motor, use_drag)
 
     for b in nb.prange(blocks):
         i0 = b * L
@@ -549,6 +1057,7 @@ def _kernel(
         win_lo, win_hi = math.inf, -math.inf  # empty: the first step searches
         # Next frame step, advanced by a counter (an integer division per step costs ~5 %).
         next_rec = ((step0 + every - 1) // every) * every
+        next_outer = ((step0 + kev - 1) // kev) * kev
         next_gnss = gnss_first
         gidx = 0
         iw_loaded = -1
@@ -611,400 +1120,22 @@ def _kernel(
             # ---- the vector part: one control + integration step of every lane. (The trip
             # count is read from the scratch's size, not the constant LANES: LLVM fully
             # unrolls a loop with a small constant trip count before it could vectorise it.)
-            for lane in range(nl):
-                px, py, pz = sc[0 * L + lane], sc[1 * L + lane], sc[2 * L + lane]
-                vx, vy, vz = sc[3 * L + lane], sc[4 * L + lane], sc[5 * L + lane]
-                ph, th, ps = sc[6 * L + lane], sc[7 * L + lane], sc[8 * L + lane]
-                wx, wy, wz = sc[9 * L + lane], sc[10 * L + lane], sc[11 * L + lane]
-                alive = sc[F_ALIVE * L + lane] > 0.5
-                tf, tl = sc[F_TF * L + lane], sc[F_TL * L + lane]
-
-                # The plan at the true time (+ the shared offset): the flown error is measured
-                # against it.
-                prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(sc, F_REF, lane, t, tf, tl)
-                prx, pry, prz = prx + off0, pry + off1, prz + off2
-                qx, qy, qz = px - prx, py - pry, pz - prz
-                err = math.sqrt(qx * qx + qy * qy + qz * qz)
-                err_ok = err <= limit  # false for NaN (a non-finite reference) or a runaway drone
-                # Through the show's ground (-inf: none); false for NaN, which is caught as non-finite.
-                below = pz < ground_z
-                err_ok = err_ok & (pz >= ground_z)
-                if use_clock:  # the controller flies its own clock t + δ (the shared offset stays at t)
-                    prx, pry, prz, vrx, vry, vrz, arx, ary, arz = _ref_at(
-                        sc, F_REFC, lane, t + sc[(F_DRONE + D_CLOCK) * L + lane], tf, tl)
-                    prx, pry, prz = prx + off0, pry + off1, prz + off2
-                vrx, vry, vrz = vrx + off3, vry + off4, vrz + off5
-                arx, ary, arz = arx + off6, ary + off7, arz + off8
-
-                # What the controller sees: the GNSS/accelerometer estimate, or the true state.
-                ph0 = sc[(F_CTRL + C_PHAT) * L + lane]
-                ph1 = sc[(F_CTRL + C_PHAT + 1) * L + lane]
-                ph2 = sc[(F_CTRL + C_PHAT + 2) * L + lane]
-                in0 = sc[(F_CTRL + C_INNOV) * L + lane]
-                in1 = sc[(F_CTRL + C_INNOV + 1) * L + lane]
-                in2 = sc[(F_CTRL + C_INNOV + 2) * L + lane]
-                gcount = sc[(F_CTRL + C_GATE) * L + lane]
-                rs0 = sc[(F_CTRL + C_RESET) * L + lane]
-                rs1 = sc[(F_CTRL + C_RESET + 1) * L + lane]
-                rs2 = sc[(F_CTRL + C_RESET + 2) * L + lane]
-                if epoch:
-                    in0 = (px + sc[(F_GNSS + 0) * L + lane]) - ph0
-                    in1 = (py + sc[(F_GNSS + 1) * L + lane]) - ph1
-                    in2 = (pz + sc[(F_GNSS + 2) * L + lane]) - ph2
-                    # Innovation gate (as the numpy step): reject beyond k σ and count; after
-                    # gate_n consecutive rejections reset p̂ to the fix, the jump to C_RESET.
-                    inside = (abs(in0) <= gate_h) & (abs(in1) <= gate_h) & (abs(in2) <= gate_v)
-                    gcount = 0.0 if inside else gcount + 1.0
-                    reset = gcount >= gate_n
-                    gcount = 0.0 if reset else gcount
-                    ph0 = ph0 + in0 if reset else ph0
-                    ph1 = ph1 + in1 if reset else ph1
-                    ph2 = ph2 + in2 if reset else ph2
-                    rs0 = rs0 + in0 if reset else rs0
-                    rs1 = rs1 + in1 if reset else rs1
-                    rs2 = rs2 + in2 if reset else rs2
-                    in0 = in0 if inside else 0.0
-                    in1 = in1 if inside else 0.0
-                    in2 = in2 if inside else 0.0
-                if use_gnss:
-                    # The controller sees p̂ less the part of a reset not yet shed (0 without one).
-                    cpx, cpy, cpz = ph0 - rs0, ph1 - rs1, ph2 - rs2
-                    rs0 = rs0 - min(max(rs0, -reset_v * dt), reset_v * dt)
-                    rs1 = rs1 - min(max(rs1, -reset_v * dt), reset_v * dt)
-                    rs2 = rs2 - min(max(rs2, -reset_v * dt), reset_v * dt)
-                    cvx = sc[(F_CTRL + C_VHAT) * L + lane]
-                    cvy = sc[(F_CTRL + C_VHAT + 1) * L + lane]
-                    cvz = sc[(F_CTRL + C_VHAT + 2) * L + lane]
-                else:
-                    cpx, cpy, cpz, cvx, cvy, cvz = px, py, pz, vx, vy, vz
-                e1x, e1y, e1z = cpx - prx, cpy - pry, cpz - prz
-
-                # ---- position ISMC (spec 4)
-                ud0 = sc[(F_CTRL + C_UD) * L + lane]
-                ud1 = sc[(F_CTRL + C_UD + 1) * L + lane]
-                ud2 = sc[(F_CTRL + C_UD + 2) * L + lane]
-                ie0 = sc[(F_CTRL + C_IERR) * L + lane]
-                ie1 = sc[(F_CTRL + C_IERR + 1) * L + lane]
-                ie2 = sc[(F_CTRL + C_IERR + 2) * L + lane]
-                e2x, e2y, e2z = cvx - vrx, cvy - vry, cvz - vrz
-                fx, fy, fz = -arx, -ary, -arz - g
-                unx, uny, unz, sx, sy, sz, wpx, wpy, wpz = _ismc_law(
-                    e1x, e1y, e1z, e2x, e2y, e2z, fx, fy, fz, k1, k2, h1, h2,
-                    sc[(F_CTRL + C_E2_0) * L + lane], sc[(F_CTRL + C_E2_0 + 1) * L + lane],
-                    sc[(F_CTRL + C_E2_0 + 2) * L + lane],
-                    sc[(F_CTRL + C_IPOS) * L + lane], sc[(F_CTRL + C_IPOS + 1) * L + lane],
-                    sc[(F_CTRL + C_IPOS + 2) * L + lane],
-                    sc[(F_CTRL + C_SPREV) * L + lane], sc[(F_CTRL + C_SPREV + 1) * L + lane],
-                    sc[(F_CTRL + C_SPREV + 2) * L + lane], alpha, eps_p, eps_pq,
-                )
-                ux = unx + ud0
-                uy = uny + ud1
-                uz = unz + ud2
-                ux = ux - ki * ie0  # the PID baseline's integral (0 for the ISMC)
-                uy = uy - ki * ie1
-                uz = uz - ki * ie2
-                # Thrust floor and tilt limit (inactive in normal tracking; see PositionGains).
-                wux, wuy, wuz = ux, uy, uz
-                floor_hit = uz < uz_min
-                uz = uz_min if floor_hit else uz
-                # ||u_xy|| > u_z tan(tilt) compared squared where the bound is >= 0 (the paper's
-                # gains have no floor: a negative bound is always hit, as in the reference), and
-                # the scale by rsqrt: no square root or division (the divider is the bottleneck).
-                hxy2 = ux * ux + uy * uy
-                lim_xy = uz * tan_tilt
-                hxy = math.sqrt(hxy2)
-                tilt_hit = hxy > lim_xy
-                tsc = lim_xy / hxy
-                ux = ux * tsc if tilt_hit else ux
-                uy = uy * tsc if tilt_hit else uy
-                limited = floor_hit | tilt_hit
-                # While limited, s integrates the nominal law minus what the limiter took away.
-                inx = unx + (ux - wux) if limited else unx
-                iny = uny + (uy - wuy) if limited else uny
-                inz = unz + (uz - wuz) if limited else unz
-
-                sph, cph = vsincos(ph)
-                sth, cth = vsincos(th)
-                sps, cps = vsincos(ps)
-                zbx = cph * sth * cps + sph * sps
-                zby = cph * sth * sps - sph * cps
-                zbz = cph * cth
-                thrust_cmd = m * (ux * zbx + uy * zby + uz * zbz)
-
-                # ---- attitude resolution (spec 5) and command filter
-                un2 = ux * ux + uy * uy + uz * uz
-                un = math.sqrt(un2)
-                ratio = (ux * ysin - uy * ycos) / un if un > 0.0 else 0.0
-                ratio = min(max(ratio, -1.0), 1.0)
-                rph = vasin(ratio)
-                rth = vatan2(ux * ycos + uy * ysin, uz)
-                cx = sc[(F_CTRL + C_THC) * L + lane]
-                cy = sc[(F_CTRL + C_THC + 1) * L + lane]
-                cz = sc[(F_CTRL + C_THC + 2) * L + lane]
-                cdx = sc[(F_CTRL + C_THC_DOT) * L + lane]
-                cdy = sc[(F_CTRL + C_THC_DOT + 1) * L + lane]
-                cdz = sc[(F_CTRL + C_THC_DOT + 2) * L + lane]
-                cddx = wn * wn * (rph - cx) - 2.0 * zeta * wn * cdx
-                cddy = wn * wn * (rth - cy) - 2.0 * zeta * wn * cdy
-                cddz = wn * wn * (rps - cz) - 2.0 * zeta * wn * cdz
-
-                # ---- attitude ISMC (spec 6)
-                # One division for every 1/cos θ term (W, Ẇ): divisions dominate the arithmetic.
-                icth = 1.0 / cth
-                tth = sth * icth
-                w01, w02 = sph * tth, cph * tth
-                w11, w12 = cph, -sph
-                w21, w22 = sph * icth, cph * icth
-                edx = wx + w01 * wy + w02 * wz
-                edy = w11 * wy + w12 * wz
-                edz = w21 * wy + w22 * wz
-                e3x, e3y, e3z = ph - cx, th - cy, ps - cz
-                e4x, e4y, e4z = edx - cdx, edy - cdy, edz - cdz
-                gax = (wy * (wz * iz) - wz * (wy * iy)) * inv_ix
-                gay = (wz * (wx * ix) - wx * (wz * iz)) * inv_iy
-                gaz = (wx * (wy * iy) - wy * (wx * ix)) * inv_iz
-                # Ẇ Ω (see sim.flight._quadrotor.w_dot_omega), with Θ̇ = (edx, edy) for φ̇, θ̇.
-                sec2 = icth * icth
-                wd0 = (cph * tth * edx + sph * sec2 * edy) * wy + (-sph * tth * edx + cph * sec2 * edy) * wz
-                wd1 = -sph * edx * wy - cph * edx * wz
-                wd2 = (w22 * edx + sph * sth * sec2 * edy) * wy + (
-                    -w21 * edx + cph * sth * sec2 * edy
-                ) * wz
-                fax = -(gax + w01 * gay + w02 * gaz) + wd0 - cddx
-                fay = -(w11 * gay + w12 * gaz) + wd1 - cddy
-                faz = -(w21 * gay + w22 * gaz) + wd2 - cddz
-                unax, unay, unaz, sax, say, saz, wax, way, waz = _ismc_law(
-                    e3x, e3y, e3z, e4x, e4y, e4z, fax, fay, faz, k3, k4, h3, h4,
-                    sc[(F_CTRL + C_E4_0) * L + lane], sc[(F_CTRL + C_E4_0 + 1) * L + lane],
-                    sc[(F_CTRL + C_E4_0 + 2) * L + lane],
-                    sc[(F_CTRL + C_IATT) * L + lane], sc[(F_CTRL + C_IATT + 1) * L + lane],
-                    sc[(F_CTRL + C_IATT + 2) * L + lane],
-                    sc[(F_CTRL + C_SAPREV) * L + lane], sc[(F_CTRL + C_SAPREV + 1) * L + lane],
-                    sc[(F_CTRL + C_SAPREV + 2) * L + lane], beta_g, eps_a, eps_aq,
-                )
-                uda0 = sc[(F_CTRL + C_UDA) * L + lane]
-                uda1 = sc[(F_CTRL + C_UDA + 1) * L + lane]
-                uda2 = sc[(F_CTRL + C_UDA + 2) * L + lane]
-                uax = unax + uda0
-                uay = unay + uda1
-                uaz = unaz + uda2
-                # τ = I W⁻¹ u_a
-                tcx = ix * (uax - sth * uaz)
-                tcy = iy * (cph * uay + sph * cth * uaz)
-                tcz = iz * (-sph * uay + cph * cth * uaz)
-
-                # ---- rotors ("+" mixer of sim.flight._quadrotor), allocation, what acts
-                # The thrust share is divided, as in the reference mixer: that rounding is what
-                # makes the hover thrust come back as exactly m·g (hover is held bit-exactly).
-                # The torque shares (0 in hover) multiply by hoisted reciprocals.
-                base = thrust_cmd / (4.0 * kf)
-                roll = tcx * inv_2akf
-                pitch = tcy * inv_2akf
-                yw = tcz * inv_4km
-                o1, o2, o3, o4, thrust_short, clipped = _allocate(base, roll, pitch, yw, wmax2, wmax2_yaw, desat)
-                # Anti-windup flags (as the numpy step): the position loop freezes when the command
-                # is limited or not delivered, the attitude loop when its torque is not (``clipped``).
-                sat = (limited | thrust_short) | clipped
-                # At the authority limit and pushing back (as the numpy step): "overpowered" vs "runaway".
-                lf_old = sc[(F_CTRL + C_LIMITED) * L + lane]
-                push = (ux * e1x + uy * e1y + uz * e1z) - g * e1z < 0.0
-                follows = ux * zbx + uy * zby + uz * zbz > LIMITED_ALIGN_COS * un
-                held = 1.0 if sat & push & follows else 0.0
-                lf_new = lf_old + (dt / LIMITED_TAU_S) * (held - lf_old)
-                if use_motor:  # first-order lag of the squared rotor speeds toward the command
-                    mot = sc[(F_DRONE + D_MOTOR) * L + lane]
-                    ro1 = sc[(F_CTRL + C_ROTOR) * L + lane]
-                    ro2 = sc[(F_CTRL + C_ROTOR + 1) * L + lane]
-                    ro3 = sc[(F_CTRL + C_ROTOR + 2) * L + lane]
-                    ro4 = sc[(F_CTRL + C_ROTOR + 3) * L + lane]
-                    o1 = ro1 + mot * (o1 - ro1)
-                    o2 = ro2 + mot * (o2 - ro2)
-                    o3 = ro3 + mot * (o3 - ro3)
-                    o4 = ro4 + mot * (o4 - ro4)
-                # Thrust gain of this drone's rotors, falling with its battery (1 when ideal).
-                rg = sc[(F_DRONE + D_THRUST) * L + lane] * (1.0 - sc[(F_DRONE + D_SAG_RATE) * L + lane] * t_batt)
-                thrust = kf * (o1 + o2 + o3 + o4) * rg
-                tqx = arm * kf * (o2 - o4) * rg
-                tqy = arm * kf * (o3 - o1) * rg
-                tqz = km * (o1 - o2 + o3 - o4) * rg
-
-                # ---- plant, semi-implicit Euler with the inputs held
-                pix = sc[(F_DRONE + D_IX) * L + lane]
-                piy = sc[(F_DRONE + D_IY) * L + lane]
-                piz = sc[(F_DRONE + D_IZ) * L + lane]
-                tpm = thrust * sc[(F_INV + 3) * L + lane]
-                ax = tpm * zbx + dx0 + drag * (dw0 - vx)
-                ay = tpm * zby + dx1 + drag * (dw1 - vy)
-                az = tpm * zbz + dx2 + drag * (dw2 - vz)
-                if use_drag:  # quadratic drag on the air-relative velocity
-                    wa0, wa1, wa2 = sc[F_WA * L + lane], sc[(F_WA + 1) * L + lane], sc[(F_WA + 2) * L + lane]
-                    wb0, wb1, wb2 = sc[F_WB * L + lane], sc[(F_WB + 1) * L + lane], sc[(F_WB + 2) * L + lane]
-                    # The wind at the flown position: the table's (at the plan, linear on its grid) plus
-                    # the first-order terms of the displacement q, clamped (_tables.flown_wind).
-                    dqx, dqy, dqz = min(max(qx, -wrad), wrad), min(max(qy, -wrad), wrad), min(max(qz, -wrad), wrad)
-                    hz = SHEAR_LINEAR_RADIUS_FRACTION * (pz - qz)  # pz - qz: the planned height at t
-                    dsz = min(max(qz, -hz), hz)
-                    oj = F_WJ * L + lane
-                    jx = (sc[oj] * dqx + sc[oj + L] * dqy + sc[oj + 2 * L] * dqz) + sc[oj + 9 * L] * dsz
-                    jy = (sc[oj + 3 * L] * dqx + sc[oj + 4 * L] * dqy + sc[oj + 5 * L] * dqz) + sc[oj + 10 * L] * dsz
-                    jz = sc[oj + 6 * L] * dqx + sc[oj + 7 * L] * dqy + sc[oj + 8 * L] * dqz
-                    rlx = vx - ((wa0 + fw * (wb0 - wa0)) + jx)
-                    rly = vy - ((wa1 + fw * (wb1 - wa1)) + jy)
-                    rlz = vz - ((wa2 + fw * (wb2 - wa2)) + jz)
-                    dsp = sc[(F_DRONE + D_DRAG) * L + lane] * math.sqrt(rlx * rlx + rly * rly + rlz * rlz)
-                    ax -= dsp * rlx
-                    ay -= dsp * rly
-                    az -= dsp * rlz
-                az -= pg
-                odx = (tqx - (wy * (wz * piz) - wz * (wy * piy))) * sc[F_INV * L + lane] + (d2x - sth * d2z)
-                ody = (tqy - (wz * (wx * pix) - wx * (wz * piz))) * sc[(F_INV + 1) * L + lane] + (
-                    cph * d2y + sph * cth * d2z)
-                odz = (tqz - (wx * (wy * piy) - wy * (wx * pix))) * sc[(F_INV + 2) * L + lane] + (
-                    -sph * d2y + cph * cth * d2z)
-                nvx, nvy, nvz = vx + dt * ax, vy + dt * ay, vz + dt * az
-                npx, npy, npz = px + dt * nvx, py + dt * nvy, pz + dt * nvz
-                nwx, nwy, nwz = wx + dt * odx, wy + dt * ody, wz + dt * odz
-                nph = ph + dt * (nwx + w01 * nwy + w02 * nwz)
-                nth = th + dt * (w11 * nwy + w12 * nwz)
-                nps = ps + dt * (w21 * nwy + w22 * nwz)
-                if use_gnss:  # estimator: accelerometer prediction plus the held innovation
-                    nvh0 = cvx + dt * (ax + est_kv * in0)
-                    nvh1 = cvy + dt * (ay + est_kv * in1)
-                    nvh2 = cvz + dt * (az + est_kv * in2)
-                    nph0 = ph0 + dt * (nvh0 + est_kp * in0)
-                    nph1 = ph1 + dt * (nvh1 + est_kp * in1)
-                    nph2 = ph2 + dt * (nvh2 + est_kp * in2)
-                else:
-                    nvh0, nvh1, nvh2, nph0, nph1, nph2 = nvx, nvy, nvz, npx, npy, npz
-
-                # ---- controller state candidates
-                ipx = sc[(F_CTRL + C_IPOS) * L + lane] + dt * (inx + fx)
-                ipy = sc[(F_CTRL + C_IPOS + 1) * L + lane] + dt * (iny + fy)
-                ipz = sc[(F_CTRL + C_IPOS + 2) * L + lane] + dt * (inz + fz)
-                iax = sc[(F_CTRL + C_IATT) * L + lane] + dt * (unax + fax)
-                iay = sc[(F_CTRL + C_IATT + 1) * L + lane] + dt * (unay + fay)
-                iaz = sc[(F_CTRL + C_IATT + 2) * L + lane] + dt * (unaz + faz)
-                ncdx, ncdy, ncdz = cdx + dt * cddx, cdy + dt * cddy, cdz + dt * cddz
-                ncx, ncy, ncz = cx + dt * ncdx, cy + dt * ncdy, cz + dt * ncdz
-                # Anti-windup (as the numpy step): the position u_d and the PID integral frozen
-                # while the command is limited or not delivered, the attitude u_d only while its
-                # torque is not.
-                nie0 = min(max(ie0 + dt * e1x, -ilim), ilim) if abs(e1x) < izone else ie0
-                nie1 = min(max(ie1 + dt * e1y, -ilim), ilim) if abs(e1y) < izone else ie1
-                nie2 = min(max(ie2 + dt * e1z, -ilim), ilim) if abs(e1z) < izone else ie2
-                nie0 = ie0 if sat else nie0
-                nie1 = ie1 if sat else nie1
-                nie2 = ie2 if sat else nie2
-                udx = ud0 if sat else ud0 + dt * wpx
-                udy = ud1 if sat else ud1 + dt * wpy
-                udz = ud2 if sat else ud2 + dt * wpz
-                uadx = uda0 if clipped else uda0 + dt * wax
-                uady = uda1 if clipped else uda1 + dt * way
-                uadz = uda2 if clipped else uda2 + dt * waz
-
-                # Telemetry of this step (copied out at frame steps for the drones that flew it).
-                sc[(F_TEL + 0) * L + lane] = qx
-                sc[(F_TEL + 1) * L + lane] = qy
-                sc[(F_TEL + 2) * L + lane] = qz
-                sc[(F_TEL + 3) * L + lane] = e3x
-                sc[(F_TEL + 4) * L + lane] = e3y
-                sc[(F_TEL + 5) * L + lane] = e3z
-                sc[(F_TEL + 6) * L + lane] = ph - rph
-                sc[(F_TEL + 7) * L + lane] = th - rth
-                sc[(F_TEL + 8) * L + lane] = ps - rps
-                sc[(F_TEL + 9) * L + lane] = thrust
-                sc[(F_TEL + 10) * L + lane] = tqx
-                sc[(F_TEL + 11) * L + lane] = tqy
-                sc[(F_TEL + 12) * L + lane] = tqz
-                sc[(F_TEL + 13) * L + lane] = 1.0 if sat else 0.0
-                sc[F_TELOK * L + lane] = 1.0 if alive & err_ok else 0.0
-
-                # A step that is not finite everywhere is not committed (the drone stops here).
-                # (Any NaN or inf makes the sum non-finite; independent partial sums keep the
-                # dependency chain short.)
-                check = (((npx + npy + npz) + (nvx + nvy + nvz)) + ((nph + nth + nps) + (nwx + nwy + nwz))
-                         + ((ipx + ipy + ipz) + (iax + iay + iaz)) + ((udx + udy + udz) + (uadx + uady + uadz))
-                         + ((ncx + ncy + ncz) + (ncdx + ncdy + ncdz)) + ((sx + sy + sz) + (sax + say + saz))
-                         + thrust + ((nph0 + nph1 + nph2) + (nvh0 + nvh1 + nvh2)) + (nie0 + nie1 + nie2))
-                finite = math.isfinite(check)
-                ok = alive & err_ok & finite
-                died = alive and not ok
-                sc[F_ALIVE * L + lane] = 1.0 if ok else 0.0
-                sc[F_DSTEP * L + lane] = kf_step if died else sc[F_DSTEP * L + lane]
-                far = DIVERGED_OVERPOWERED if lf_old > LIMITED_FRACTION else DIVERGED_RUNAWAY
-                why = far if (not err_ok) and err > limit else DIVERGED_NONFINITE
-                why = DIVERGED_GROUND if below else why
-                sc[F_REASON * L + lane] = float(why) if died else sc[F_REASON * L + lane]
-
-                # Statistics and the commit, for the drones that flew this step.
-                so = F_STAT * L + lane
-                ssum, smax = sc[so + STAT_SUMSQ * L], sc[so + STAT_MAX * L]
-                sdth, scount = sc[so + STAT_DTHRUST * L], sc[so + STAT_COUNT * L]
-                last_thrust = sc[(F_CTRL + C_LAST_THRUST) * L + lane]
-                sc[so + STAT_SUMSQ * L] = ssum + err * err if ok else ssum
-                sc[so + STAT_MAX * L] = max(smax, err) if ok else smax
-                sc[so + STAT_DTHRUST * L] = max(sdth, abs(thrust - last_thrust)) if ok else sdth
-                sc[so + STAT_COUNT * L] = scount + 1.0 if ok else scount
-
-                _commit(sc, F_STATE + 0, lane, npx, ok)
-                _commit(sc, F_STATE + 1, lane, npy, ok)
-                _commit(sc, F_STATE + 2, lane, npz, ok)
-                _commit(sc, F_STATE + 3, lane, nvx, ok)
-                _commit(sc, F_STATE + 4, lane, nvy, ok)
-                _commit(sc, F_STATE + 5, lane, nvz, ok)
-                _commit(sc, F_STATE + 6, lane, nph, ok)
-                _commit(sc, F_STATE + 7, lane, nth, ok)
-                _commit(sc, F_STATE + 8, lane, nps, ok)
-                _commit(sc, F_STATE + 9, lane, nwx, ok)
-                _commit(sc, F_STATE + 10, lane, nwy, ok)
-                _commit(sc, F_STATE + 11, lane, nwz, ok)
-                _commit(sc, F_CTRL + C_IPOS, lane, ipx, ok)
-                _commit(sc, F_CTRL + C_IPOS + 1, lane, ipy, ok)
-                _commit(sc, F_CTRL + C_IPOS + 2, lane, ipz, ok)
-                _commit(sc, F_CTRL + C_UD, lane, udx, ok)
-                _commit(sc, F_CTRL + C_UD + 1, lane, udy, ok)
-                _commit(sc, F_CTRL + C_UD + 2, lane, udz, ok)
-                _commit(sc, F_CTRL + C_SPREV, lane, sx, ok)
-                _commit(sc, F_CTRL + C_SPREV + 1, lane, sy, ok)
-                _commit(sc, F_CTRL + C_SPREV + 2, lane, sz, ok)
-                _commit(sc, F_CTRL + C_IATT, lane, iax, ok)
-                _commit(sc, F_CTRL + C_IATT + 1, lane, iay, ok)
-                _commit(sc, F_CTRL + C_IATT + 2, lane, iaz, ok)
-                _commit(sc, F_CTRL + C_UDA, lane, uadx, ok)
-                _commit(sc, F_CTRL + C_UDA + 1, lane, uady, ok)
-                _commit(sc, F_CTRL + C_UDA + 2, lane, uadz, ok)
-                _commit(sc, F_CTRL + C_SAPREV, lane, sax, ok)
-                _commit(sc, F_CTRL + C_SAPREV + 1, lane, say, ok)
-                _commit(sc, F_CTRL + C_SAPREV + 2, lane, saz, ok)
-                _commit(sc, F_CTRL + C_THC, lane, ncx, ok)
-                _commit(sc, F_CTRL + C_THC + 1, lane, ncy, ok)
-                _commit(sc, F_CTRL + C_THC + 2, lane, ncz, ok)
-                _commit(sc, F_CTRL + C_THC_DOT, lane, ncdx, ok)
-                _commit(sc, F_CTRL + C_THC_DOT + 1, lane, ncdy, ok)
-                _commit(sc, F_CTRL + C_THC_DOT + 2, lane, ncdz, ok)
-                _commit(sc, F_CTRL + C_LAST_THRUST, lane, thrust, ok)
-                _commit(sc, F_CTRL + C_IERR, lane, nie0, ok)
-                _commit(sc, F_CTRL + C_IERR + 1, lane, nie1, ok)
-                _commit(sc, F_CTRL + C_IERR + 2, lane, nie2, ok)
-                _commit(sc, F_CTRL + C_PHAT, lane, nph0, ok)
-                _commit(sc, F_CTRL + C_PHAT + 1, lane, nph1, ok)
-                _commit(sc, F_CTRL + C_PHAT + 2, lane, nph2, ok)
-                _commit(sc, F_CTRL + C_VHAT, lane, nvh0, ok)
-                _commit(sc, F_CTRL + C_VHAT + 1, lane, nvh1, ok)
-                _commit(sc, F_CTRL + C_VHAT + 2, lane, nvh2, ok)
-                _commit(sc, F_CTRL + C_INNOV, lane, in0, ok)
-                _commit(sc, F_CTRL + C_INNOV + 1, lane, in1, ok)
-                _commit(sc, F_CTRL + C_INNOV + 2, lane, in2, ok)
-                _commit(sc, F_CTRL + C_ROTOR, lane, o1, ok)
-                _commit(sc, F_CTRL + C_ROTOR + 1, lane, o2, ok)
-                _commit(sc, F_CTRL + C_ROTOR + 2, lane, o3, ok)
-                _commit(sc, F_CTRL + C_ROTOR + 3, lane, o4, ok)
-                _commit(sc, F_CTRL + C_GATE, lane, gcount, ok)
-                _commit(sc, F_CTRL + C_RESET, lane, rs0, ok)
-                _commit(sc, F_CTRL + C_RESET + 1, lane, rs1, ok)
-                _commit(sc, F_CTRL + C_RESET + 2, lane, rs2, ok)
-                _commit(sc, F_CTRL + C_LIMITED, lane, lf_new, ok)
-
+            outer = k == next_outer
+            if outer:
+                next_outer += kev
+            # The step's place in the outer loop's period (0 when it runs) and the ramp's weight.
+            phase = k - (next_outer - kev)
+            wgt = float(kev - 1 - phase) / float(kev)
+            stp = (t, off0, off1, off2, off3, off4, off5, off6, off7, off8, rps, ysin, ycos, dx0, dx1, dx2,
+                   dw0, dw1, dw2, d2x, d2y, d2z, kf_step, t_batt, fw, wgt)
+            # The outer loop runs at steps k = 0 mod K (a counter, as the frames'), uniform over the
+            # lanes: the branch sits outside the lane loops, one loop body each (``_lane_step``).
+            if outer:
+                for lane in range(nl):
+                    _lane_step(sc, lane, True, epoch, cst, flg, stp)
+            else:
+                for lane in range(nl):
+                    _lane_step(sc, lane, False, epoch, cst, flg, stp)
             if use_tel and rec:
                 fr = k // every
                 for lane in range(cnt):

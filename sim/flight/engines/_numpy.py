@@ -59,16 +59,22 @@ from sim.flight.engines._state import (
     C_INNOV,
     C_IPOS,
     C_LAST_THRUST,
+    C_LIMHOLD,
     C_LIMITED,
     C_PHAT,
+    C_PUSHHOLD,
     C_RESET,
+    C_RHOLD,
     C_ROTOR,
+    C_RPREV,
     C_SAPREV,
     C_SPREV,
     C_THC,
     C_THC_DOT,
     C_UD,
     C_UDA,
+    C_UHOLD,
+    C_UNORM,
     C_VHAT,
     CTRL_SIZE,
     D_CLOCK,
@@ -129,6 +135,11 @@ def init_controller(
     ctrl[:, C_LAST_THRUST] = params.mass_kg * np.sum(u * thrust_axis(euler), axis=1)
     ctrl[:, C_PHAT:C_PHAT + 3] = p
     ctrl[:, C_VHAT:C_VHAT + 3] = v
+    # The outer loop's held outputs (step 0 always runs it, so these are only a defined start).
+    ctrl[:, C_UHOLD:C_UHOLD + 3] = u
+    ctrl[:, C_RHOLD:C_RHOLD + 2] = theta_ref[:, 0:2]
+    ctrl[:, C_RPREV:C_RPREV + 2] = theta_ref[:, 0:2]
+    ctrl[:, C_UNORM] = np.sqrt(np.sum(u * u, axis=1))
     # The motors start at the first thrust command, level (the lag then acts on the changes).
     ctrl[:, C_ROTOR:C_ROTOR + 4] = np.clip(ctrl[:, C_LAST_THRUST] / (4.0 * params.k_f), 0.0,
                                            params.omega_max_sq)[:, None]
@@ -143,9 +154,16 @@ def numpy_step(
     yaw: np.ndarray, dist: np.ndarray, t_s: float, disturbance: Disturbance,
     params: QuadrotorParams, plant: QuadrotorParams, gains: IsmcGains, dt_s: float,
     integrator: str = "euler", drone: np.ndarray | None = None, gnss: np.ndarray | None = None,
-    wind: np.ndarray | None = None, errors: ErrorSwitches | None = None,
+    wind: np.ndarray | None = None, errors: ErrorSwitches | None = None, phase: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One control + integration step for every drone given.
+
+    The outer loop (the position law, the limiter, the attitude resolution, their integrators)
+    runs only at ``phase`` 0 (every ``K = gains.outer_every(dt_s)`` steps, with step ``K dt``);
+    in between its outputs held in the controller state are used (zero-order hold), except the
+    command filter's input Θ_ref (roll, pitch), which ramps linearly from the previous run's to
+    this run's over the K steps (a step of Θ_ref every K ms through the 300 rad/s filter made
+    torque spikes that saturated the rotors and flipped drones at K = 4).
 
     Args:
         state: ``(N, 12)`` plant state at ``t_s``.
@@ -165,6 +183,7 @@ def numpy_step(
         gnss: ``(N, 3)`` GNSS measurement error (m) when this step is a GNSS epoch, else None.
         wind: ``(N, 3)`` wind at the drones' flown positions (m/s) for the quadratic drag, or None.
         errors: Which error-model parts are on (default: none).
+        phase: This step's place in the outer loop's period, ``k mod K`` (0: the outer loop runs).
 
     Returns:
         ``(new_state, new_ctrl, telemetry (N, TEL_SIZE))``; telemetry is at ``t_s`` (its
@@ -208,26 +227,52 @@ def numpy_step(
     else:
         p_c, v_c = p, v
 
-    # --- position loop (spec 4)
-    e1, e2 = p_c - pr, v_c - vr
+    # --- position loop (spec 4), every K steps; its outputs are held in between
+    k_outer = gains.outer_every(dt_s)
+    dt_o = k_outer * dt_s
+    outer = phase == 0
+    z_b = thrust_axis(euler)
     f = -ar.copy()
     f[:, 2] -= g
-    u_n = ismc_nominal(e1, e2, f, k_a=pg.k1, k_b=pg.k2, r_a=pg.r1, r_b=pg.r2)
-    s = e2 - c[:, C_E2_0:C_E2_0 + 3] - c[:, C_IPOS:C_IPOS + 3]
-    w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha, eps=eps_p, eps_diff=eps_pq)
-    u = u_n + c[:, C_UD:C_UD + 3]
-    u = u - pg.ki * c[:, C_IERR:C_IERR + 3]  # PID baseline's integral (0 for the ISMC)
-    u_wanted = u
-    u, limited = limit_thrust_accel(u, min_z=pg.min_thrust_accel_mps2, tan_tilt=float(np.tan(pg.max_tilt_rad)))
-    # While limited, s integrates the nominal law minus what the limiter took away, so that
-    # u_d does not learn the limiter as a disturbance (and wind up through it).
-    u_n_int = np.where(limited[:, None], u_n + (u - u_wanted), u_n)
-    z_b = thrust_axis(euler)
+    th_c, th_c_dot = c[:, C_THC:C_THC + 3], c[:, C_THC_DOT:C_THC_DOT + 3]
+    if outer:
+        e1, e2 = p_c - pr, v_c - vr
+        u_n = ismc_nominal(e1, e2, f, k_a=pg.k1, k_b=pg.k2, r_a=pg.r1, r_b=pg.r2)
+        s = e2 - c[:, C_E2_0:C_E2_0 + 3] - c[:, C_IPOS:C_IPOS + 3]
+        w_pos = ismc_switching(s, c[:, C_SPREV:C_SPREV + 3], gain=pg.alpha, eps=eps_p, eps_diff=eps_pq)
+        u = u_n + c[:, C_UD:C_UD + 3]
+        u = u - pg.ki * c[:, C_IERR:C_IERR + 3]  # PID baseline's integral (0 for the ISMC)
+        u_wanted = u
+        u, limited = limit_thrust_accel(u, min_z=pg.min_thrust_accel_mps2,
+                                        tan_tilt=float(np.tan(pg.max_tilt_rad)))
+        # While limited, s integrates the nominal law minus what the limiter took away, so that
+        # u_d does not learn the limiter as a disturbance (and wind up through it).
+        u_n_int = np.where(limited[:, None], u_n + (u - u_wanted), u_n)
+        # --- attitude reference (spec 5)
+        theta_ref = resolve_attitude(u, np.full(p.shape[0], yaw[0]))
+        # "Pushing back" (see C_LIMITED below) compares u with the error the controller sees.
+        push_back = np.sum(u * e1, axis=1) - g * e1[:, 2] < 0.0
+        u_norm = np.sqrt(np.sum(u * u, axis=1))
+        nc[:, C_UHOLD:C_UHOLD + 3] = u
+        nc[:, C_RPREV:C_RPREV + 2] = c[:, C_RHOLD:C_RHOLD + 2]
+        nc[:, C_RHOLD:C_RHOLD + 2] = theta_ref[:, 0:2]
+        nc[:, C_UNORM] = u_norm
+        nc[:, C_LIMHOLD] = limited.astype(float)
+        nc[:, C_PUSHHOLD] = push_back.astype(float)
+    else:  # zero-order hold of the outer loop's outputs; yaw's reference is the step's own
+        e1 = np.zeros_like(p)  # (telemetry's e1 is the caller's, against the plan)
+        u = c[:, C_UHOLD:C_UHOLD + 3]
+        theta_ref = np.column_stack([c[:, C_RHOLD:C_RHOLD + 2], np.full(p.shape[0], yaw[0])])
+        u_norm = c[:, C_UNORM]
+        limited = c[:, C_LIMHOLD] > 0.5
+        push_back = c[:, C_PUSHHOLD] > 0.5
+    # The filter's input ramps from the previous run's Θ_ref to this run's: weight (K-1-phase)/K of
+    # the step between them is still to come (0 at K = 1: exactly Θ_ref).
+    wgt = (k_outer - 1 - phase) / k_outer
+    theta_ref[:, 0:2] = theta_ref[:, 0:2] - wgt * (theta_ref[:, 0:2] - nc[:, C_RPREV:C_RPREV + 2])
     thrust_cmd = m * np.sum(u * z_b, axis=1)  # eq. 22: projection on the current body axis
 
-    # --- attitude reference (spec 5) and command filter
-    theta_ref = resolve_attitude(u, np.full(p.shape[0], yaw[0]))
-    th_c, th_c_dot = c[:, C_THC:C_THC + 3], c[:, C_THC_DOT:C_THC_DOT + 3]
+    # --- command filter (every step)
     th_c_ddot = fl.acceleration(theta_ref, th_c, th_c_dot)
 
     # --- attitude loop (spec 6)
@@ -259,8 +304,7 @@ def numpy_step(
     # axis follows it (a tumbling drone's command sits at the limit too). A decaying average of it
     # tells a drone blown off by too much wind ("overpowered") from unstable control, whose
     # command pushes along the error ("runaway"); see engines._state.
-    push_back = np.sum(u * e1, axis=1) - g * e1[:, 2] < 0.0
-    follows = np.sum(u * z_b, axis=1) > LIMITED_ALIGN_COS * np.sqrt(np.sum(u * u, axis=1))
+    follows = np.sum(u * z_b, axis=1) > LIMITED_ALIGN_COS * u_norm
     held = (saturated & push_back & follows).astype(float)
     nc[:, C_LIMITED] = c[:, C_LIMITED] + (dt_s / LIMITED_TAU_S) * (held - c[:, C_LIMITED])
     if sw.motor:
@@ -273,20 +317,22 @@ def numpy_step(
     torque = torque * gain[:, None]
 
     # --- controller state update
-    nc[:, C_IPOS:C_IPOS + 3] += dt_s * (u_n_int + f)
-    nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_s * w_pos)
-    nc[:, C_SPREV:C_SPREV + 3] = s
+    if outer:  # the outer loop's integrators, with its own step
+        nc[:, C_IPOS:C_IPOS + 3] += dt_o * (u_n_int + f)
+        nc[:, C_UD:C_UD + 3] += np.where(saturated[:, None], 0.0, dt_o * w_pos)
+        nc[:, C_SPREV:C_SPREV + 3] = s
     nc[:, C_IATT:C_IATT + 3] += dt_s * (u_na + f_a)
     nc[:, C_UDA:C_UDA + 3] += np.where(torque_short[:, None], 0.0, dt_s * w_att)
     nc[:, C_SAPREV:C_SAPREV + 3] = s_a
     nc[:, C_THC_DOT:C_THC_DOT + 3] = th_c_dot + dt_s * th_c_ddot
     nc[:, C_THC:C_THC + 3] = th_c + dt_s * nc[:, C_THC_DOT:C_THC_DOT + 3]
     nc[:, C_LAST_THRUST] = thrust
-    lim = pg.integral_limit
-    grow = ~saturated[:, None] & (np.abs(e1) < pg.integral_zone)
-    nc[:, C_IERR:C_IERR + 3] = np.where(
-        grow, np.minimum(np.maximum(c[:, C_IERR:C_IERR + 3] + dt_s * e1, -lim), lim), c[:, C_IERR:C_IERR + 3],
-    )
+    if outer:
+        lim = pg.integral_limit
+        grow = ~saturated[:, None] & (np.abs(e1) < pg.integral_zone)
+        nc[:, C_IERR:C_IERR + 3] = np.where(
+            grow, np.minimum(np.maximum(c[:, C_IERR:C_IERR + 3] + dt_o * e1, -lim), lim), c[:, C_IERR:C_IERR + 3],
+        )
 
     # --- plant
     pmass = d[:, D_MASS]
@@ -357,6 +403,7 @@ def run_chunk_numpy(
     drone = opts.get("drone")
     if drone is None:
         drone = ideal_drone_constants(opts["plant"], state.shape[0])
+    outer_every = opts["gains"].outer_every(opts["dt_s"])
     for j in range(times.size):
         k = step0 + j
         alive = dstep < 0
@@ -384,7 +431,7 @@ def run_chunk_numpy(
                 state, ctrl, pr=pc, vr=vc, ar=ac, yaw=chunk.yaw[j], dist=dist[j], t_s=times[j],
                 disturbance=opts["disturbance"], params=opts["params"], plant=opts["plant"],
                 gains=opts["gains"], dt_s=opts["dt_s"], integrator=opts["integrator"],
-                drone=drone, gnss=gnss, wind=wind, errors=sw,
+                drone=drone, gnss=gnss, wind=wind, errors=sw, phase=k % outer_every,
             )
             trow[:, 0:3] = state[:, 0:3] - pr
         bad = alive & ~(np.all(np.isfinite(ns), axis=1) & np.all(np.isfinite(nc), axis=1))

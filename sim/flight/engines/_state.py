@@ -55,7 +55,17 @@ C_LIMITED = 48
 # What the last estimator resets moved p̂ by, not yet passed on to the controller (m): it
 # sees p̂ - this, which returns to p̂ at <= reset_mps per axis (3).
 C_RESET = 49
-CTRL_SIZE = 52
+# The outer (position) loop's outputs, held between its runs (IsmcGains.position_rate_hz): the
+# limited command u (m/s², 3), Θ_ref's roll and pitch (rad, 2) and those of the run before (2;
+# the command filter's input ramps from those to these over the K steps), ||u||, and the flags
+# "limited" and "pushing back" (1.0 / 0.0) that the anti-windup and C_LIMITED read in between.
+C_UHOLD = 52
+C_RHOLD = 55
+C_RPREV = 57
+C_UNORM = 59
+C_LIMHOLD = 60
+C_PUSHHOLD = 61
+CTRL_SIZE = 62
 
 #: Time constant (s) of the C_LIMITED average: "most of the last second".
 LIMITED_TAU_S = 1.0
