@@ -191,7 +191,7 @@ def test_a_compile_note_of_the_job_shows_beside_the_progress(ui: Page):
     job's answers are routed here (a real cold compile costs minutes), in the shape the API gives."""
     page = ui.page
     _open(ui, show_doc("Compile note", hold_s=2.0))
-    note = "compiling the flight kernel for this machine (first run, ~1-2 min of CPU; cached afterwards)"
+    note = "compiling the flight kernel for this machine (first run, a few minutes of CPU; cached afterwards)"
     job = {"id": "jnote", "kind": "simulate", "state": "running", "progress": 0.05, "note": note}
     later = {**job, "progress": 0.4, "note": ""}
     page.route("**/simulate", lambda route: route.fulfill(status=202, json=job))

@@ -15,7 +15,7 @@ import pytest
 
 from app.jobs import ErrorKind, Job, JobManager, JobState
 
-NOTE = "compiling the flight kernel for this machine (first run, ~1-2 min of CPU; cached afterwards)"
+NOTE = "compiling the flight kernel for this machine (first run, a few minutes of CPU; cached afterwards)"
 
 
 def _manager_with(job: Job) -> tuple[types.SimpleNamespace, list[dict]]:

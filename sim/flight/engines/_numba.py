@@ -220,7 +220,7 @@ __all__ = ["COMPILE_NOTE", "LANES", "run_chunk_numba"]
 #: Logged (``WARNING``, this module's logger, a child of ``sim``) once per process and kernel
 #: specialisation before a compile that the disk cache cannot spare: a first run sat silent for
 #: minutes otherwise. The CLI prints ``sim``'s warnings on stderr (``app.cli``).
-COMPILE_NOTE = "compiling the flight kernel for this machine (first run, ~1-2 min of CPU; cached afterwards)"
+COMPILE_NOTE = "compiling the flight kernel for this machine (first run, a few minutes of CPU; cached afterwards)"
 _log = logging.getLogger(__name__)
 
 #: Drones per block: the lane loop's trip count (one AVX-512 or two AVX2 vectors of float64). Eight,
