@@ -1,0 +1,94 @@
+"""More defects a show designer's walk through the editor found (Chromium against a live server on loopback):
+
+* light-effect and launch-box fields took values the show file refuses (an effect starting at -5 s, a strobe duty
+  of 5, 0 drones per box, 0.1 m between the drones of a box) with no mark: only the save said so, turning the
+  show into a draft whose panel named them in the API's words; they are now marked at once, as the settings are;
+* Check, Simulate and Export on a draft show asked the server anyway (a 422 in the console at each press); the
+  editor knows it is a draft, says so and points at the draft panel;
+* the first music upload on a server (librosa's beat tracker compiles once per machine, 1-2 min) said only
+  "Analysing music.wav…" for minutes; after a short wait it now says why, and the note goes when the answer comes.
+"""
+
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from formations._effects import LightEffect, StrobeKind
+from formations._launch import LaunchBoxes
+from tests.live_server import BROWSER_MARKS, server_for
+from tests.test_api_jobs import show_doc
+from tests.test_editor_browser import Page
+
+pytestmark = BROWSER_MARKS
+sync_api = pytest.importorskip("playwright.sync_api")
+expect = sync_api.expect
+
+server = server_for("designwalk2-data")
+
+
+def _open(ui: Page, doc: dict, *, draft: bool = False) -> str:
+    r = httpx.post(f"{ui.base}/api/shows", json=doc, params={"draft": "true"} if draft else None)
+    assert r.status_code == 201, r.text
+    show_id = r.json()["id"]
+    ui.page.goto(f"{ui.base}/?show={show_id}")
+    expect(ui.page.locator("#show-title")).to_have_text(doc["name"])
+    return show_id
+
+
+def _limit(model: type, field: str, key: str) -> str:
+    """The bound the show file's rule puts on a field (its JSON schema), written as the editor writes numbers."""
+    bound = model.model_json_schema()["properties"][field]
+    value = bound.get(key, bound.get("exclusiveM" + key[1:]))
+    return f"{value:g}"
+
+
+def _puts(page) -> list[str]:
+    seen: list[str] = []
+    page.on("request", lambda r: seen.append(r.url) if r.method == "PUT" else None)
+    return seen
+
+
+def test_effect_and_launch_fields_out_of_range_are_marked_at_once(ui: Page):
+    page = ui.page
+    _open(ui, show_doc("Effect limits"))
+    saves = _puts(page)
+    page.locator("#effects-panel summary").click()
+    page.select_option("#fx-kind", "strobe")
+    page.get_by_role("button", name="Add a light effect").click()
+    start = page.get_by_role("spinbutton", name="Effect start (s)", exact=True)
+    duty = page.get_by_role("spinbutton", name="Effect duty", exact=True)
+    for field, typed, said in [(start, "-5", f"at least {_limit(LightEffect, 'start_s', 'minimum')}"),
+                               (duty, "5", f"at most {_limit(StrobeKind, 'duty', 'maximum')}")]:
+        field.fill(typed)
+        field.dispatch_event("change")
+        # The form is drawn again after the edit: the mark is on the new field, next to it.
+        expect(field).to_have_class("has-error")
+        expect(page.locator("#fx-form .field-error").filter(has_text=said)).to_have_count(1)
+    effect = page.evaluate("() => window.swarmshow.state.show.lights.effects[0]")
+    assert effect["start_s"] == -5 and effect["effect"]["duty"] == 5
+    # Back inside: no mark.
+    start.fill("1")
+    start.dispatch_event("change")
+    expect(start).not_to_have_class("has-error")
+
+    page.locator("#launch-panel summary").click()
+    per_box = page.locator("#launch-per-box")
+    spacing = page.locator("#launch-box-spacing")
+    error = page.locator("#launch-error")
+    per_box.fill("0")
+    per_box.dispatch_event("change")
+    expect(per_box).to_have_class("has-error")
+    expect(error).to_have_text(f"Drones per box: at least {_limit(LaunchBoxes, 'per_box', 'minimum')}")
+    spacing.fill("0.1")
+    spacing.dispatch_event("change")
+    expect(spacing).to_have_class("has-error")
+    per_box.fill("8")
+    per_box.dispatch_event("change")
+    expect(per_box).not_to_have_class("has-error")
+    expect(error).to_have_text(f"Spacing in box (m): at least {_limit(LaunchBoxes, 'spacing_m', 'minimum')}")
+    spacing.fill("0.8")
+    spacing.dispatch_event("change")
+    expect(error).to_be_empty()
+    # Marked before any save (the save would have made a draft to say so).
+    assert saves == []
