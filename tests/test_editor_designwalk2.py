@@ -92,3 +92,28 @@ def test_effect_and_launch_fields_out_of_range_are_marked_at_once(ui: Page):
     expect(error).to_be_empty()
     # Marked before any save (the save would have made a draft to say so).
     assert saves == []
+
+
+def test_check_simulate_export_of_a_draft_point_at_the_draft_panel(ui: Page):
+    page = ui.page
+    doc = show_doc("Draft actions")
+    doc["settings"]["max_speed_xy_mps"] = 500.0  # over the show file's 100 m/s
+    _open(ui, doc, draft=True)
+    expect(page.locator("#draft-panel")).to_be_visible()
+    asked: list[str] = []
+    page.on("request", lambda r: asked.append(r.url) if r.method == "POST" or "/export/" in r.url else None)
+    page.get_by_role("button", name="Check the show").click()
+    expect(page.locator("#report-body")).to_contain_text("draft panel")
+    expect(page.locator("#report-body")).to_contain_text("1 problem")
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-body")).to_contain_text("draft panel")
+    page.get_by_role("button", name="Export in the chosen format").click()
+    expect(page.locator("#export-error")).to_contain_text("draft panel")
+    page.wait_for_timeout(300)
+    assert [u for u in asked if "/api/" in u] == []
+    # Saved valid, Check asks the server again.
+    page.evaluate("() => { document.querySelector('#settings-panel').open = true; }")
+    page.fill("#set-vxy", "10")
+    page.locator("#set-vxy").dispatch_event("change")
+    with page.expect_request(lambda r: r.url.endswith("/check")):
+        page.get_by_role("button", name="Check the show").click()
