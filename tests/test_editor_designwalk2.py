@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import time
+
 import httpx
 import pytest
 
@@ -117,3 +119,30 @@ def test_check_simulate_export_of_a_draft_point_at_the_draft_panel(ui: Page):
     page.locator("#set-vxy").dispatch_event("change")
     with page.expect_request(lambda r: r.url.endswith("/check")):
         page.get_by_role("button", name="Check the show").click()
+
+
+def test_a_slow_first_music_analysis_says_why(ui: Page):
+    page = ui.page
+    show_id = _open(ui, show_doc("Slow music"))
+    held = []
+    # The PUT is held here (a cold beat-tracker compile takes minutes) and answered late, in the API's shape.
+    page.route(f"**/api/shows/{show_id}/audio?filename=*", lambda route: held.append(route))
+    info = {"filename": "music.wav", "duration_s": 3.0, "tempo_bpm": 120.0, "sha256": "0" * 64,
+            "sample_rate": 22050, "channels": 1}
+    page.route(f"**/api/shows/{show_id}/audio/info", lambda route: route.fulfill(json=info))
+    page.route(f"**/api/shows/{show_id}/audio/analysis",
+               lambda route: route.fulfill(json={"duration_s": 3.0, "tempo_bpm": 120.0, "beats_s": [0.5, 1.0],
+                                                 "onsets_s": [], "peaks": [], "peaks_per_s": 10}))
+    status = page.locator("#music-status")
+    note = "compiles the beat tracker (1-2 min)"
+    t0 = time.monotonic()
+    page.set_input_files("#music-file", files=[{"name": "music.wav", "mimeType": "audio/wav", "buffer": b"RIFF"}])
+    expect(status).to_have_text("Analysing music.wav…")
+    expect(status).to_contain_text(note, timeout=15_000)
+    waited_s = time.monotonic() - t0
+    assert 7.0 <= waited_s <= 12.0, waited_s
+    expect(status).to_contain_text("later uploads take seconds")
+    assert len(held) == 1
+    held[0].fulfill(json=info)
+    expect(status).to_contain_text("music.wav · 3.0 s · 120.0 BPM")
+    expect(status).not_to_contain_text(note)
