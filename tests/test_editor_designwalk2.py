@@ -15,6 +15,7 @@ import time
 
 import httpx
 import pytest
+from pydantic import ValidationError
 
 from formations._effects import LightEffect, StrobeKind
 from formations._launch import LaunchBoxes
@@ -40,9 +41,7 @@ def _open(ui: Page, doc: dict, *, draft: bool = False) -> str:
 
 def _limit(model: type, field: str, key: str) -> str:
     """The bound the show file's rule puts on a field (its JSON schema), written as the editor writes numbers."""
-    bound = model.model_json_schema()["properties"][field]
-    value = bound.get(key, bound.get("exclusiveM" + key[1:]))
-    return f"{value:g}"
+    return f"{model.model_json_schema()['properties'][field][key]:g}"
 
 
 def _puts(page) -> list[str]:
@@ -60,15 +59,19 @@ def test_effect_and_launch_fields_out_of_range_are_marked_at_once(ui: Page):
     page.get_by_role("button", name="Add a light effect").click()
     start = page.get_by_role("spinbutton", name="Effect start (s)", exact=True)
     duty = page.get_by_role("spinbutton", name="Effect duty", exact=True)
+    # Duty's bounds are strict (0 < duty < 1): 1 is refused as 5 is.
+    with pytest.raises(ValidationError):
+        StrobeKind(kind="strobe", color="#ffffff", duty=1.0)
     for field, typed, said in [(start, "-5", f"at least {_limit(LightEffect, 'start_s', 'minimum')}"),
-                               (duty, "5", f"at most {_limit(StrobeKind, 'duty', 'maximum')}")]:
+                               (duty, "5", f"less than {_limit(StrobeKind, 'duty', 'exclusiveMaximum')}"),
+                               (duty, "1", f"less than {_limit(StrobeKind, 'duty', 'exclusiveMaximum')}")]:
         field.fill(typed)
         field.dispatch_event("change")
         # The form is drawn again after the edit: the mark is on the new field, next to it.
         expect(field).to_have_class("has-error")
         expect(page.locator("#fx-form .field-error").filter(has_text=said)).to_have_count(1)
     effect = page.evaluate("() => window.swarmshow.state.show.lights.effects[0]")
-    assert effect["start_s"] == -5 and effect["effect"]["duty"] == 5
+    assert effect["start_s"] == -5 and effect["effect"]["duty"] == 1
     # Back inside: no mark.
     start.fill("1")
     start.dispatch_event("change")

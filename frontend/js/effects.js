@@ -470,13 +470,18 @@ export class EffectsPanel {
       form.append(div);
       return input;
     };
-    /** @param {string} label @param {any} value @param {(v: number, fx: any) => void} set @param {object} [attrs] */
+    /**
+     * @param {string} label @param {any} value @param {(v: number, fx: any) => void} set
+     * @param {object} [attrs] the input's properties (min, max, step) and `exclusive`: its strict bounds ("min", "max", "min max")
+     */
     const num = (label, value, set, attrs = {}) => {
       const input = document.createElement("input");
       input.type = "number";
       input.step = "any";
       input.value = String(value ?? "");
-      Object.assign(input, attrs);
+      const { exclusive, ...props } = /** @type {any} */ (attrs);
+      Object.assign(input, props);
+      if (exclusive) input.dataset.exclusive = exclusive;
       // Outside the show file's limit: applied (the save keeps a draft) and marked at once, in the editor's words.
       const err = document.createElement("span");
       err.className = "field-error";
@@ -526,7 +531,7 @@ export class EffectsPanel {
     name.addEventListener("change", () => this.change(k, "Rename effect", (c) => { c.name = name.value; }));
     row("name", name);
     num("start (s)", fx.start_s, (v, c) => { c.start_s = v; }, { min: "0", max: MAX_TIME_S });
-    num("end (s)", fx.end_s, (v, c) => { c.end_s = v; }, { min: "0", max: MAX_TIME_S });
+    num("end (s)", fx.end_s, (v, c) => { c.end_s = v; }, { min: "0", max: MAX_TIME_S, exclusive: "min" });
     num("fade in (s)", fx.fade_in_s ?? 0, (v, c) => { c.fade_in_s = v; }, { min: "0", max: MAX_TIME_S });
     num("fade out (s)", fx.fade_out_s ?? 0, (v, c) => { c.fade_out_s = v; }, { min: "0", max: MAX_TIME_S });
     sel("blend", BLENDS, fx.blend || "replace", (v, c) => { c.blend = v; });
@@ -618,20 +623,20 @@ export class EffectsPanel {
       sel("mode", ["linear", "radial"], e.mode || "linear", (v, c) => { c.effect.mode = v; });
       if ((e.mode || "linear") === "linear") vec("axis", e.axis || [1, 0, 0], (v, c) => { c.effect.axis = v; });
       else vec("centre (m)", e.center_m || [0, 0, 0], (v, c) => { c.effect.center_m = v; });
-      num("length (m)", e.length_m ?? 20, (v, c) => { c.effect.length_m = v; }, { min: "0" });
+      num("length (m)", e.length_m ?? 20, (v, c) => { c.effect.length_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       num("speed (m/s)", e.speed_mps ?? 10, (v, c) => { c.effect.speed_mps = v; });
     } else if (e.kind === "chase") {
       sel("order", ["index", "x", "y", "z"], e.order || "index", (v, c) => { c.effect.order = v; });
       sel("shape", ["pulse", "wave"], e.shape || "pulse", (v, c) => { c.effect.shape = v; });
       num("period (s)", e.period_s ?? 2, (v, c) => { c.effect.period_s = v; }, { min: "0.02", max: MAX_TIME_S });
-      num("width", e.width ?? 0.1, (v, c) => { c.effect.width = v; }, { min: "0", max: "1" });
+      num("width", e.width ?? 0.1, (v, c) => { c.effect.width = v; }, { min: "0", max: "1", exclusive: "min" });
     } else if (e.kind === "sparkle") {
       num("density", e.density ?? 0.2, (v, c) => { c.effect.density = v; }, { min: "0", max: "1" });
       num("flash (s)", e.flash_s ?? 0.3, (v, c) => { c.effect.flash_s = v; }, { min: "0.02", max: "60" });
       num("seed", e.seed ?? 0, (v, c) => { c.effect.seed = Math.round(v); }, { min: "0", max: "2147483647", step: "1" });
     } else if (e.kind === "strobe") {
-      num("frequency (Hz)", e.frequency_hz ?? 4, (v, c) => { c.effect.frequency_hz = v; }, { min: "0", max: "25" });
-      num("duty", e.duty ?? 0.5, (v, c) => { c.effect.duty = v; }, { min: "0", max: "1" });
+      num("frequency (Hz)", e.frequency_hz ?? 4, (v, c) => { c.effect.frequency_hz = v; }, { min: "0", max: "25", exclusive: "min" });
+      num("duty", e.duty ?? 0.5, (v, c) => { c.effect.duty = v; }, { min: "0", max: "1", exclusive: "min max" });
     } else if (e.kind === "image") {
       const file = document.createElement("input");
       file.type = "file";
@@ -644,10 +649,10 @@ export class EffectsPanel {
         this.change(k, "Effect images", (c) => { c.effect.frames = urls; });
       });
       row(`images (${(e.frames || []).length})`, file);
-      num("fps", e.fps ?? 10, (v, c) => { c.effect.fps = v; }, { min: "0", max: "60" });
+      num("fps", e.fps ?? 10, (v, c) => { c.effect.fps = v; }, { min: "0", max: "60", exclusive: "min" });
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
-      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
-      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0", max: "100000", exclusive: "min" });
+      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       this._cameraField(k, e);
     } else if (e.kind === "video") {
       const file = document.createElement("input");
@@ -661,8 +666,8 @@ export class EffectsPanel {
       });
       row(e.video ? "video (loaded)" : "video", file);
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
-      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
-      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0", max: "100000", exclusive: "min" });
+      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       this._cameraField(k, e);
     }
   }

@@ -69,17 +69,21 @@ export function fitAllFormations(state) {
 /**
  * Mark a number field whose value is outside its own `min`/`max` (the show file's limits, kept on the input),
  * as the save would name it: "at least lo" / "at most hi" in `errorEl` and the `has-error` class; cleared
- * when inside.
+ * when inside. `data-exclusive="min"`, `"max"` or `"min max"`: that bound is strict (a rule's gt / lt), said
+ * "more than lo" / "less than hi".
  * @param {HTMLInputElement} input @param {number} value @param {Element|null} [errorEl]
  * @returns {string} the message ("" inside the range)
  */
 export function markRange(input, value, errorEl) {
   const lo = input.min !== "" ? Number(input.min) : -Infinity;
   const hi = input.max !== "" ? Number(input.max) : Infinity;
-  const msg = value < lo ? `at least ${lo}` : value > hi ? `at most ${hi}` : "";
-  input.classList.toggle("has-error", msg !== "");
-  if (errorEl) errorEl.textContent = msg;
-  return msg;
+  const strict = (input.dataset.exclusive || "").split(" ");
+  const msg = strict.includes("min") ? (value <= lo ? `more than ${lo}` : "") : value < lo ? `at least ${lo}` : "";
+  const over = strict.includes("max") ? (value >= hi ? `less than ${hi}` : "") : value > hi ? `at most ${hi}` : "";
+  const said = msg || over;
+  input.classList.toggle("has-error", said !== "");
+  if (errorEl) errorEl.textContent = said;
+  return said;
 }
 
 /** Binds the settings form to the open show. */
