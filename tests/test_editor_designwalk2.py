@@ -114,6 +114,8 @@ def test_check_simulate_export_of_a_draft_point_at_the_draft_panel(ui: Page):
     expect(page.locator("#sim-body")).to_contain_text("draft panel")
     page.get_by_role("button", name="Export in the chosen format").click()
     expect(page.locator("#export-error")).to_contain_text("draft panel")
+    page.get_by_role("button", name="3D preview", exact=True).click()
+    expect(page.locator('[data-error-for="preview"]')).to_contain_text("draft panel")
     page.wait_for_timeout(300)
     assert [u for u in asked if "/api/" in u] == []
     # Saved valid, Check asks the server again.
