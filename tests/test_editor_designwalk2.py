@@ -12,13 +12,16 @@
 from __future__ import annotations
 
 import time
+from html.parser import HTMLParser
+from pathlib import Path
 
 import httpx
 import pytest
 from pydantic import ValidationError
 
 from formations._effects import LightEffect, StrobeKind
-from formations._launch import LaunchBoxes
+from formations._launch import BoxGrid, LaunchBoxes
+from formations._show import ShowFile
 from tests.live_server import BROWSER_MARKS, server_for
 from tests.test_api_jobs import show_doc
 from tests.test_editor_browser import Page
@@ -151,3 +154,28 @@ def test_a_slow_first_music_analysis_says_why(ui: Page):
     held[0].fulfill(json=info)
     expect(status).to_contain_text("music.wav · 3.0 s · 120.0 BPM")
     expect(status).not_to_contain_text(note)
+
+
+class _Inputs(HTMLParser):
+    def __init__(self) -> None:
+        super().__init__()
+        self.inputs: dict[str, dict[str, str | None]] = {}
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        if tag == "input" and a.get("id"):
+            self.inputs[str(a["id"])] = a
+
+
+@pytest.mark.parametrize(("input_id", "model", "field"), [
+    ("launch-per-box", LaunchBoxes, "per_box"), ("launch-box-spacing", LaunchBoxes, "spacing_m"),
+    ("launch-grid-spacing", BoxGrid, "spacing_m"), ("set-drones", ShowFile, "drones"),
+])
+def test_the_box_and_drone_count_fields_carry_the_show_files_limits(input_id: str, model: type, field: str):
+    """The marks use each field's min/max: they are the show file's own bounds (its JSON schema)."""
+    parser = _Inputs()
+    parser.feed((Path(__file__).resolve().parent.parent / "frontend" / "index.html").read_text(encoding="utf-8"))
+    attrs = parser.inputs[input_id]
+    bound = model.model_json_schema()["properties"][field]
+    assert float(attrs["min"] or "nan") == bound["minimum"]
+    assert float(attrs["max"] or "nan") == bound["maximum"]
