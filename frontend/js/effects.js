@@ -5,6 +5,7 @@
 import * as api from "./api.js";
 import { setError } from "./errors.js";
 import { allGroups } from "./groups.js";
+import { markRange } from "./settings.js";
 import { evaluateColors, evaluatePlanned, hexToRgb, planUsable, rgbToHex } from "./lighteval.js";
 
 /** Quiet time after the last edit before the 3D view is sent the effects, milliseconds. */
@@ -13,6 +14,8 @@ const VIEWER_DEBOUNCE_MS = 250;
 export const KINDS = ["solid", "ramp", "sweep", "chase", "sparkle", "strobe", "image", "video"];
 /** Widest a video frame is kept for the preview, pixels (as the server keeps it). */
 const VIDEO_WIDTH_PX = 192;
+/** Latest time an effect field takes, seconds (formations/_effects.py MAX_TIME_S: one day). */
+const MAX_TIME_S = "86400";
 const BLENDS = ["replace", "add", "multiply", "max"];
 const TARGETS = ["all", "formation", "points", "drones", "group", "box", "plane"];
 
@@ -467,19 +470,31 @@ export class EffectsPanel {
       form.append(div);
       return input;
     };
-    /** @param {string} label @param {any} value @param {(v: number, fx: any) => void} set @param {object} [attrs] */
+    /**
+     * @param {string} label @param {any} value @param {(v: number, fx: any) => void} set
+     * @param {object} [attrs] the input's properties (min, max, step) and `exclusive`: its strict bounds ("min", "max", "min max")
+     */
     const num = (label, value, set, attrs = {}) => {
       const input = document.createElement("input");
       input.type = "number";
       input.step = "any";
       input.value = String(value ?? "");
-      Object.assign(input, attrs);
+      const { exclusive, ...props } = /** @type {any} */ (attrs);
+      Object.assign(input, props);
+      if (exclusive) input.dataset.exclusive = exclusive;
+      // Outside the show file's limit: applied (the save keeps a draft) and marked at once, in the editor's words.
+      const err = document.createElement("span");
+      err.className = "field-error";
+      err.setAttribute("role", "alert");
       input.addEventListener("change", () => {
         const v = Number(input.value);
         if (input.value === "" || !Number.isFinite(v)) return;
+        markRange(input, v, err);
         this.change(k, `Effect ${label}`, (c) => set(v, c));
       });
-      return row(label, input);
+      row(label, input).after(err);
+      if (value != null && Number.isFinite(Number(value))) markRange(input, Number(value), err);
+      return input;
     };
     /** @param {string} label @param {string[]} options @param {string} value @param {(v: string, fx: any) => void} set */
     const sel = (label, options, value, set) => {
@@ -515,10 +530,10 @@ export class EffectsPanel {
     name.value = fx.name || "";
     name.addEventListener("change", () => this.change(k, "Rename effect", (c) => { c.name = name.value; }));
     row("name", name);
-    num("start (s)", fx.start_s, (v, c) => { c.start_s = v; }, { min: "0" });
-    num("end (s)", fx.end_s, (v, c) => { c.end_s = v; }, { min: "0" });
-    num("fade in (s)", fx.fade_in_s ?? 0, (v, c) => { c.fade_in_s = v; }, { min: "0" });
-    num("fade out (s)", fx.fade_out_s ?? 0, (v, c) => { c.fade_out_s = v; }, { min: "0" });
+    num("start (s)", fx.start_s, (v, c) => { c.start_s = v; }, { min: "0", max: MAX_TIME_S });
+    num("end (s)", fx.end_s, (v, c) => { c.end_s = v; }, { min: "0", max: MAX_TIME_S, exclusive: "min" });
+    num("fade in (s)", fx.fade_in_s ?? 0, (v, c) => { c.fade_in_s = v; }, { min: "0", max: MAX_TIME_S });
+    num("fade out (s)", fx.fade_out_s ?? 0, (v, c) => { c.fade_out_s = v; }, { min: "0", max: MAX_TIME_S });
     sel("blend", BLENDS, fx.blend || "replace", (v, c) => { c.blend = v; });
     num("opacity", fx.opacity ?? 1, (v, c) => { c.opacity = v; }, { min: "0", max: "1" });
     const tg = fx.target || { kind: "all" };
@@ -608,20 +623,20 @@ export class EffectsPanel {
       sel("mode", ["linear", "radial"], e.mode || "linear", (v, c) => { c.effect.mode = v; });
       if ((e.mode || "linear") === "linear") vec("axis", e.axis || [1, 0, 0], (v, c) => { c.effect.axis = v; });
       else vec("centre (m)", e.center_m || [0, 0, 0], (v, c) => { c.effect.center_m = v; });
-      num("length (m)", e.length_m ?? 20, (v, c) => { c.effect.length_m = v; }, { min: "0" });
+      num("length (m)", e.length_m ?? 20, (v, c) => { c.effect.length_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       num("speed (m/s)", e.speed_mps ?? 10, (v, c) => { c.effect.speed_mps = v; });
     } else if (e.kind === "chase") {
       sel("order", ["index", "x", "y", "z"], e.order || "index", (v, c) => { c.effect.order = v; });
       sel("shape", ["pulse", "wave"], e.shape || "pulse", (v, c) => { c.effect.shape = v; });
-      num("period (s)", e.period_s ?? 2, (v, c) => { c.effect.period_s = v; }, { min: "0.02" });
-      num("width", e.width ?? 0.1, (v, c) => { c.effect.width = v; }, { min: "0", max: "1" });
+      num("period (s)", e.period_s ?? 2, (v, c) => { c.effect.period_s = v; }, { min: "0.02", max: MAX_TIME_S });
+      num("width", e.width ?? 0.1, (v, c) => { c.effect.width = v; }, { min: "0", max: "1", exclusive: "min" });
     } else if (e.kind === "sparkle") {
       num("density", e.density ?? 0.2, (v, c) => { c.effect.density = v; }, { min: "0", max: "1" });
-      num("flash (s)", e.flash_s ?? 0.3, (v, c) => { c.effect.flash_s = v; }, { min: "0.02" });
-      num("seed", e.seed ?? 0, (v, c) => { c.effect.seed = Math.round(v); }, { min: "0", step: "1" });
+      num("flash (s)", e.flash_s ?? 0.3, (v, c) => { c.effect.flash_s = v; }, { min: "0.02", max: "60" });
+      num("seed", e.seed ?? 0, (v, c) => { c.effect.seed = Math.round(v); }, { min: "0", max: "2147483647", step: "1" });
     } else if (e.kind === "strobe") {
-      num("frequency (Hz)", e.frequency_hz ?? 4, (v, c) => { c.effect.frequency_hz = v; }, { min: "0", max: "25" });
-      num("duty", e.duty ?? 0.5, (v, c) => { c.effect.duty = v; }, { min: "0", max: "1" });
+      num("frequency (Hz)", e.frequency_hz ?? 4, (v, c) => { c.effect.frequency_hz = v; }, { min: "0", max: "25", exclusive: "min" });
+      num("duty", e.duty ?? 0.5, (v, c) => { c.effect.duty = v; }, { min: "0", max: "1", exclusive: "min max" });
     } else if (e.kind === "image") {
       const file = document.createElement("input");
       file.type = "file";
@@ -634,10 +649,10 @@ export class EffectsPanel {
         this.change(k, "Effect images", (c) => { c.effect.frames = urls; });
       });
       row(`images (${(e.frames || []).length})`, file);
-      num("fps", e.fps ?? 10, (v, c) => { c.effect.fps = v; }, { min: "0" });
+      num("fps", e.fps ?? 10, (v, c) => { c.effect.fps = v; }, { min: "0", max: "60", exclusive: "min" });
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
-      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
-      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0", max: "100000", exclusive: "min" });
+      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       this._cameraField(k, e);
     } else if (e.kind === "video") {
       const file = document.createElement("input");
@@ -651,8 +666,8 @@ export class EffectsPanel {
       });
       row(e.video ? "video (loaded)" : "video", file);
       vec("centre (m)", e.center_m, (v, c) => { c.effect.center_m = v; });
-      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0" });
-      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0" });
+      num("width (m)", e.width_m, (v, c) => { c.effect.width_m = v; }, { min: "0", max: "100000", exclusive: "min" });
+      num("height (m)", e.height_m, (v, c) => { c.effect.height_m = v; }, { min: "0", max: "100000", exclusive: "min" });
       this._cameraField(k, e);
     }
   }

@@ -165,6 +165,11 @@ export class ExportMenu {
         el.textContent = "Not exported: the show could not be saved.";
         return;
       }
+      const draft = this.persist.draftRefusal("exported", true);
+      if (draft) {
+        el.textContent = draft;
+        return;
+      }
       const { blob, filename, warnings } = await api.exportShow(st.meta.id, format, this.options(format));
       downloadBlob(blob, filename);
       toast(warnings.length ? `Downloaded ${filename} (${warnings.join("; ")})` : `Downloaded ${filename}`, { ms: warnings.length ? 8000 : 2500 });

@@ -7,6 +7,8 @@
 // greedy colouring (largest degree first) gives the waves. The planner's DSatur count and the exact
 // timing come with the next check (the timeline shows them).
 
+import { markRange } from "./settings.js";
+
 // (api.js is imported when a CSV is imported: it starts a session on import, which node's unit tests must not.)
 
 /**
@@ -99,6 +101,9 @@ export function previewWaves(points, need) {
   return { waves: n ? Math.max(...wave) + 1 : 0, wave };
 }
 
+/** The launch-box fields, each with the show file's limits as min/max (formations/_launch.py). */
+const LAUNCH_FIELDS = ["launch-per-box", "launch-box-cols", "launch-box-spacing", "launch-grid-spacing"];
+
 /** Binds the launch-layout panel to the open show. */
 export class LaunchPanel {
   /**
@@ -112,6 +117,7 @@ export class LaunchPanel {
     this.$("launch-apply").addEventListener("click", () => this.applyBoxes());
     this.$("launch-grid").addEventListener("click", () => this.applyGrid());
     this.$("launch-csv").addEventListener("change", () => this.importCsv());
+    for (const id of LAUNCH_FIELDS) this.$(id).addEventListener("change", () => this._markFields());
     state.addEventListener("change", (/** @type {any} */ e) => {
       if (["load", "edit"].includes(e.detail.kind)) this.render();
     });
@@ -120,6 +126,22 @@ export class LaunchPanel {
   _error(msg) {
     const el = this.root.querySelector("#launch-error");
     if (el) el.textContent = msg;
+  }
+
+  /**
+   * Mark the box fields outside the show file's limits (their min/max) at once, naming the first in the error
+   * line, as the settings fields are marked. @returns {string} the message ("" when all are inside)
+   */
+  _markFields() {
+    let first = "";
+    for (const id of LAUNCH_FIELDS) {
+      const input = this.$(id);
+      const v = Number(input.value);
+      const msg = input.value === "" || !Number.isFinite(v) ? "" : markRange(input, v);
+      if (msg && !first) first = `${this.root.querySelector(`label[for="${id}"]`)?.textContent || id}: ${msg}`;
+    }
+    this._error(first);
+    return first;
   }
 
   /** Replace the home layout by launch boxes from the form (one undo step). */
@@ -137,7 +159,7 @@ export class LaunchPanel {
     };
     const boxCols = Math.round(num("launch-box-cols"));
     if (boxCols > 0) layout.cols = boxCols;
-    this._error("");
+    this._markFields();
     st.edit("Set launch boxes", () => { st.show.home = { boxes: layout }; });
   }
 
@@ -185,6 +207,7 @@ export class LaunchPanel {
       this.$("launch-box-spacing").value = String(b.spacing_m);
       this.$("launch-box-cols").value = b.cols ? String(b.cols) : "";
       if (b.grid) this.$("launch-grid-spacing").value = String(b.grid.spacing_m);
+      this._markFields();
     }
     const { points, box } = homePositions(show);
     const mine = points.slice(0, show.drones);

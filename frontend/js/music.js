@@ -21,6 +21,10 @@ const DRIFT_S = 0.15;
 const QUIET_MS = 1500;
 /** How often the viewer's clock is read while the preview is open, milliseconds. */
 const CLOCK_POLL_MS = 500;
+/** Wait on a music upload after which its status says why the first analysis is slow, milliseconds. */
+export const SLOW_ANALYSIS_MS = 8000;
+/** Why the first analysis on a server takes minutes (the status after SLOW_ANALYSIS_MS). */
+export const FIRST_ANALYSIS_NOTE = "The first analysis on a server compiles the beat tracker (1-2 min); later uploads take seconds.";
 
 /** The music lane. */
 export class MusicLane {
@@ -118,6 +122,11 @@ export class MusicLane {
     this.canvas.setAttribute("aria-busy", "true");
     const status = document.getElementById("music-status");
     if (status) status.textContent = `Analysing ${file.name}…`;
+    // The first analysis on a server compiles librosa's beat tracker (numba, cached per machine afterwards):
+    // about two minutes of "Analysing…" with no word why looks like a hang, so say it after a short wait.
+    const slow = window.setTimeout(() => {
+      if (status) status.textContent = `Analysing ${file.name}… ${FIRST_ANALYSIS_NOTE}`;
+    }, SLOW_ANALYSIS_MS);
     try {
       await api.request("PUT", `/api/shows/${meta.id}/audio?filename=${encodeURIComponent(file.name)}`, {
         body: file, headers: { "Content-Type": file.type || "application/octet-stream" },
@@ -126,6 +135,7 @@ export class MusicLane {
     } catch (err) {
       setError("music", `Music not loaded: ${err.message}`);
     } finally {
+      clearTimeout(slow);
       this.canvas.removeAttribute("aria-busy");
       if (status) status.textContent = "";
       this._chrome();

@@ -256,6 +256,23 @@ export class Persistence extends EventTarget {
   }
 
   /**
+   * When the stored show is a draft (the save listed its problems), why `verb` ("checked", "simulated",
+   * "exported") is not asked of the server, which would refuse it with 422: the draft panel is brought into
+   * view and the message points at it. "" for a valid show.
+   * @param {string} verb @param {boolean} [short] one short line (the top bar's export message)
+   * @returns {string}
+   */
+  draftRefusal(verb, short = false) {
+    const meta = this.state.meta;
+    if (!meta || !meta.draft) return "";
+    const n = (meta.problems || []).length;
+    document.getElementById("draft-panel")?.scrollIntoView({ block: "nearest" });
+    if (short) return `Not ${verb}: a draft, see the draft panel`;
+    return `Not ${verb}: the show is a draft with ${n} problem${n === 1 ? "" : "s"}; fix ${n === 1 ? "it" : "them"} `
+      + "as listed in the draft panel (“Draft: not ready yet”), then save.";
+  }
+
+  /**
    * Make sure the server has what is on screen before an action on the stored show (check, export...).
    * @returns {Promise<boolean>}
    */

@@ -117,7 +117,9 @@ export class Preview {
       if (!(await this.persist.ensureSaved())) {
         setError("preview", "The show could not be saved; the preview shows the last saved version.");
       }
-      try {
+      const draft = this.persist.draftRefusal("played in 3D");
+      if (draft) setError("preview", draft);
+      else try {
         const out = await api.loadPlayback(st.meta.id, run ? "simulated" : this.source(), run);
         // A transition forced shorter than the limits allow plays as designed (the viewer draws the
         // check's violations in red), but no drone could fly it: say so, as the exports will refuse it.

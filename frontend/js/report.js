@@ -137,6 +137,12 @@ export class ReportPanel {
         this.body.append(this._p("report-bad", "Not checked: the show could not be saved (see the message at the top)."));
         return;
       }
+      const draft = this.persist.draftRefusal("checked");
+      if (draft) {
+        this.body.innerHTML = "";
+        this.body.append(this._p("report-bad", draft));
+        return;
+      }
       const res = await api.checkShow(st.meta.id);
       this.result = res;
       this.checkedVersion = st.version;

@@ -66,6 +66,26 @@ export function fitAllFormations(state) {
   return short;
 }
 
+/**
+ * Mark a number field whose value is outside its own `min`/`max` (the show file's limits, kept on the input),
+ * as the save would name it: "at least lo" / "at most hi" in `errorEl` and the `has-error` class; cleared
+ * when inside. `data-exclusive="min"`, `"max"` or `"min max"`: that bound is strict (a rule's gt / lt), said
+ * "more than lo" / "less than hi".
+ * @param {HTMLInputElement} input @param {number} value @param {Element|null} [errorEl]
+ * @returns {string} the message ("" inside the range)
+ */
+export function markRange(input, value, errorEl) {
+  const lo = input.min !== "" ? Number(input.min) : -Infinity;
+  const hi = input.max !== "" ? Number(input.max) : Infinity;
+  const strict = (input.dataset.exclusive || "").split(" ");
+  const msg = strict.includes("min") ? (value <= lo ? `more than ${lo}` : "") : value < lo ? `at least ${lo}` : "";
+  const over = strict.includes("max") ? (value >= hi ? `less than ${hi}` : "") : value > hi ? `at most ${hi}` : "";
+  const said = msg || over;
+  input.classList.toggle("has-error", said !== "");
+  if (errorEl) errorEl.textContent = said;
+  return said;
+}
+
 /** Binds the settings form to the open show. */
 export class SettingsForm {
   /**
@@ -144,11 +164,7 @@ export class SettingsForm {
     input.classList.remove("has-error");
     // Outside the field's own range: applied (the save keeps it as a draft) and marked at once, as the save would.
     const errorEl = this.form.querySelector(`[data-error-for="${CSS.escape(path)}"]`);
-    const lo = input.min !== "" ? Number(input.min) : -Infinity;
-    const hi = input.max !== "" ? Number(input.max) : Infinity;
-    const outside = typeof value === "number" && (value < lo || value > hi);
-    if (errorEl) errorEl.textContent = !outside ? "" : value < lo ? `at least ${lo}` : `at most ${hi}`;
-    if (outside) input.classList.add("has-error");
+    const outside = typeof value === "number" && markRange(input, value, errorEl) !== "";
     const label = input.getAttribute("aria-label") || path;
     st.edit(`Change ${label.toLowerCase()}`, () => {
       setPath(st.show, path, value);

@@ -116,6 +116,11 @@ export class SimulatePanel {
         this._message("report-bad", "Not simulated: the show could not be saved.");
         return;
       }
+      const draft = this.persist.draftRefusal("simulated");
+      if (draft) {
+        this._message("report-bad", draft);
+        return;
+      }
       this._progress(0, "0%");
       this._message("muted", "Starting…");
       const controller = /** @type {HTMLSelectElement} */ (document.getElementById("sim-controller")).value;
