@@ -54,6 +54,34 @@ def make_show(formations: list[dict], *, drones: int, rows: int, cols: int, spac
         }
     )
 
+#: Rows of the waypoints CSV are written with 3 decimals (mm); a row read back is within half of that.
+CSV_HALF_MM = 0.0005 + 1e-9
+
+
+@pytest.fixture(scope="module")
+def square():
+    """Four drones on a 5 m square at 15 m for a second: the export tests' smallest flown show."""
+    return make_show(
+        [{"name": "square", "hold_s": 1.0, "points": [[0, 0, 15], [5, 0, 15], [0, 5, 15], [5, 5, 15]],
+          "color": "#ffffff"}],
+        drones=4, rows=2, cols=2, spacing_m=4.5,
+    )
+
+
+@pytest.fixture(scope="module")
+def square_plan(square):
+    from sim import plan_show
+
+    return plan_show(square)
+
+
+def flown_at(flight, drone: int, times_s: np.ndarray) -> np.ndarray:
+    """``(T, 3)`` positions of ``drone`` of a flight result at ``times_s`` (linear between its frames)."""
+    t = np.asarray(flight.times_s, dtype=np.float64)
+    pos = np.asarray(flight.positions_m, dtype=np.float64)[:, drone]
+    return np.stack([np.interp(times_s, t, pos[:, a]) for a in range(3)], axis=1)
+
+
 
 def ring_to_sphere(drones: int, ring_m: float, sphere_m: float, sphere_hold_s: float, **settings) -> ShowFile:
     """``drones`` (a multiple of 4) on a vertical ring (held 2 s), then on a sphere, from a home grid

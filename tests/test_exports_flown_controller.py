@@ -20,19 +20,7 @@ from app.cli import main
 from app.exports import ExportError, export_show
 from formations import dump_show
 from sim import plan_show
-from tests.conftest import app_client, make_show
-
-#: Rows of the waypoints CSV are written with 3 decimals (mm); a row read back is within half of that.
-CSV_HALF_MM = 0.0005 + 1e-9
-
-
-@pytest.fixture(scope="module")
-def square():
-    return make_show(
-        [{"name": "square", "hold_s": 1.0, "points": [[0, 0, 15], [5, 0, 15], [0, 5, 15], [5, 5, 15]],
-          "color": "#ffffff"}],
-        drones=4, rows=2, cols=2, spacing_m=4.5,
-    )
+from tests.conftest import CSV_HALF_MM, app_client, flown_at
 
 
 @pytest.fixture(scope="module")
@@ -56,25 +44,20 @@ def _rows(content: bytes) -> tuple[dict, np.ndarray]:
     return manifest, rows
 
 
-def _flown_at(flight, drone: int, times_s: np.ndarray) -> np.ndarray:
-    t = np.asarray(flight.times_s)
-    return np.stack([np.interp(times_s, t, flight.positions_m[:, drone, k]) for k in range(3)], axis=1)
-
-
 def test_export_flies_the_chosen_controller(square, flights):
     result = export_show(square, "waypoints-csv", source="simulated", fps=25, controller="baseline")
     manifest, rows = _rows(result.content)
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
     # Not ISMC's track: the two controllers track differently by more than the file's rounding.
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["ismc"], 1, rows[:, 0])).max() > 10 * CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["ismc"], 1, rows[:, 0])).max() > 10 * CSV_HALF_MM
     assert manifest["flight"]["controller"] == "baseline"
 
 
 def test_export_flies_the_disturbance_with_ideal(square, flights):
     result = export_show(square, "waypoints-csv", source="simulated", fps=25, preset="ideal", disturbance="wind")
     manifest, rows = _rows(result.content)
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["ideal-wind"], 1, rows[:, 0])).max() <= CSV_HALF_MM
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["ideal"], 1, rows[:, 0])).max() > 10 * CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["ideal-wind"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["ideal"], 1, rows[:, 0])).max() > 10 * CSV_HALF_MM
 
 
 @pytest.mark.parametrize(("kwargs", "field"), [
@@ -98,7 +81,7 @@ def test_cli_export_takes_the_controller(square, flights, tmp_path, capsys):
                  "--controller", "baseline", "-o", str(out)])
     assert code == 0, capsys.readouterr().err
     _, rows = _rows(out.read_bytes())
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
 
 
 client = app_client("flownctl", workers=1)
@@ -111,7 +94,7 @@ def test_api_export_takes_the_controller(client, square, flights):
                    params={"source": "simulated", "fps": 25, "controller": "baseline"})
     assert r.status_code == 200, r.text
     _, rows = _rows(r.content)
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["baseline"], 1, rows[:, 0])).max() <= CSV_HALF_MM
     r = client.get(f"/api/shows/{sid}/export/waypoints-csv", params={"controller": "baseline"})
     assert r.status_code == 422 and r.json()["detail"][0]["path"] == "controller", r.text
 

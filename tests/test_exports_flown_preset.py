@@ -18,25 +18,7 @@ import pytest
 from app.cli import main
 from app.exports import ExportError, ExportOptions, export_show
 from formations import dump_show
-from sim import plan_show
-from tests.conftest import app_client, make_show
-
-#: Rows of the waypoints CSV are written with 3 decimals (mm); a row read back is within half of that.
-CSV_HALF_MM = 0.0005 + 1e-9
-
-
-@pytest.fixture(scope="module")
-def square():
-    return make_show(
-        [{"name": "square", "hold_s": 1.0, "points": [[0, 0, 15], [5, 0, 15], [0, 5, 15], [5, 5, 15]],
-          "color": "#ffffff"}],
-        drones=4, rows=2, cols=2, spacing_m=4.5,
-    )
-
-
-@pytest.fixture(scope="module")
-def square_plan(square):
-    return plan_show(square)
+from tests.conftest import CSV_HALF_MM, app_client, flown_at
 
 
 def _csv_rows(content: bytes, name: str = "drone_002.csv") -> tuple[dict, np.ndarray]:
@@ -44,13 +26,6 @@ def _csv_rows(content: bytes, name: str = "drone_002.csv") -> tuple[dict, np.nda
         manifest = json.loads(z.read("manifest.json"))
         rows = np.array(list(csv.reader(io.StringIO(z.read(name).decode())))[1:], dtype=float)
     return manifest, rows
-
-
-def _flown_at(flight, drone: int, times_s: np.ndarray) -> np.ndarray:
-    """``(T, 3)`` positions of ``drone`` at ``times_s`` (the recorded frames themselves at 25 Hz)."""
-    t = np.asarray(flight.times_s, dtype=np.float64)
-    pos = np.asarray(flight.positions_m, dtype=np.float64)[:, drone]
-    return np.stack([np.interp(times_s, t, pos[:, a]) for a in range(3)], axis=1)
 
 
 @pytest.fixture(scope="module")
@@ -71,10 +46,10 @@ def test_simulated_export_flies_the_chosen_preset_and_seed(square, flights):
     result = export_show(square, "waypoints-csv", source="simulated", fps=25, preset="gusty-rtk", seed=3)
     manifest, rows = _csv_rows(result.content)
     times = rows[:, 0]
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["gusty-rtk/3"], 1, times)).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["gusty-rtk/3"], 1, times)).max() <= CSV_HALF_MM
     # Not the ideal vehicle's track, nor another seed's: the gusty wind moves a drone by centimetres.
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["vehicle"], 1, times)).max() > 0.01
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["calm-rtk/0"], 1, times)).max() > 0.01
+    assert np.abs(rows[:, 1:4] - flown_at(flights["vehicle"], 1, times)).max() > 0.01
+    assert np.abs(rows[:, 1:4] - flown_at(flights["calm-rtk/0"], 1, times)).max() > 0.01
     assert manifest["flight"]["preset"] == "gusty-rtk" and manifest["flight"]["seed"] == 3
 
 
@@ -82,7 +57,7 @@ def test_simulated_export_defaults_to_the_single_flights_default(square, flights
     """No preset, no seed: the single flight's default (calm-rtk, seed 0), as ``swarmshow simulate SHOW``."""
     result = export_show(square, "waypoints-csv", source="simulated", fps=25)
     manifest, rows = _csv_rows(result.content)
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["calm-rtk/0"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["calm-rtk/0"], 1, rows[:, 0])).max() <= CSV_HALF_MM
     assert manifest["flight"]["preset"] == "calm-rtk" and manifest["flight"]["seed"] == 0
 
 
@@ -126,7 +101,7 @@ def test_cli_export_takes_preset_and_seed(square, flights, tmp_path, capsys):
                  "--preset", "gusty-rtk", "--seed", "3", "-o", str(out)])
     assert code == 0, capsys.readouterr().err
     _, rows = _csv_rows(out.read_bytes())
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["gusty-rtk/3"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["gusty-rtk/3"], 1, rows[:, 0])).max() <= CSV_HALF_MM
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
@@ -162,7 +137,7 @@ def test_api_export_takes_preset_and_seed(client, square_id, flights):
                    params={"source": "simulated", "fps": 25, "preset": "gusty-rtk", "seed": 3})
     assert r.status_code == 200, r.text
     _, rows = _csv_rows(r.content)
-    assert np.abs(rows[:, 1:4] - _flown_at(flights["gusty-rtk/3"], 1, rows[:, 0])).max() <= CSV_HALF_MM
+    assert np.abs(rows[:, 1:4] - flown_at(flights["gusty-rtk/3"], 1, rows[:, 0])).max() <= CSV_HALF_MM
 
 
 @pytest.mark.parametrize(("params", "field"), [

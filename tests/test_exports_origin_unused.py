@@ -21,25 +21,10 @@ from app.exports import EXPORT_FORMATS, ExportError, ExportOptions, _core, expor
 from app.exports._core import ExportContext
 from app.exports._formats import _load_exporter
 from formations import dump_show
-from sim import plan_show
-from tests.conftest import app_client, make_show
+from tests.conftest import app_client
 
 ORIGIN_A = (47.0, 8.0, 400.0)
 ORIGIN_B = (46.0, 7.0, 10.0)
-
-
-@pytest.fixture(scope="module")
-def square():
-    return make_show(
-        [{"name": "square", "hold_s": 1.0, "points": [[0, 0, 15], [5, 0, 15], [0, 5, 15], [5, 5, 15]],
-          "color": "#ffffff"}],
-        drones=4, rows=2, cols=2, spacing_m=4.5,
-    )
-
-
-@pytest.fixture(scope="module")
-def square_plan(square):
-    return plan_show(square)
 
 
 def _members(content: bytes) -> dict[str, bytes] | bytes:
