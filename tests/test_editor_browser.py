@@ -56,6 +56,16 @@ class Page:
         frame (late on a busy machine), which would move the view a test has just set."""
         self.page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r())))")
 
+    def open_show(self, doc: dict, *, draft: bool = False) -> str:
+        """Store ``doc`` through the API (as a draft with ``draft``), open it in the editor, wait for its
+        title; the show's id."""
+        r = httpx.post(f"{self.base}/api/shows", json=doc, params={"draft": "true"} if draft else None)
+        assert r.status_code == 201, r.text
+        show_id = r.json()["id"]
+        self.page.goto(f"{self.base}/?show={show_id}")
+        sync_api.expect(self.page.locator("#show-title")).to_have_text(doc["name"])
+        return show_id
+
     def shot(self, name: str) -> None:
         SHOTS.mkdir(exist_ok=True)
         self.page.screenshot(path=str(SHOTS / f"{name}.png"))

@@ -42,18 +42,9 @@ TOP_CONTROLS = ["#btn-shows", "#btn-undo", "#btn-redo", "#btn-save", "#chk-autos
                 "#btn-preview", "#export-format", "#btn-export", "#btn-help"]
 
 
-def _open(ui: Page, doc: dict) -> str:
-    r = httpx.post(f"{ui.base}/api/shows", json=doc)
-    assert r.status_code == 201, r.text
-    show_id = r.json()["id"]
-    ui.page.goto(f"{ui.base}/?show={show_id}")
-    expect(ui.page.locator("#show-title")).to_have_text(doc["name"])
-    return show_id
-
-
 def test_narrow_window_keeps_every_top_bar_control_on_screen(ui: Page):
     page = ui.page
-    _open(ui, show_doc("Narrow window"))
+    ui.open_show(show_doc("Narrow window"))
     for width, height in [(1366, 768), (1024, 768), (900, 700), (760, 800)]:
         page.set_viewport_size({"width": width, "height": height})
         ui.settle()
@@ -99,7 +90,7 @@ def _closest_m(points: list[list[float]]) -> float:
 
 def test_mesh_at_its_fitting_size_saves_valid(ui: Page, tmp_path: Path):
     page = ui.page
-    show_id = _open(ui, _eight_drones("Mesh import"))
+    show_id = ui.open_show(_eight_drones("Mesh import"))
     (tmp_path / "cube.obj").write_text(CUBE_OBJ)
     (tmp_path / "triangle.obj").write_text(TRIANGLE_OBJ)
     page.locator("summary", has_text="Mesh / point cloud").click()
@@ -147,7 +138,7 @@ def test_a_source_with_nothing_to_draw_says_why(ui: Page, tmp_path: Path):
     from PIL import Image
 
     page = ui.page
-    _open(ui, _eight_drones("Nothing to draw"))
+    ui.open_show(_eight_drones("Nothing to draw"))
     Image.new("RGB", (40, 20), "black").save(tmp_path / "black.png")
     (tmp_path / "empty.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
                                         "<text>hi</text></svg>")
@@ -172,7 +163,7 @@ def test_a_source_with_nothing_to_draw_says_why(ui: Page, tmp_path: Path):
 
 def test_a_drone_count_over_the_limit_is_marked_not_fitted(ui: Page):
     page = ui.page
-    _open(ui, _eight_drones("Too many drones"))
+    ui.open_show(_eight_drones("Too many drones"))
     page.locator("#settings-panel summary").click()
     page.fill("#set-drones", "30000")
     page.locator("#set-drones").dispatch_event("change")
@@ -190,7 +181,7 @@ def test_a_drone_count_over_the_limit_is_marked_not_fitted(ui: Page):
 
 def test_an_empty_source_field_is_named_before_asking_the_server(ui: Page):
     page = ui.page
-    _open(ui, _eight_drones("Empty fields"))
+    ui.open_show(_eight_drones("Empty fields"))
     asked: list[str] = []
     page.on("request", lambda r: asked.append(r.url) if "/api/formations/" in r.url else None)
     error = page.locator('[data-error-for="shape"]')
@@ -221,7 +212,7 @@ def test_an_empty_source_field_is_named_before_asking_the_server(ui: Page):
 
 def test_a_wrong_transition_duration_keeps_its_dialog_open(ui: Page):
     page = ui.page
-    show_id = _open(ui, _eight_drones("Transition duration"))
+    show_id = ui.open_show(_eight_drones("Transition duration"))
     page.get_by_role("button", name="Add a formation").click()
     page.locator("#timeline-list li.tl-transition").nth(1).click()
     dialog = page.locator("#dlg-confirm")

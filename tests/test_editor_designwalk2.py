@@ -15,7 +15,6 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
-import httpx
 import pytest
 from pydantic import ValidationError
 
@@ -33,15 +32,6 @@ expect = sync_api.expect
 server = server_for("designwalk2-data")
 
 
-def _open(ui: Page, doc: dict, *, draft: bool = False) -> str:
-    r = httpx.post(f"{ui.base}/api/shows", json=doc, params={"draft": "true"} if draft else None)
-    assert r.status_code == 201, r.text
-    show_id = r.json()["id"]
-    ui.page.goto(f"{ui.base}/?show={show_id}")
-    expect(ui.page.locator("#show-title")).to_have_text(doc["name"])
-    return show_id
-
-
 def _limit(model: type, field: str, key: str) -> str:
     """The bound the show file's rule puts on a field (its JSON schema), written as the editor writes numbers."""
     return f"{model.model_json_schema()['properties'][field][key]:g}"
@@ -55,7 +45,7 @@ def _puts(page) -> list[str]:
 
 def test_effect_and_launch_fields_out_of_range_are_marked_at_once(ui: Page):
     page = ui.page
-    _open(ui, show_doc("Effect limits"))
+    ui.open_show(show_doc("Effect limits"))
     saves = _puts(page)
     page.locator("#effects-panel summary").click()
     page.select_option("#fx-kind", "strobe")
@@ -106,7 +96,7 @@ def test_check_simulate_export_of_a_draft_point_at_the_draft_panel(ui: Page):
     page = ui.page
     doc = show_doc("Draft actions")
     doc["settings"]["max_speed_xy_mps"] = 500.0  # over the show file's 100 m/s
-    _open(ui, doc, draft=True)
+    ui.open_show(doc, draft=True)
     expect(page.locator("#draft-panel")).to_be_visible()
     asked: list[str] = []
     page.on("request", lambda r: asked.append(r.url) if r.method == "POST" or "/export/" in r.url else None)
@@ -131,7 +121,7 @@ def test_check_simulate_export_of_a_draft_point_at_the_draft_panel(ui: Page):
 
 def test_a_slow_first_music_analysis_says_why(ui: Page):
     page = ui.page
-    show_id = _open(ui, show_doc("Slow music"))
+    show_id = ui.open_show(show_doc("Slow music"))
     held = []
     # The PUT is held here (a cold beat-tracker compile takes minutes) and answered late, in the API's shape.
     page.route(f"**/api/shows/{show_id}/audio?filename=*", lambda route: held.append(route))

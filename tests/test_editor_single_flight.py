@@ -27,15 +27,6 @@ expect = sync_api.expect
 server = server_for("single-flight-data", viewer=True)  # viewer on: the flight plays in 3D
 
 
-def _open(ui: Page, doc: dict) -> str:
-    r = httpx.post(f"{ui.base}/api/shows", json=doc)
-    assert r.status_code == 201, r.text
-    show_id = r.json()["id"]
-    ui.page.goto(f"{ui.base}/?show={show_id}")
-    expect(ui.page.locator("#show-title")).to_have_text(doc["name"])
-    return show_id
-
-
 def _console_errors(page) -> list[str]:
     errors: list[str] = []
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
@@ -51,7 +42,7 @@ def _rows(ui: Page) -> dict[str, tuple[str, str]]:
 def test_single_flight_flies_the_preset_with_its_seed_and_plays_in_3d(ui: Page):
     page = ui.page
     errors = _console_errors(page)
-    _open(ui, show_doc("Single flight", hold_s=2.0))
+    ui.open_show(show_doc("Single flight", hold_s=2.0))
     # The default is a realistic preset, not the ideal vehicle; the disturbance is for the ideal vehicle only.
     assert page.locator("#sim-preset").input_value() == "calm-rtk"
     assert page.locator("#sim-disturbance").is_disabled()
@@ -109,7 +100,7 @@ def test_single_flight_flies_the_preset_with_its_seed_and_plays_in_3d(ui: Page):
 
 def test_export_refusal_marks_the_formation_card(ui: Page):
     page = ui.page
-    _open(ui, forced_doc("Forced export"))
+    ui.open_show(forced_doc("Forced export"))
     card = page.locator('.tl-card[data-index="1"]')
     expect(card).not_to_have_class("tl-card has-problem")
     page.select_option("#export-format", "skyc")
@@ -123,7 +114,7 @@ def test_export_refusal_marks_the_formation_card(ui: Page):
 def test_qgc_export_without_origin_is_caught_in_the_editor(ui: Page):
     page = ui.page
     errors = _console_errors(page)
-    _open(ui, show_doc("No origin"))
+    ui.open_show(show_doc("No origin"))
     exports: list[str] = []
     page.on("request", lambda r: exports.append(r.url) if "/export/" in r.url else None)
     for fmt in ("qgc-plan", "qgc-wpl"):
@@ -155,7 +146,7 @@ def test_a_simulation_refused_for_a_formation_marks_its_card(ui: Page):
     first = doc["formations"][0]
     doc["formations"].append({**first, "name": "up", "arrive_at_s": 3.0,
                               "points": [[x, y, z + 20] for x, y, z in first["points"]]})
-    _open(ui, doc)
+    ui.open_show(doc)
     card = page.locator('.tl-card[data-index="1"]')
     expect(card).not_to_have_class("tl-card has-problem")
     page.get_by_role("button", name="Simulate the flight").click()
@@ -174,7 +165,7 @@ def test_drones_blown_off_in_a_single_flight_are_named_with_their_reason(ui: Pag
     show = make_show([high], drones=2, rows=1, cols=2, spacing_m=6.0, max_altitude_m=750.0,
                      max_speed_z_mps=4.0).model_copy(update={"name": "Gale alone"})
     page = ui.page
-    _open(ui, show.model_dump(mode="json", exclude_none=True))
+    ui.open_show(show.model_dump(mode="json", exclude_none=True))
     page.select_option("#sim-preset", "gusty-rtk")
     page.fill("#sim-seed", "3")
     page.get_by_role("button", name="Simulate the flight").click()
@@ -190,7 +181,7 @@ def test_a_compile_note_of_the_job_shows_beside_the_progress(ui: Page):
     two with the progress still); the editor shows that note, and drops it when the job moves on. The
     job's answers are routed here (a real cold compile costs minutes), in the shape the API gives."""
     page = ui.page
-    _open(ui, show_doc("Compile note", hold_s=2.0))
+    ui.open_show(show_doc("Compile note", hold_s=2.0))
     note = "compiling the flight kernel for this machine (first run, a few minutes of CPU; cached afterwards)"
     job = {"id": "jnote", "kind": "simulate", "state": "running", "progress": 0.05, "note": note}
     later = {**job, "progress": 0.4, "note": ""}
