@@ -6,6 +6,7 @@ import atexit
 import contextlib
 import json
 import os
+import random
 import shutil
 import signal
 import socket
@@ -58,11 +59,33 @@ def wait_until(what: str, fn: Callable[[], T], timeout_s: float = 60.0, interval
         sleep(interval_s)
 
 
+def ephemeral_port_range() -> tuple[int, int]:
+    """The kernel's range of ports it gives to outgoing connections (Linux's default when unreadable)."""
+    try:
+        low, high = (int(v) for v in Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split())
+    except (OSError, ValueError):
+        return 32768, 60999
+    return low, high
+
+
 def free_port() -> int:
-    """A TCP port free on 127.0.0.1 right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A TCP port free on 127.0.0.1 right now, below the kernel's ephemeral range.
+
+    Why below: a test that restarts a server on its port while its clients keep reconnecting (the SIGKILL
+    tests) found the port taken by a client. A connect() to a closed port inside the ephemeral range can be
+    given that very port as its local one and connect to itself (TCP simultaneous open), holding it.
+    """
+    low, _ = ephemeral_port_range()
+    rng = random.Random()
+    for _ in range(500):
+        port = rng.randrange(max(1024, low - 16384), low)
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError("no free port below the ephemeral range")
 
 
 def swarmshow_command() -> list[str]:

@@ -59,9 +59,11 @@ def _expect_draft(ui: Page, *problem_words: str) -> None:
 
 
 def _expect_refused(ui: Page, action: str, where: str, body_locator: str) -> None:
-    """Check / export of a draft answer with what is wrong (and nothing is downloaded)."""
-    expect(ui.page.locator(body_locator)).to_contain_text(f"is a draft and cannot be {action}", timeout=60_000)
-    expect(ui.page.locator(body_locator)).to_contain_text(where)
+    """Check / export of a draft say it is a draft and point at the draft panel, which names what is wrong
+    (the editor refuses it itself since designwalk2: no request, no 422 in the console; nothing downloaded)."""
+    expect(ui.page.locator(body_locator)).to_contain_text(f"Not {action}", timeout=60_000)
+    expect(ui.page.locator(body_locator)).to_contain_text("draft panel")
+    expect(ui.page.locator("#draft-panel")).to_contain_text(where)
 
 
 def test_session_draft_fix_check_export(browser, server, tmp_path):
