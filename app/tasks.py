@@ -232,7 +232,10 @@ def limit_memory(memory_bytes: int | None) -> None:
     try:
         import resource
 
-        resource.setrlimit(resource.RLIMIT_DATA, (memory_bytes, memory_bytes))
+        # The soft limit only: a child that must exceed it (numba compiling the flight kernel on a cold
+        # cache, sim.flight.engines._numba) lifts its own soft limit to the hard one.
+        _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+        resource.setrlimit(resource.RLIMIT_DATA, (memory_bytes, hard))
     except (ImportError, ValueError, OSError):  # not on this platform, or above the hard limit
         pass
 

@@ -1274,10 +1274,23 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
             # (another checkout's ``sim`` there was imported instead, and this process compiled).
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(p or os.getcwd() for p in sys.path))
             subprocess.run([sys.executable, "-P", "-c", code], input=pickle.dumps(sig), env=env,
-                           capture_output=True, timeout=1800, check=False)
+                           capture_output=True, timeout=1800, check=False, preexec_fn=_lift_data_limit)
     except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
         return
     dispatcher.compile(sig)  # from the cache when the child wrote it
+
+
+def _lift_data_limit() -> None:
+    """In the compile child: the soft data limit up to the hard one. A server's worker caps its data
+    (app.tasks.limit_memory, 2 GiB by default) and LLVM compiling the two lane bodies needs more, so on
+    a cold cache every simulation in a worker failed with MemoryError."""
+    try:
+        import resource
+
+        _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+        resource.setrlimit(resource.RLIMIT_DATA, (hard, hard))
+    except (ImportError, ValueError, OSError):  # pragma: no cover - not on this platform
+        pass
 
 
 def _in_disk_cache(dispatcher: Any, sig: tuple[Any, ...]) -> bool:
