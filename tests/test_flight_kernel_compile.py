@@ -118,6 +118,49 @@ def test_a_cold_cache_compile_says_so_once_and_a_warm_cache_says_nothing(tmp_pat
     assert run(again).count(note) == 1
 
 
+_LIMITS_PROBE = """
+import importlib, os, resource, sys
+sys.path.insert(0, sys.argv[1])
+from app.tasks import limit_memory
+import sim.flight.engines._numba as K
+limit_memory(int(sys.argv[2]))  # as a server's worker does (worker_memory_mb)
+stand_in = importlib.import_module("kernel_stand_in").stand_in  # records this process's limits
+K._cached_machine_code(stand_in, (2.0, 3.0))  # a cold cache: the compiling child records its own
+assert stand_in(2.0, 3.0) == 7.0
+"""
+
+_RECORD_LIMITS = """
+import os, resource
+with open(os.environ["STAND_IN_LIMITS"], "a") as f:
+    f.write("%d %d\\n" % resource.getrlimit(resource.RLIMIT_DATA))
+"""
+
+
+def test_a_workers_memory_cap_is_soft_and_the_compiling_child_lifts_it(tmp_path):
+    # On a cold cache every simulation in a server's worker failed 413 "too_large": the worker's
+    # RLIMIT_DATA cap (2 GiB by default), inherited by the child that compiles the kernel, is
+    # less than LLVM needs for the two lane bodies. The worker caps the soft limit only and the
+    # compiling child lifts its soft limit to the hard one. The stand-in records the limits of
+    # each process that imports it: the capped worker, then the compiling child.
+    import resource
+
+    (tmp_path / "kernel_stand_in.py").write_text(_STAND_IN + _RECORD_LIMITS)
+    probe = tmp_path / "probe.py"
+    probe.write_text(_LIMITS_PROBE)
+    limits = tmp_path / "limits.txt"
+    cap = 3 << 30  # above what this small flight of imports needs, below any real hard limit here
+    _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    assert hard == resource.RLIM_INFINITY or hard > cap, "the test needs a hard data limit above the cap"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), STAND_IN_LIMITS=str(limits),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    subprocess.run([sys.executable, str(probe), str(tmp_path), str(cap)], env=env, check=True, timeout=600)
+    rows = [tuple(int(v) for v in line.split()) for line in limits.read_text().splitlines()]
+    assert rows[0] == (cap, hard), "the worker's hard limit must stay: its compiling child cannot raise past it"
+    assert len(rows) == 2, f"no compiling child imported the stand-in: {rows}"
+    assert rows[1] == (hard, hard), "the compiling child kept the worker's cap"
+    assert any((tmp_path / "cache").rglob("*stand_in*.nbi")), "the child did not compile into the cache"
+
+
 @pytest.mark.slow
 def test_cli_bench_sim_on_a_cold_cache_says_it_compiles(tmp_path):
     # End to end (minutes of CPU: a real compile of the flight kernel on an empty cache).
