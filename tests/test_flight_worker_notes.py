@@ -46,6 +46,24 @@ def test_a_process_that_already_hears_sim_adds_nothing():
     assert _stderr(setup) == f"swarmshow: {COMPILE_NOTE}\n"
 
 
+def test_one_line_whichever_of_the_worker_and_the_command_line_asks_first():
+    """A worker in the CLI's process (an in-process cluster) set up before the command line's notes: one
+    handler, one line. Failed before: the worker's and the CLI's were two handler classes, two lines."""
+    from sim.flight.engines._numba import COMPILE_NOTE
+
+    setup = "_dask.worker_notes()\nfrom app.cli._common import show_library_notes; show_library_notes()"
+    assert _stderr(setup) == f"swarmshow: {COMPILE_NOTE}\n"
+
+
+def test_the_commands_that_do_not_run_sim_do_not_import_it():
+    """The notes' handler is sim's: the command line installs it only for the commands that run sim, so that
+    ``swarmshow validate`` does not pay a second for importing it."""
+    code = ("import sys; from app.cli import main\n"
+            "try:\n    main(['schema'])\nexcept SystemExit:\n    pass\n"
+            "assert 'sim' not in sys.modules, 'schema imported sim'")
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, check=True)
+
+
 def test_both_worker_tasks_set_the_notes_up(monkeypatch):
     """The shard task (flight engine ``dask``) and the Monte-Carlo run task call it before flying."""
     from sim.flight import _dask, _montecarlo

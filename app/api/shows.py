@@ -447,6 +447,20 @@ def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool, origin: boo
         raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
 
 
+def _check_show_options(*, source: Literal["planned", "simulated"], preset: str | None, seed: int | None,
+                        controller: str | None, disturbance: str | None) -> None:
+    """Refuse for the ``show`` download what its exporter refuses (``app.exports._show_json``): a flown source
+    and the options that choose a flight (422 naming the field)."""
+    from app.exports import ExportError, ExportOptions
+    from app.exports._core import check_planned
+
+    try:
+        check_planned("show", source)
+        ExportOptions(source=source, preset=preset, seed=seed, controller=controller, disturbance=disturbance)
+    except ExportError as exc:
+        raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
+
+
 @router.get(
     "/shows/{show_id}/export/{fmt}",
     summary="Export a show",
@@ -502,6 +516,9 @@ async def export_show(
         # format needs a plan.
         require_valid(record, "exported")
     if fmt == "show":
+        # Served as stored, without the exporter: its checks here (a flown source or a flight's option was
+        # dropped without a word, where the CLI and the library refuse them).
+        _check_show_options(source=source, preset=preset, seed=seed, controller=controller, disturbance=disturbance)
         show_text = record.json
         assert show_text is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
 

@@ -52,6 +52,12 @@ _COMMANDS: dict[str, str] = {
 }
 
 
+#: The commands that run ``sim`` in this process (plan, check, fly): they print its warnings (``show_library_notes``,
+#: which imports it, about a second); the others do not pay for it (serve and demo fly in spawned workers, whose
+#: jobs carry the notes: ``app.tasks.library_notes``).
+_SIM_COMMANDS: tuple[str, ...] = ("check", "simulate", "bench", "export")
+
+
 def _modules_for(argv: Sequence[str] | None) -> tuple[str, ...]:
     """The command modules to register: the named command's alone, or all of them (help, typos)."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -96,7 +102,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns (and exits with) the process exit code."""
     parser = build_parser(argv)
     args = parser.parse_args(argv)
-    show_library_notes()
+    if args.command in _SIM_COMMANDS:
+        show_library_notes()
     if sys.stdout is None:  # started with stdout closed (``>&-``): results must not vanish silently
         sys.stdout = _ClosedStdout()
     try:

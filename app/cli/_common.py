@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import errno
 import json
-import logging
 import os
 import select
 import stat
@@ -21,27 +20,18 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 
 
-class _StderrNote(logging.Handler):
-    """Prints a log record as one ``swarmshow: ...`` line on the *current* ``sys.stderr``."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            print(f"swarmshow: {record.getMessage()}", file=sys.stderr, flush=True)
-        except Exception:  # logging's contract: a failing handler must not raise
-            self.handleError(record)
-
-
 def show_library_notes() -> None:
-    """Print the ``sim`` packages' warnings on stderr, one line each (idempotent).
+    """Print the ``sim`` packages' warnings on stderr, one ``swarmshow: ...`` line each (idempotent).
 
     Why: a first flight on a cold numba cache compiles the flight kernel for minutes, and the
     library says so as a warning (``sim.flight.engines._numba.COMPILE_NOTE``); without a handler it
-    would reach stderr only through logging's last-resort handler, unprefixed.
+    would reach stderr only through logging's last-resort handler, unprefixed. The handler is sim's
+    (:func:`sim.flight._notes.say_notes`, which Dask workers use too: one handler, one line). It imports
+    sim (about a second): ``app.cli.main`` calls this only for the commands that compute with it.
     """
-    logger = logging.getLogger("sim")
-    if not any(isinstance(h, _StderrNote) for h in logger.handlers):
-        handler = _StderrNote(logging.WARNING)
-        logger.addHandler(handler)
+    from sim.flight._notes import say_notes
+
+    say_notes()
 
 
 class CliError(Exception):

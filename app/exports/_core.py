@@ -380,6 +380,12 @@ class ExportContext:
 
 def require_planned(ctx: ExportContext) -> None:
     """Refuse ``source="simulated"`` in a format that exports the exact plan."""
-    if ctx.options.source != "planned":
-        raise ExportError(f"format {ctx.fmt!r} exports the exact plan; --source simulated is only for "
+    check_planned(ctx.fmt, ctx.options.source)
+
+
+def check_planned(fmt: str, source: str) -> None:
+    """Refuse ``source`` other than ``"planned"`` for ``fmt``, a format that exports the exact plan (the API's
+    ``show`` download, served without an exporter, asks this too)."""
+    if source != "planned":
+        raise ExportError(f"format {fmt!r} exports the exact plan; --source simulated is only for "
                           f"{', '.join(FLOWN_FORMATS)}", field="source")

@@ -35,10 +35,8 @@ its next chunk (``chunk_s`` of simulated time) and stops.
 
 from __future__ import annotations
 
-import logging
 import os
 import queue
-import sys
 import threading
 import time
 import uuid
@@ -48,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from sim.flight._notes import say_notes
 from sim.flight._options import FlightOptions
 from sim.flight._result import FlightResult, fold_flown_distance, ordered_pair
 from sim.flight._runner import fly_local
@@ -89,28 +88,16 @@ def _hold_plan(plan: ShowPlan) -> ShowPlan:
     return plan
 
 
-class _WorkerNote(logging.Handler):
-    """Prints a ``sim`` warning as one ``swarmshow: ...`` line on the worker's *current* stderr, as the CLI
-    prints it (``app.cli._common``, which ``sim`` may not import)."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            print(f"swarmshow: {record.getMessage()}", file=sys.stderr, flush=True)
-        except Exception:  # logging's contract: a failing handler must not raise
-            self.handleError(record)
-
-
 def worker_notes() -> None:
     """Have this worker say the ``sim`` packages' warnings (the flight kernel's cold-cache compile note,
     ``sim.flight.engines._numba.COMPILE_NOTE``) as ``swarmshow: ...`` lines on its stderr (idempotent).
 
     Why: a Dask worker has no handler for them, so logging's last-resort handler printed the bare sentence,
     unlike every other line swarmshow prints. Nothing is added where a handler already hears them (the CLI's
-    own process with an in-process cluster, a worker whose logging was configured): no line twice.
+    own process with an in-process cluster, a worker whose logging was configured): no line twice. The
+    handler is the command line's own (:func:`sim.flight._notes.say_notes`).
     """
-    logger = logging.getLogger("sim")
-    if not logger.hasHandlers():
-        logger.addHandler(_WorkerNote(logging.WARNING))
+    say_notes(unless_heard=True)
 
 
 def _fly_shard(plan: ShowPlan, drones: np.ndarray, options: FlightOptions, token: str, shard: int) -> FlightResult:
