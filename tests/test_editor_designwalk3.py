@@ -54,3 +54,21 @@ def test_the_preview_pane_shows_the_scene_not_viser_s_mobile_panel(ui: Page, vie
     assert box["x"] >= pane["x"] - 1 and box["x"] + box["width"] <= pane["x"] + pane["width"] + 1, (box, pane)
     assert box["y"] + box["height"] <= pane["y"] + pane["height"] + 1, (box, pane)
 
+
+def test_a_submit_the_browser_blocks_replaces_the_last_answer_s_error(ui: Page):
+    page = ui.page
+    ui.open_show(show_doc(name="Stale error"))
+    err = page.locator('[data-error-for="shape"]')
+    size = page.locator("#shape-size")
+    # An answer from the server: 4 drones do not fit on a 1 m circle at the show's minimum distance.
+    size.fill("1")
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    expect(err).to_contain_text("do not fit")
+    # Below the field's own minimum the browser blocks the submit (no request): the message is about that value.
+    minimum = size.get_attribute("min")
+    size.fill("0")
+    page.get_by_role("button", name="Replace the formation with this shape").click()
+    expect(err).not_to_contain_text("do not fit")
+    expect(err).to_contain_text("Size (m)")
+    assert page.evaluate("() => document.getElementById('shape-size').validity.rangeUnderflow")
+    assert minimum is not None and minimum in err.inner_text(), (minimum, err.inner_text())
