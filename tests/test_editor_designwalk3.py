@@ -72,3 +72,24 @@ def test_a_submit_the_browser_blocks_replaces_the_last_answer_s_error(ui: Page):
     expect(err).to_contain_text("Size (m)")
     assert page.evaluate("() => document.getElementById('shape-size').validity.rangeUnderflow")
     assert minimum is not None and minimum in err.inner_text(), (minimum, err.inner_text())
+
+
+#: The canvas' axis legend's words (canvas.js draws "x (east) →  z (up) ↑" in the front view).
+AXIS_WORDS = {"x": "x (east)", "y": "y (north)", "z": "z (up)"}
+
+
+def test_the_depth_field_names_the_hidden_axis_as_the_canvas_does_and_is_gone_in_3d(ui: Page):
+    page = ui.page
+    ui.open_show(show_doc(name="Depth label"))
+    label = page.locator("#depth-label")
+    for view in ("front", "top", "side"):
+        page.select_option("#view-select", view)
+        # The axis the view does not show: the one its menu entry ("Front (x–z, audience)") does not name.
+        shown = page.locator(f"#view-select option[value='{view}']").inner_text().split("(")[1][:3]
+        (hidden,) = set("xyz") - set(shown)
+        expect(label).to_be_visible()
+        expect(label).to_contain_text(AXIS_WORDS[hidden])
+        expect(label).to_contain_text("Altitude" if hidden == "z" else "Depth")
+    # The 3D view has no drawing plane (Draw and Place are refused there): no depth for new points either.
+    page.select_option("#view-select", "3d")
+    expect(page.locator("#depth-input")).to_be_hidden()

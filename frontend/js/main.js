@@ -13,7 +13,7 @@ import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
 import { MotionPanel } from "./motion.js";
 import { MusicLane } from "./music.js";
-import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, scaleAbout } from "./geometry.js";
+import { AXIS_NAMES, audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
 import { Playhead } from "./playhead.js";
@@ -290,9 +290,12 @@ viewSelect.addEventListener("change", () => {
   view.depth = values.length ? Math.round(values[Math.floor(values.length / 2)] * 10) / 10 : axis === 2 ? 40 : 0;
   const depth = /** @type {HTMLInputElement} */ ($("depth-input"));
   depth.value = String(view.depth);
-  const name = ["x", "y", "altitude z"][axis];
-  depth.setAttribute("aria-label", `Depth of new points (${name}), metres`);
-  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : `Depth ${name} (m)`;
+  // Named as the canvas' legend names the axes; the 3D view has no drawing plane (Draw and Place are refused
+  // there), so no depth for new points either.
+  const what = `${axis === 2 ? "Altitude" : "Depth"} ${AXIS_NAMES[axis]}`;
+  depth.setAttribute("aria-label", `${what} of new points, metres`);
+  $("depth-label").textContent = `${what}, m`;
+  $("depth-row").hidden = view.is3d;
 });
 $("move-axis").addEventListener("change", (e) => {
   tools.moveAxis = /** @type {"free"|"x"|"y"|"z"} */ (/** @type {HTMLSelectElement} */ (e.target).value);
