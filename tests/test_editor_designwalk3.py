@@ -93,3 +93,30 @@ def test_the_depth_field_names_the_hidden_axis_as_the_canvas_does_and_is_gone_in
     # The 3D view has no drawing plane (Draw and Place are refused there): no depth for new points either.
     page.select_option("#view-select", "3d")
     expect(page.locator("#depth-input")).to_be_hidden()
+
+
+def test_draft_problems_are_named_as_the_designer_sees_them(ui: Page):
+    from formations._show import Formation, Settings
+
+    page = ui.page
+    doc = show_doc(name="Plain words")
+    doc["formations"].append(dict(doc["formations"][0], name="Heart", hold_s=-1))
+    doc["settings"]["max_speed_z_mps"] = 1e6
+    ui.open_show(doc, draft=True)
+    hold_min = Formation.model_json_schema()["properties"]["hold_s"]["minimum"]
+    vz_max = Settings.model_json_schema()["properties"]["max_speed_z_mps"]["maximum"]
+    items = page.locator("#draft-problems button")
+    expect(items).to_have_count(2)
+    texts = sorted(items.all_inner_texts())
+    vz_label = page.locator("label[for='set-vz']").inner_text()
+    # The field by its label in the settings form, the formation by number and name; the rule in words.
+    assert texts[0] == f'Formation 2 "Heart", hold (s): must be at least {hold_min:g}', texts
+    assert texts[1] == f"{vz_label}: must be at most {vz_max:g}", texts
+    # The server's own words stay at hand for an operator (the tooltip).
+    raws = {b.get_attribute("title") for b in items.all()}
+    assert f"formations[1].hold_s: Input should be greater than or equal to {hold_min:g}" in raws, raws
+    # Beside the field and on the formation's card, the same words, not the API's.
+    expect(page.locator('[data-error-for="settings.max_speed_z_mps"]')).to_have_text(f"must be at most {vz_max:g}")
+    card = page.locator(".tl-card[data-index='1']")
+    expect(card).to_contain_text(f"hold (s): must be at least {hold_min:g}")
+    assert "Input should" not in page.locator("body").inner_text()

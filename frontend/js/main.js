@@ -5,7 +5,7 @@ import * as api from "./api.js";
 import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
-import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
+import { clearShowErrors, describe, formationProblems, setError, showShowErrors } from "./errors.js";
 import { EffectsPanel } from "./effects.js";
 import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
@@ -174,7 +174,10 @@ function renderDraft() {
     const li = document.createElement("li");
     const b = document.createElement("button");
     b.type = "button";
-    b.textContent = `${p.where || p.path || "the show"}: ${p.msg}`;
+    // In the designer's words; the server's own text stays at hand for an operator (the tooltip).
+    const said = describe(p, state.show);
+    b.textContent = `${said.where}: ${said.msg}`;
+    b.title = said.raw;
     const m = /^formations\[(\d+)\]/.exec(p.path || "");
     if (m) {
       // Take the user to the formation the problem is in.
