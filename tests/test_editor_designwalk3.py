@@ -120,3 +120,17 @@ def test_draft_problems_are_named_as_the_designer_sees_them(ui: Page):
     card = page.locator(".tl-card[data-index='1']")
     expect(card).to_contain_text(f"hold (s): must be at least {hold_min:g}")
     assert "Input should" not in page.locator("body").inner_text()
+
+
+def test_a_speed_limit_beyond_the_show_file_s_is_marked_before_any_request(ui: Page):
+    from formations._show import Settings
+
+    page = ui.page
+    ui.open_show(show_doc(name="Limits"))
+    page.locator("#settings-panel summary").click()
+    top = Settings.model_json_schema()["properties"]["max_speed_xy_mps"]["maximum"]
+    page.fill("#set-vxy", f"{top * 10:g}")
+    assert page.evaluate("() => document.getElementById('set-vxy').validity.rangeOverflow")
+    page.locator("#set-vxy").dispatch_event("change")
+    expect(page.locator('[data-error-for="settings.max_speed_xy_mps"]')).to_have_text(f"at most {top:g}")
+    expect(page.locator("#set-vxy")).to_have_class("has-error")
