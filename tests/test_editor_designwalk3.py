@@ -122,6 +122,43 @@ def test_draft_problems_are_named_as_the_designer_sees_them(ui: Page):
     assert "Input should" not in page.locator("body").inner_text()
 
 
+def test_after_simulate_the_timeline_has_the_planned_durations_and_the_result_is_in_view(ui: Page):
+    """The simulation's answer is the server's job as it comes when done (``simulate_task``: the plan summary and
+    the flight summary); the flight itself is stood in for, so that the test does not compile and fly the kernel
+    (the plan is the server's own, ``plan_summary`` of ``plan_show``)."""
+    import json
+
+    from app.tasks import plan_summary
+    from formations._show import parse_show
+    from sim import plan_show
+
+    page = ui.page
+    doc = show_doc(name="Simulated timing")
+    doc["formations"].append(dict(doc["formations"][0], name="Up", points=[[x, y, z + 6] for x, y, z in
+                                                                               doc["formations"][0]["points"]]))
+    ui.open_show(doc)
+    plan = plan_show(parse_show(doc))
+    job = {"id": "sim-stand-in", "kind": "simulate", "state": "done", "progress": 1.0, "cached": False,
+           "result": {"plan": plan_summary(plan), "problems": [],
+                      "flight": {"ok": True, "drones": 4, "min_separation_m": 3.5, "max_deviation_m": 0.1}}}
+    page.route("**/api/shows/*/simulate", lambda route: route.fulfill(
+        status=202, content_type="application/json", body=json.dumps(job)))
+    page.get_by_role("button", name="Simulate the flight").click()
+    expect(page.locator("#sim-percent")).to_have_text("100%")
+    # The planner's durations: the transition before each formation's hold.
+    segs = plan.segments
+    holds = [i for i, s in enumerate(segs) if s.kind == "hold"]
+    checked = 0
+    for k, i in enumerate(holds):
+        if segs[i - 1].kind != "transition":
+            continue
+        expect(page.locator(".tl-transition button").nth(k)).to_have_text(f"→ {segs[i - 1].duration_s:.1f} s")
+        checked += 1
+    assert checked >= 1
+    # The result the designer asked for is on screen, not below the fold of its panel.
+    expect(page.locator("#sim-body")).to_be_in_viewport()
+
+
 def test_a_speed_limit_beyond_the_show_file_s_is_marked_before_any_request(ui: Page):
     from formations._show import Settings
 

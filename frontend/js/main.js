@@ -77,6 +77,12 @@ const simulate = new SimulatePanel(state, persist, {
   onFlown: () => preview.isOpen && preview.load(),
   onPlayRun: (run, t) => (preview.isOpen ? preview.load(run, t) : preview.open(run, t)),
   onFormationProblems: () => timeline.render(),
+  // Simulated without a check: the timeline shows the plan's transition lengths all the same.
+  onPlanned: (plan) => {
+    if (!state.show || simulate.startedVersion !== state.version) return;
+    timeline.setPlanned(state.show.formations.length, plan);
+    timeline.render();
+  },
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);
