@@ -90,7 +90,7 @@ export function plainMsg(msg) {
 
 /**
  * A problem as the designer reads it: where (a settings field by its label, a formation by number and name,
- * else the server's `where` or the path in words, capitalised), what (plainMsg), and the server's own text
+ * else the server's `where` or the path in words, as the server says them), what (plainMsg), and the server's own text
  * for an operator (`raw`).
  * @param {{path?: string, msg: string, where?: string}} p @param {any} [show]
  * @returns {{where: string, msg: string, raw: string}}
@@ -99,8 +99,7 @@ export function describe(p, show) {
   const path = p.path || "";
   const input = path && typeof document !== "undefined" && document.querySelector(`#form-settings [data-path="${CSS.escape(path)}"]`);
   const label = input && input.id ? document.querySelector(`label[for="${CSS.escape(input.id)}"]`) : null;
-  let where = label ? label.textContent.trim() : p.where || plainPath(path, show) || "the show";
-  where = where.charAt(0).toUpperCase() + where.slice(1);
+  const where = label ? label.textContent.trim() : p.where || plainPath(path, show) || "the show";
   const msg = namesPath(p.msg, path) ? p.msg.slice(path.length).replace(/^[:\s]+/, "") : p.msg;
   return { where, msg: plainMsg(msg), raw: path && !namesPath(p.msg, path) ? `${path}: ${p.msg}` : p.msg };
 }
