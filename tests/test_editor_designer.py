@@ -41,11 +41,9 @@ def test_forced_short_transition_previews_and_simulates_but_does_not_export(ui):
     wait_until("the preview's viewer", lambda: page.evaluate(
         "() => window.swarmshow.playhead.preview.viewerState()"), timeout_s=90)
     # The viewer draws the check's violations (computed in a worker once the show is on screen).
-    frame = page.frame_locator("#preview-frame")
-    frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=60_000)
-    expand = frame.get_by_role("button", name="Expand panel")
-    if expand.count():
-        expand.click()
+    from tests.test_viewer_editor_browser import _preview_panel
+
+    frame = _preview_panel(page)
     expect(frame.get_by_text(re.compile(r"Problems\s+\d+ in the check"))).to_be_visible(timeout=60_000)
     expect(frame.get_by_role("button", name="Next problem")).to_be_enabled()
 

@@ -14,6 +14,7 @@ import pytest
 
 from tests.live_server import BROWSER_MARKS, SHOTS, server_for, wait_until
 from tests.test_editor_browser import Page, _create_show
+from tests.test_viewer_editor_browser import _preview_panel
 
 pytestmark = BROWSER_MARKS
 
@@ -282,7 +283,7 @@ def test_scripted_session_300_drones(browser, server, tmp_path):
             page.get_by_role("button", name="3D preview").click()
         assert resp.value.status == 200, resp.value.text
         assert resp.value.json()["source"] == "simulated"
-        frame = page.frame_locator("#preview-frame")
+        frame = _preview_panel(page)  # its panel unfolded (the editor folds viser's bottom sheet)
         frame.get_by_text(f"{DRONES} drones").first.wait_for(timeout=120_000)
         _audience_camera(frame)
         expect(frame.get_by_role("combobox", name="Source")).to_have_value("simulated")

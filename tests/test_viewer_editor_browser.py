@@ -38,8 +38,19 @@ def _viewer_state(page) -> dict | None:
 
 
 def _preview_panel(page):
-    """The preview's viewer page with its control panel open (a narrow pane starts with it minimised)."""
+    """The preview's viewer page with its control panel open: a narrow pane starts with it minimised (viser's dock
+    layout) or, below viser's mobile breakpoint, with its bottom sheet folded by the editor (preview.js, foldSheet)."""
     frame = page.frame_locator("#preview-frame")
+    body = frame.locator("body")
+    # Wait until the page's layout has settled: a bottom sheet is folded by the editor once the viewer's link is in.
+    layout = wait_until("the preview's panel layout", lambda: _viewer_state(page) and body.evaluate("""() => {
+        const h = document.querySelector('div[style*="height: 3.5em"][style*="cursor: pointer"]');
+        if (h && h.closest('[style*="position: fixed"]')) return h.dataset.swarmshowFolded ? 'folded' : '';
+        return 'dock';
+    }"""), timeout_s=90)
+    if layout == "folded":
+        frame.locator("[data-swarmshow-folded]").click()
+        return frame
     expand = frame.get_by_role("button", name="Expand panel")
     frame.get_by_role("button", name=re.compile(r"^(Expand panel|Play|Pause)$")).first.wait_for(timeout=60_000)
     if expand.count():

@@ -4,7 +4,7 @@
 // (camera.js) with the same hit testing on the projected points. Editing gestures live in tools.js.
 
 import { OrbitCamera } from "./camera.js";
-import { VIEW_AXES } from "./geometry.js";
+import { AXIS_NAMES, VIEW_AXES } from "./geometry.js";
 import { homePositions } from "./launch.js";
 import { formationColors } from "./state.js";
 
@@ -381,7 +381,7 @@ export class CanvasView {
       ctx.stroke();
       ctx.fillText(`${+v.toFixed(2)} m`, 3, y - 3);
     }
-    const names = { front: ["x (east)", "z (up)"], top: ["x (east)", "y (north)"], side: ["y (north)", "z (up)"] }[this.view];
+    const names = [AXIS_NAMES[this.axes[0]], AXIS_NAMES[this.axes[1]]];
     ctx.fillStyle = "#8d99b5";
     ctx.fillText(`${names[0]} →   ${names[1]} ↑   grid ${step} m`, w - 230, 14);
   }

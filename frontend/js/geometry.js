@@ -7,6 +7,9 @@
  * looks from the east (along -x): y to the right, z up. The free 3D view ("3d") has no fixed
  * plane; tools that need one (new points, gradients, rotate in the view) use the front view's.
  */
+/** How the editor names the axes (the canvas' legend, the depth field): x east, y north, z up. */
+export const AXIS_NAMES = Object.freeze(["x (east)", "y (north)", "z (up)"]);
+
 export const VIEW_AXES = Object.freeze({ front: [0, 2, 1], top: [0, 1, 2], side: [1, 2, 0], "3d": [0, 2, 1] });
 
 function polyLength(poly) {

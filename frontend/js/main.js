@@ -5,7 +5,7 @@ import * as api from "./api.js";
 import { CanvasView } from "./canvas.js";
 import { applyColor, applyGradient, colorsFromImage, targetIndices } from "./colors.js";
 import { askText, toast } from "./dialogs.js";
-import { clearShowErrors, formationProblems, setError, showShowErrors } from "./errors.js";
+import { clearShowErrors, describe, formationProblems, setError, showShowErrors } from "./errors.js";
 import { EffectsPanel } from "./effects.js";
 import { EffectLane } from "./fxlane.js";
 import { ExportMenu } from "./exportmenu.js";
@@ -13,7 +13,7 @@ import { flyingCount, GroupsPanel } from "./groups.js";
 import { HistoryPanel } from "./history.js";
 import { MotionPanel } from "./motion.js";
 import { MusicLane } from "./music.js";
-import { audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, scaleAbout } from "./geometry.js";
+import { AXIS_NAMES, audiencePoint, faceAudienceDegrees, rotateAboutAxis, rotateInView, scaleAbout } from "./geometry.js";
 import { Persistence } from "./persist.js";
 import { Preview } from "./preview.js";
 import { Playhead } from "./playhead.js";
@@ -77,6 +77,12 @@ const simulate = new SimulatePanel(state, persist, {
   onFlown: () => preview.isOpen && preview.load(),
   onPlayRun: (run, t) => (preview.isOpen ? preview.load(run, t) : preview.open(run, t)),
   onFormationProblems: () => timeline.render(),
+  // Simulated without a check: the timeline shows the plan's transition lengths all the same.
+  onPlanned: (plan) => {
+    if (!state.show || simulate.startedVersion !== state.version) return;
+    timeline.setPlanned(state.show.formations.length, plan);
+    timeline.render();
+  },
 });
 const preview = new Preview(state, persist, () => requestAnimationFrame(() => view.redraw()),
   () => (simulate.hasFlight ? "simulated" : "planned"), () => simulate.flight);
@@ -174,7 +180,10 @@ function renderDraft() {
     const li = document.createElement("li");
     const b = document.createElement("button");
     b.type = "button";
-    b.textContent = `${p.where || p.path || "the show"}: ${p.msg}`;
+    // In the designer's words; the server's own text stays at hand for an operator (the tooltip).
+    const said = describe(p, state.show);
+    b.textContent = `${said.where}: ${said.msg}`;
+    b.title = said.raw;
     const m = /^formations\[(\d+)\]/.exec(p.path || "");
     if (m) {
       // Take the user to the formation the problem is in.
@@ -290,9 +299,12 @@ viewSelect.addEventListener("change", () => {
   view.depth = values.length ? Math.round(values[Math.floor(values.length / 2)] * 10) / 10 : axis === 2 ? 40 : 0;
   const depth = /** @type {HTMLInputElement} */ ($("depth-input"));
   depth.value = String(view.depth);
-  const name = ["x", "y", "altitude z"][axis];
-  depth.setAttribute("aria-label", `Depth of new points (${name}), metres`);
-  $("depth-label").textContent = axis === 2 ? "Altitude (m)" : `Depth ${name} (m)`;
+  // Named as the canvas' legend names the axes; the 3D view has no drawing plane (Draw and Place are refused
+  // there), so no depth for new points either.
+  const what = `${axis === 2 ? "Altitude" : "Depth"} ${AXIS_NAMES[axis]}`;
+  depth.setAttribute("aria-label", `${what} of new points, metres`);
+  $("depth-label").textContent = `${what}, m`;
+  $("depth-row").hidden = view.is3d;
 });
 $("move-axis").addEventListener("change", (e) => {
   tools.moveAxis = /** @type {"free"|"x"|"y"|"z"} */ (/** @type {HTMLSelectElement} */ (e.target).value);

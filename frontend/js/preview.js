@@ -34,6 +34,8 @@ export class Preview {
     this.startFormation = null;
     /** @type {number|null} the time a new viewer page starts at instead (a flight's closest pair), seconds */
     this.startTime = null;
+    /** @type {ReturnType<typeof setInterval>|null} the watch that folds viser's bottom sheet (foldSheet) */
+    this.sheetWatch = null;
     document.getElementById("btn-preview-close").addEventListener("click", () => this.close());
     document.getElementById("btn-preview-reload").addEventListener("click", () => this.load());
   }
@@ -63,9 +65,38 @@ export class Preview {
 
   /** Hide the preview. */
   close() {
+    if (this.sheetWatch !== null) clearInterval(this.sheetWatch);
+    this.sheetWatch = null;
     this.wrap.hidden = true;
     this.button.setAttribute("aria-pressed", "false");
     this._layout();
+  }
+
+  /**
+   * Fold viser's bottom sheet to its handle strip once per sheet, so the scene shows.
+   *
+   * Why: the pane (265-400 px) is narrower than viser's mobile breakpoint (viser 1.1.1, client/src/App.tsx:
+   * `(max-width: ${theme.breakpoints.xs})`, Mantine's xs = 36em = 576 px), where viser lays its control panel
+   * out as a bottom sheet up to 60% of the page tall, over the scene, and ignores the server's
+   * `main_panel.minimize()`. Laying the page out wider instead (desktop layout, panel minimised) unmounts the
+   * panel's contents, among them the link element `viewerState` reads the shared playhead from; a folded sheet
+   * keeps them (a Mantine Collapse). A sheet the designer unfolds stays unfolded; a new one (a new page, a
+   * re-mount) is folded again.
+   */
+  foldSheet() {
+    let doc = null;
+    try {
+      doc = this.frame.contentDocument;
+    } catch {
+      return;
+    }
+    // The sheet's handle (BottomPanel.Handle): the clickable 3.5em strip of a fixed panel at the bottom.
+    const handle = doc && /** @type {HTMLElement|null} */ (doc.querySelector('div[style*="height: 3.5em"][style*="cursor: pointer"]'));
+    if (!handle || handle.dataset.swarmshowFolded) return;
+    const sheet = handle.closest('[style*="position: fixed"]');
+    if (!sheet || !doc.getElementById("swarmshow-viewer")) return; // not the sheet, or its contents not there yet
+    handle.dataset.swarmshowFolded = "1";
+    handle.click();
   }
 
   _layout() {
@@ -135,5 +166,6 @@ export class Preview {
     // A fresh viewer page: each page is its own viewer client and starts on the show just loaded
     // (other tabs' viewers keep theirs).
     this.frame.src = "/viser/";
+    if (this.sheetWatch === null) this.sheetWatch = setInterval(() => this.foldSheet(), 250);
   }
 }

@@ -18,7 +18,8 @@ export class SimulatePanel {
    * @param {import("./persist.js").Persistence} persist
    * @param {{onSelectDrones?: (drones: number[]) => void, onFlown?: () => void,
    *   onPlayRun?: (run: {job_id: string, run?: number}, startTime?: number|null) => Promise<void>,
-   *   onFormationProblems?: () => void}} [hooks] onFormationProblems: a failure named formations (marked)
+   *   onFormationProblems?: () => void, onPlanned?: (plan: any) => void}} [hooks] onFormationProblems: a failure
+   *   named formations (marked); onPlanned: a simulation finished with its plan (the server's plan summary)
    *   onFlown: a simulation finished; onPlayRun: play a Monte-Carlo run, or a simulation job's flight (no `run`),
    *   in the 3D preview, from `startTime` (its closest pair)
    */
@@ -221,6 +222,9 @@ export class SimulatePanel {
       this._progress(1, "100%");
       this.cancelBtn.hidden = true;
       this._summary(job.result || {}, job.cached, this.job.id);
+      if (this.hooks.onPlanned) this.hooks.onPlanned((job.result || {}).plan);
+      // The answer the designer waited for, on screen (the panel sits below the fold on a laptop).
+      this.body.scrollIntoView({ block: "nearest" });
     } else if (job.state === "failed" || job.state === "cancelled") {
       this.cancelBtn.hidden = true;
       this._progress(p, job.state);

@@ -47,6 +47,20 @@ export function emptyNumberField(form) {
 }
 
 /**
+ * Say the browser's own range check next to `form` (error key `key`) when it blocks a submit: no submit event
+ * comes then, so a message from the last answer (say "16 drones do not fit at 10 m") stayed beside the browser's
+ * bubble about another value. `invalid` does not bubble: listened for in the capture phase.
+ * @param {HTMLFormElement} form @param {string} key
+ */
+export function sayInvalid(form, key) {
+  form.addEventListener("invalid", (e) => {
+    const input = /** @type {HTMLInputElement} */ (e.target);
+    const label = input.id ? form.querySelector(`label[for="${CSS.escape(input.id)}"]`) : null;
+    setError(key, `${label ? label.textContent.trim() : input.name}: ${input.validationMessage}`);
+  }, true);
+}
+
+/**
  * A cheap fingerprint of a point set: count and rounded coordinate sums. A formation whose points
  * still have the fingerprint stored in its `source` was not edited by hand since it was made.
  * @param {number[][]} points
@@ -226,6 +240,7 @@ export class Sources {
       }
       return { body, source, file };
     };
+    sayInvalid(form, key);
     const fitButton = /** @type {HTMLButtonElement|null} */ (form.querySelector(".fit-size"));
     fitButton?.addEventListener("click", async () => {
       setError(key, "");
@@ -334,6 +349,7 @@ export class Sources {
    */
   _meshForm() {
     const form = /** @type {HTMLFormElement} */ (document.getElementById("form-mesh"));
+    sayInvalid(form, "mesh");
     form.addEventListener("submit", async (e) => {
       e.preventDefault();
       setError("mesh", "");

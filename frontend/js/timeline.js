@@ -92,6 +92,24 @@ export class Timeline {
     this.ends = groups.filter((g) => g.kind === "takeoff" || g.kind === "landing" || (g.kind === "transition" && g.formation < 0));
   }
 
+  /**
+   * Take the transition lengths of a plan (a simulation's: `{segments: [{kind, duration_s}]}`, the server's
+   * plan summary) where no check has given them: a designer who simulates without checking sees the planned
+   * durations too. The transition into formation k is the segment just before its hold.
+   * @param {number} count number of formations
+   * @param {{segments?: {kind: string, duration_s: number}[]}|null|undefined} plan
+   */
+  setPlanned(count, plan) {
+    const segs = (plan && plan.segments) || [];
+    const holds = segs.map((s, i) => (s.kind === "hold" ? i : -1)).filter((i) => i >= 0);
+    if (holds.length !== count) return; // not this show's plan (a formation added or removed since)
+    this.transitions = holds.map((i, k) => {
+      if (this.checks[k]) return this.transitions[k];
+      const before = segs[i - 1];
+      return before && before.kind === "transition" ? before.duration_s : null;
+    });
+  }
+
   /** Add a new grid formation after the current one. */
   add() {
     const st = this.state;
