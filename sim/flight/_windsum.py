@@ -45,8 +45,11 @@ contraction is on (``fastmath={"contract"}`` only: no reassociation, so the addi
 order). Both functions are within 4.5e-16 of libm's for arguments up to 2e4 rad (tested); the sums
 differ from the formula with libm's cosines by the argument's own rounding (a few ulp of its terms;
 ``tests/test_flight_table_threads.py``). Measured against the previous form (the Taylor series to
-``r²⁴`` on ``[-π, π]``, no contraction), 44,000 points x 128 modes, alternating in one process, 7
-rounds, load 2-3: **1.51x** less CPU on one thread (1.30-1.52), 1.52x on two. The order of the
+``r²⁴`` on ``[-π, π]``, no contraction; kept as ``benchmarks/_windsum_taylor.py``), 44,000 points x
+128 modes (4,000 drones x 11 rows), one thread, alternating in one process: **1.60x** less CPU
+(median of 9 pairs, 1.41-1.61, load ~10; ``pytest -m slow benchmarks/bench_tables.py -k taylor -s``),
+466 M point-modes per CPU second; 1.51x (1.30-1.52) in an earlier run of 7 at load 2-3, 1.52x on
+two threads. The order of the
 additions per point is fixed (mode by mode), so a point's value does not depend on the other
 points, or the block it falls in.
 """
