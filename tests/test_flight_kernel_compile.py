@@ -210,3 +210,78 @@ def test_a_jobs_compile_note_reaches_its_status_and_clears_when_it_moves_on():
         events.put(item)
     JobManager._relay_loop(relay)  # type: ignore[arg-type]
     assert JobOut(**job_body(job.snapshot())).note == "" and job.progress == 0.5
+
+
+_WIDE_STAND_IN = """
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, fastmath=True)
+def stand_in_w(x, out):  # float64 and float32 in one loop, as the float32 kernel: float64 sets the vector width
+    for i in range(x.size):
+        out[i] = np.float32(x[i]) * np.float32(1.5) + np.float32(x[i] * x[i])
+    return out[0]
+
+
+@numba.njit(cache=True, fastmath=True)
+def after(x, out):  # the same loop, compiled later in the same process without options
+    for i in range(x.size):
+        out[i] = np.float32(x[i]) * np.float32(1.5) + np.float32(x[i] * x[i])
+    return out[0]
+"""
+
+_OPTIONS_PROBE = """
+import subprocess, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import sim.flight.engines._numba as K
+import stand_in_w as m
+mode = sys.argv[2]
+if mode.endswith("in-process"):  # the compiling child fails (here: never runs): this process compiles
+    subprocess.run = lambda *a, **k: None
+options = ("-force-vector-width=16",) if mode.startswith("forced") else ()
+x, out = np.linspace(0.0, 1.0, 100), np.zeros(100, np.float32)
+K._cached_machine_code(m.stand_in_w, (x, out), options)
+K._cached_machine_code(m.after, (x, out))
+assert m.stand_in_w(x, out) == 0.0 and out[-1] == np.float32(2.5)
+"""
+
+
+def _object_code(cache: Path, name: str, where: Path) -> list[bytes]:
+    """The machine code numba cached for ``name`` (the byte strings of its cache entry: object code, bitcode)."""
+    import pickle
+
+    (data,) = cache.rglob(f"*.{name}-*.nbc")
+    sys.path.insert(0, str(where))  # unpickling rebuilds the function's environment from its module
+    try:
+        entry = pickle.loads(data.read_bytes())
+    finally:
+        sys.path.remove(str(where))
+    return [b for b in entry[0][2] if isinstance(b, bytes)]
+
+
+def test_a_process_that_compiles_itself_runs_the_machine_code_of_the_cache_options_and_all(tmp_path):
+    # The float32 kernel is compiled with a process-global LLVM option (-force-vector-width=16),
+    # set in the compiling child. When the child cannot compile, the process compiles itself: it
+    # must apply the same options (else it runs other machine code than every process that loads
+    # the cache: 8-wide against 16-wide, results different in the last bits), and reset them after
+    # (else everything it compiles later is forced 16 wide too). Witness: the object code numba
+    # caches, which a process compiling itself writes as well.
+    (tmp_path / "stand_in_w.py").write_text(_WIDE_STAND_IN)
+    probe = tmp_path / "probe.py"
+    probe.write_text(_OPTIONS_PROBE)
+    code: dict[str, tuple[list[bytes], list[bytes]]] = {}
+    for mode in ("forced-child", "forced-in-process", "plain-child", "plain-in-process"):
+        cache = tmp_path / mode
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
+                   PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+        subprocess.run([sys.executable, str(probe), str(tmp_path), mode], env=env, check=True, timeout=600)
+        code[mode] = (_object_code(cache, "stand_in_w", tmp_path), _object_code(cache, "after", tmp_path))
+    assert code["forced-child"][0], "no machine code cached"
+    assert code["forced-child"][0] != code["plain-child"][0], "the option changed nothing: not a witness"
+    assert code["forced-in-process"][0] == code["forced-child"][0], "compiled without the kernel's options"
+    assert code["plain-in-process"][0] == code["plain-child"][0]
+    # What the process compiled after the kernel: as in a process that compiled the kernel without the
+    # options (a process's second compile differs in its symbols' numbering from a child's first).
+    assert code["forced-in-process"][1] == code["plain-in-process"][1]
