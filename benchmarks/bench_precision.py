@@ -29,16 +29,14 @@ def _f32_kernel_asm() -> str:
 
     import sim.flight.engines._numba_f32 as kernel_module
     from sim.flight import TrackingReference, error_preset, simulate
-    from sim.flight.engines._numba import _llvm_options
 
     fresh = nb.njit(parallel=True, error_model="numpy", fastmath={"nsz", "afn", "contract", "reassoc"})(
         kernel_module._kernel.py_func)
     saved = kernel_module._kernel
     kernel_module._kernel = fresh
     try:
-        with _llvm_options(kernel_module.LLVM_OPTIONS):  # as the kernel is compiled (16 wide)
-            simulate(TrackingReference.hover(np.zeros((2, 3))), duration_s=0.002, engine="numba",
-                     errors=error_preset("gusty-rtk"), precision="float32")
+        simulate(TrackingReference.hover(np.zeros((2, 3))), duration_s=0.002, engine="numba",
+                 errors=error_preset("gusty-rtk"), precision="float32")
     finally:
         kernel_module._kernel = saved
     asm: str = fresh.inspect_asm(fresh.signatures[0])

@@ -116,9 +116,8 @@ rounds): 250 Hz 1.44x the kernel with every loop at 1 kHz (1.43-1.46); the float
 250 Hz 1.76x the float64 1 kHz one (in an earlier run of the same rounds, 100 Hz: 1.47x, 1.99x).
 
 Single precision: :mod:`sim.flight.engines._numba_f32` is this step with the control laws in
-float32 (``precision="float32"``, opt-in; sixteen drones per block, vectorised sixteen wide): faster
-than this kernel, within 1 mm of its flights, without the 1e-9 agreement with the reference (the
-measured ratios and the per-quantity choice there).
+float32 (``precision="float32"``, opt-in): 1.30-1.41x this kernel, within 1 mm of its flights,
+without the 1e-9 agreement with the reference (measurements and the per-quantity choice there).
 
 The numpy step is the readable reference; ``tests/test_flight_engines.py`` checks that
 both agree to 1e-9 over one simulated second (24 drones off their circles, with and
@@ -1245,7 +1244,7 @@ def _rw(a: Any, dtype: type = np.float64) -> np.ndarray:
     return np.require(a, dtype=dtype, requirements=["C", "W"])
 
 
-def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...], llvm_options: tuple[str, ...] = ()) -> None:
+def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
     """Make this process run ``dispatcher``'s machine code for ``args`` *as loaded from numba's disk cache*.
 
     Why: for this parallel kernel numba's in-process JIT and the object code it writes to the
@@ -1256,17 +1255,10 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...], llvm_options: t
     bit with every process that loaded it from the cache: a Dask worker, the next CLI run.
     So on a cache miss the specialisation is compiled (and cached) by a child process, and this
     process loads the cached code like every other. If the child cannot do it (cache not
-    writable, caching off) this process compiles as numba always does (with ``llvm_options``);
-    only then can processes differ, at that rounding level. Uses numba's dispatcher internals (``_cache``); if they
+    writable, caching off) this process compiles as numba always does; only then can processes
+    differ, at that rounding level. Uses numba's dispatcher internals (``_cache``); if they
     change, this falls back to numba's own behaviour.
-
-    ``llvm_options``: LLVM command-line options (``llvmlite.binding.set_option``) the machine code
-    is compiled with, e.g. the float32 kernel's ``-force-vector-width=16``. They are process-global,
-    so they are set in the compiling child only, and, when this process has to compile after all,
-    around that compile and reset afterwards (:func:`_llvm_options`): a process that compiles runs
-    code vectorised as the cached code is, and nothing else it compiles later is affected.
     """
-    sig: tuple[Any, ...] | None = None
     try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         if sig in dispatcher.overloads:
@@ -1274,8 +1266,7 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...], llvm_options: t
         if not _in_disk_cache(dispatcher, sig):
             _log.warning(COMPILE_NOTE)
             func = dispatcher.py_func
-            code = ("import pickle, sys, importlib; import llvmlite.binding as ll; "
-                    f"[ll.set_option('', o) for o in {list(llvm_options)!r}]; "
+            code = ("import pickle, sys, importlib; "
                     f"f = getattr(importlib.import_module({func.__module__!r}), {func.__qualname__!r}); "
                     "f.compile(pickle.loads(sys.stdin.buffer.read()))")
             # The child imports this process's code: its sys.path as PYTHONPATH ('' is the working
@@ -1285,35 +1276,8 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...], llvm_options: t
             subprocess.run([sys.executable, "-P", "-c", code], input=pickle.dumps(sig), env=env,
                            capture_output=True, timeout=1800, check=False, preexec_fn=_lift_data_limit)
     except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
-        if sig is None:
-            return
-    with _llvm_options(llvm_options):
-        dispatcher.compile(sig)  # from the cache when the child wrote it; else compiled here, as the child would
-
-
-class _llvm_options:
-    """Set LLVM command-line options for the ``with`` body (a compile), then reset them to LLVM's defaults.
-
-    ``llvmlite.binding.set_option`` is process-global; each option named here must take ``=0`` as its
-    default (``-force-vector-width``, ``-force-vector-interleave``: 0 is "not forced").
-    """
-
-    def __init__(self, options: tuple[str, ...]) -> None:
-        self.options = options
-
-    def __enter__(self) -> None:
-        for option in self.options:
-            _llvm_binding().set_option("", option)
-
-    def __exit__(self, *exc: object) -> None:
-        for option in self.options:
-            _llvm_binding().set_option("", option.split("=", 1)[0] + "=0")
-
-
-def _llvm_binding() -> Any:
-    import llvmlite.binding as ll  # type: ignore[import-untyped]
-
-    return ll
+        return
+    dispatcher.compile(sig)  # from the cache when the child wrote it
 
 
 def _lift_data_limit() -> None:

@@ -18,7 +18,14 @@ the machine's load). Also measured and not kept: 16 lanes per block, 1.34-1.39x;
 LLVM forced to vectorise 16 wide (``-force-vector-width=16``, a process-global LLVM option, set
 only in the compiling child: float32 in zmm, float64 in zmm pairs; 3,213 instructions per 16
 drones against 2,051 per 8, a third of them stack spills): 1.46-1.49x, but a process that
-compiled without the option would run other machine code (see ``_cached_machine_code``).
+compiled without the option would run other machine code (see ``_cached_machine_code``). That
+figure compared processes; built properly (the option set in the compile child and around an
+in-process fallback compile, tested; branch speed32, d9bdd0e, reverted) and measured in one process
+against this kernel (alternating single-thread rounds, kernel CPU time, 4,000 drones, gusty-rtk,
+6 rounds, load ~6; its cached object code was 16 wide: 1,903 zmm packed-single instructions against
+134 here): **0.99x** at the default 250 Hz position loop (0.965-1.015) and 1.01x with every loop at
+1 kHz (0.93-1.02), so not kept. In the same rounds this kernel ran at 1.37x the float64 one at
+250 Hz (1.367-1.378) and 1.33x at 1 kHz (1.31-1.33).
 
 Multi-rate as the float64 kernel (``IsmcGains.position_rate_hz``): the step's body is
 :func:`_lane_step32`, inlined into two lane loops (outer loop on / held), the branch outside them;
@@ -61,13 +68,11 @@ and the numpy reference, by 2 cm on another drone), the flown separation by 0.1 
 from __future__ import annotations
 
 import math
-import types
 from typing import Any
 
 import numba as nb
 import numpy as np
 
-import sim.flight.engines._numba as _k64
 from sim.flight._disturbance import SHEAR_LINEAR_RADIUS_FRACTION
 from sim.flight._quadrotor import YAW_HEADROOM
 from sim.flight.engines._numba import (
@@ -89,10 +94,16 @@ from sim.flight.engines._numba import (
     F_WA,
     F_WB,
     F_WJ,
+    LANES,
     NF,
     _aligned_zeros,
+    _block_window,
     _cached_machine_code,
+    _commit,
     _kernel_args,
+    _load_piece,
+    _ref_at,
+    _seek,
 )
 from sim.flight.engines._state import (
     C_E2_0,
@@ -150,35 +161,7 @@ from sim.flight.engines._state import (
 from sim.flight.engines._tables import WIND_GRAD_SIZE, ChunkTables
 from sim.flight.engines._vmath32 import vasin32, vatan2_32, vexp32, vlog32, vsincos32
 
-__all__ = ["LANES", "LLVM_OPTIONS", "run_chunk_numba"]
-
-#: Drones per block: sixteen, with LLVM forced to vectorise the lane loop sixteen wide (``LLVM_OPTIONS``),
-#: so that the float32 arithmetic fills zmm registers (sixteen drones per instruction; float64 in zmm
-#: pairs). Left to itself LLVM vectorises eight wide (float64, the loop's widest type, sets the factor).
-LANES = 16
-#: The LLVM options this kernel is compiled with (process-global, so set only around its compile:
-#: ``_numba._cached_machine_code``).
-LLVM_OPTIONS = ("-force-vector-width=16",)
-
-
-def _with_lanes(names: tuple[str, ...], lanes: int) -> dict[str, Any]:
-    """The float64 kernel's lane-indexed scratch helpers (``sc[field * LANES + lane]``) recompiled with
-    ``LANES = lanes``: the same Python code with that one global rebound, so both kernels share one source
-    of the piece cache, the commits and the block window. Inlined into this kernel (``inline="always"``),
-    so they need no cache of their own; a helper that calls another gets the rebound one."""
-    env = dict(vars(_k64), LANES=lanes)
-    out: dict[str, Any] = {}
-    for name in names:
-        py = getattr(_k64, name).py_func
-        fn = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__)
-        fn.__qualname__ = py.__qualname__
-        env[name] = out[name] = nb.njit(inline="always")(fn)
-    return out
-
-
-_helpers = _with_lanes(("_axis_at", "_ref_at", "_commit", "_load_piece", "_seek", "_block_window"), LANES)
-_ref_at, _commit, _load_piece = _helpers["_ref_at"], _helpers["_commit"], _helpers["_load_piece"]
-_seek, _block_window = _helpers["_seek"], _helpers["_block_window"]
+__all__ = ["run_chunk_numba"]
 
 F32 = np.float32
 _Z, _O, _H = F32(0.0), F32(1.0), F32(0.5)
@@ -950,5 +933,5 @@ def run_chunk_numba(
     """
     args = _kernel_args(state, ctrl, stats, dstep, dreason, ref=ref, chunk=chunk, dist=dist, step0=step0,
                         times=times, every=every, frames=frames, tel=tel, opts=opts, tables=tables)
-    _cached_machine_code(_kernel, args, LLVM_OPTIONS)
+    _cached_machine_code(_kernel, args)
     _kernel(*args)
