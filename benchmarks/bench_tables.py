@@ -129,3 +129,49 @@ def test_bench_wind_mode_sum_against_the_taylor_form(record_result) -> None:
            "load_average_max": max(load, os.getloadavg()[0])}
     record_result(fig)
     assert fig["speedup_cpu_median_min_max"][0] > 1.0
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_bench_simulate_with_the_previous_wind_sum(record_result, monkeypatch, precision) -> None:
+    """Whole 1-s ``simulate`` (4,000 drones, gusty-rtk, default gains) with the current wind mode sum and with
+    its previous Taylor form swapped in, alternating in one process (issue 20 item 6: the tables' share)."""
+    import sim.flight._windsum as windsum
+    from benchmarks._windsum_taylor import _sum_and_jacobian_blocks as taylor
+    from sim.flight import TrackingReference, error_preset, simulate
+    from sim.flight._threads import share_blocks
+
+    def taylor_sum(out, jac, x, y, z, t, k, amp, omega, phase, *, threads=1):  # type: ignore[no-untyped-def]
+        blocks = (x.shape[0] + windsum._BLOCK - 1) // windsum._BLOCK
+        args = (out, jac, x, y, z, t, k, amp, omega, phase)
+        if threads <= 1 or blocks < 2:
+            taylor(*args, 0, blocks)
+        else:
+            share_blocks(blocks, lambda b: taylor(*args, b, b + 1), threads=threads)
+
+    rng = np.random.default_rng(0)
+    ref = TrackingReference.circle(rng.uniform(-200.0, 200.0, (DRONES, 3)) + [0.0, 0.0, 60.0], radius_m=3.0,
+                                   omega_rad_s=0.5)
+    errors = error_preset("gusty-rtk")
+    sums = {"now": windsum.turbulence_sum_and_jacobian, "before": taylor_sum}
+
+    def fly(name: str) -> None:
+        monkeypatch.setattr(windsum, "turbulence_sum_and_jacobian", sums[name])
+        simulate(ref, duration_s=1.0, engine="numba", output_every=40, errors=errors, precision=precision)
+
+    for name in sums:
+        fly(name)  # compile and warm
+    load = os.getloadavg()[0]
+    runs: dict[str, list[tuple[float, float]]] = {"now": [], "before": []}
+    for p in range(PAIRS):
+        for name in (("now", "before") if p % 2 == 0 else ("before", "now")):
+            runs[name].append(_timed(lambda name=name: fly(name)))
+    r = np.array(runs["before"]) / np.array(runs["now"])
+    steps = DRONES * 1001
+    fig = {"drones": DRONES, "preset": "gusty-rtk", "precision": precision,
+           "drone_steps_per_wall_s_now_best": steps / float(np.array(runs["now"])[:, 0].min()),
+           "drone_steps_per_wall_s_before_best": steps / float(np.array(runs["before"])[:, 0].min()),
+           "speedup_wall_median_min_max": [float(np.median(r[:, 0])), float(r[:, 0].min()), float(r[:, 0].max())],
+           "speedup_cpu_median_min_max": [float(np.median(r[:, 1])), float(r[:, 1].min()), float(r[:, 1].max())],
+           "load_average_max": max(load, os.getloadavg()[0])}
+    record_result(fig)
+    assert fig["speedup_cpu_median_min_max"][0] > 0.9
