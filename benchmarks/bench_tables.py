@@ -84,3 +84,94 @@ def test_bench_error_tables_on_threads(record_result, monkeypatch) -> None:
     }
     record_result(fig)
     assert fig["chunk_cpu_ratio_median_min_max"][0] > 0.5  # the threads add no large CPU cost
+
+
+def test_bench_wind_mode_sum_against_the_taylor_form(record_result) -> None:
+    """The wind mode sum (Cephes polynomials on a quadrant reduction, FMA contraction) against its previous
+    Taylor form, 44,000 points (4,000 drones x 11 rows of the 10 Hz grid) x 128 modes, one thread,
+    alternating in one process, CPU time (issue 20 item 6)."""
+    from benchmarks._windsum_taylor import _sum_and_jacobian_blocks as taylor
+    from sim.flight._disturbance import WindField
+    from sim.flight._windsum import _BLOCK, turbulence_sum_and_jacobian
+
+    rng = np.random.default_rng(0)
+    n = DRONES * 11
+    f = WindField.dryden(mean_mps=7.7, direction_rad=0.4, sigma_mps=1.3, length_m=152.0, vertical_factor=0.6,
+                         modes=128, seed=3)
+    pts = rng.uniform(-200.0, 200.0, (n, 3))
+    pts[:, 2] = rng.uniform(2.0, 120.0, n)
+    _, t, x, y, z = f._advected(pts, rng.uniform(0.0, 1.0, n))
+    modes = f._modes()
+
+    def now() -> tuple[np.ndarray, np.ndarray]:
+        out, jac = np.zeros((n, 3)), np.zeros((n, 11))
+        turbulence_sum_and_jacobian(out, jac, x, y, z, t, *modes, threads=1)
+        return out, jac
+
+    def before() -> tuple[np.ndarray, np.ndarray]:
+        out, jac = np.zeros((n, 3)), np.zeros((n, 11))
+        taylor(out, jac, x, y, z, t, *modes, 0, (n + _BLOCK - 1) // _BLOCK)
+        return out, jac
+
+    a, b = now(), before()  # compile, and the two agree far below anything the flight resolves
+    diff = max(float(np.abs(a[0] - b[0]).max()), float(np.abs(a[1] - b[1]).max()))
+    assert diff < 1e-12
+    load = os.getloadavg()[0]
+    cpu: dict[str, list[float]] = {"now": [], "before": []}
+    for p in range(PAIRS):
+        for name, fn in ((("now", now), ("before", before)) if p % 2 == 0 else (("before", before), ("now", now))):
+            cpu[name].append(_timed(fn)[1])
+    r = np.array(cpu["before"]) / np.array(cpu["now"])
+    fig = {"points": n, "modes": 128, "threads": 1, "max_abs_difference": diff,
+           "cpu_s_now_median": float(np.median(cpu["now"])), "cpu_s_before_median": float(np.median(cpu["before"])),
+           "point_modes_per_cpu_s_now": n * 128 / float(np.median(cpu["now"])),
+           "speedup_cpu_median_min_max": [float(np.median(r)), float(r.min()), float(r.max())],
+           "load_average_max": max(load, os.getloadavg()[0])}
+    record_result(fig)
+    assert fig["speedup_cpu_median_min_max"][0] > 1.0
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_bench_simulate_with_the_previous_wind_sum(record_result, monkeypatch, precision) -> None:
+    """Whole 1-s ``simulate`` (4,000 drones, gusty-rtk, default gains) with the current wind mode sum and with
+    its previous Taylor form swapped in, alternating in one process (issue 20 item 6: the tables' share)."""
+    import sim.flight._windsum as windsum
+    from benchmarks._windsum_taylor import _sum_and_jacobian_blocks as taylor
+    from sim.flight import TrackingReference, error_preset, simulate
+    from sim.flight._threads import share_blocks
+
+    def taylor_sum(out, jac, x, y, z, t, k, amp, omega, phase, *, threads=1):  # type: ignore[no-untyped-def]
+        blocks = (x.shape[0] + windsum._BLOCK - 1) // windsum._BLOCK
+        args = (out, jac, x, y, z, t, k, amp, omega, phase)
+        if threads <= 1 or blocks < 2:
+            taylor(*args, 0, blocks)
+        else:
+            share_blocks(blocks, lambda b: taylor(*args, b, b + 1), threads=threads)
+
+    rng = np.random.default_rng(0)
+    ref = TrackingReference.circle(rng.uniform(-200.0, 200.0, (DRONES, 3)) + [0.0, 0.0, 60.0], radius_m=3.0,
+                                   omega_rad_s=0.5)
+    errors = error_preset("gusty-rtk")
+    sums = {"now": windsum.turbulence_sum_and_jacobian, "before": taylor_sum}
+
+    def fly(name: str) -> None:
+        monkeypatch.setattr(windsum, "turbulence_sum_and_jacobian", sums[name])
+        simulate(ref, duration_s=1.0, engine="numba", output_every=40, errors=errors, precision=precision)
+
+    for name in sums:
+        fly(name)  # compile and warm
+    load = os.getloadavg()[0]
+    runs: dict[str, list[tuple[float, float]]] = {"now": [], "before": []}
+    for p in range(PAIRS):
+        for name in (("now", "before") if p % 2 == 0 else ("before", "now")):
+            runs[name].append(_timed(lambda name=name: fly(name)))
+    r = np.array(runs["before"]) / np.array(runs["now"])
+    steps = DRONES * 1001
+    fig = {"drones": DRONES, "preset": "gusty-rtk", "precision": precision,
+           "drone_steps_per_wall_s_now_best": steps / float(np.array(runs["now"])[:, 0].min()),
+           "drone_steps_per_wall_s_before_best": steps / float(np.array(runs["before"])[:, 0].min()),
+           "speedup_wall_median_min_max": [float(np.median(r[:, 0])), float(r[:, 0].min()), float(r[:, 0].max())],
+           "speedup_cpu_median_min_max": [float(np.median(r[:, 1])), float(r[:, 1].min()), float(r[:, 1].max())],
+           "load_average_max": max(load, os.getloadavg()[0])}
+    record_result(fig)
+    assert fig["speedup_cpu_median_min_max"][0] > 0.9

@@ -36,12 +36,22 @@ block the same arithmetic whichever thread does it, so the same bits. Tried and 
 On the loaded shared machine (load 3-8 on 2 cores) the second thread rarely finds a core free,
 so the wall-clock gain there is mostly the CPU cut; the split pays when a core is idle.
 
-Cosine: the argument is reduced to ``r ∈ [-π, π]`` in float64 and ``cos r`` is its Taylor
-series to ``r²⁴`` (truncation below ``π²⁶/26! = 2e-14``; Horner in ``r²``), so the result
-differs from libm's by ~1e-14 absolute, far below anything the flight resolves (the sine,
-for the Jacobian, likewise from the same reduced argument to ``r²⁵``). The order
-of the additions per point is fixed (mode by mode), so a point's value does not depend on
-the other points, or the block it falls in.
+Cosine and sine (issue 20 item 6: the tables were 17 % of a 1-s, 4,000-drone gusty-rtk flight's wall
+time, 22 of 132 ms): the argument is reduced to ``r ∈ [-π/4, π/4]`` by the nearest multiple n of
+π/2 (Cody and Waite's two-part π/2, fdlibm's constants: ``n·π/2`` exact for ``|n| < 2^20``), ``cos r``
+and ``sin r`` are Cephes' minimax polynomials (Moshier 1989; degree 14 and 13, within 1.2e-16 of
+libm's on the interval), and the quadrant n mod 4 swaps and negates them by selects. FMA
+contraction is on (``fastmath={"contract"}`` only: no reassociation, so the additions keep their
+order). Both functions are within 4.5e-16 of libm's for arguments up to 2e4 rad (tested); the sums
+differ from the formula with libm's cosines by the argument's own rounding (a few ulp of its terms;
+``tests/test_flight_table_threads.py``). Measured against the previous form (the Taylor series to
+``r²⁴`` on ``[-π, π]``, no contraction; kept as ``benchmarks/_windsum_taylor.py``), 44,000 points x
+128 modes (4,000 drones x 11 rows), one thread, alternating in one process: **1.60x** less CPU
+(median of 9 pairs, 1.41-1.61, load ~10; ``pytest -m slow benchmarks/bench_tables.py -k taylor -s``),
+466 M point-modes per CPU second; 1.51x (1.30-1.52) in an earlier run of 7 at load 2-3, 1.52x on
+two threads. The order of the
+additions per point is fixed (mode by mode), so a point's value does not depend on the other
+points, or the block it falls in.
 """
 
 from __future__ import annotations
@@ -55,39 +65,47 @@ from sim.flight._threads import share_blocks
 
 __all__ = ["turbulence_sum", "turbulence_sum_and_jacobian"]
 
-_TWO_PI = 2.0 * math.pi
-_INV_TWO_PI = 1.0 / _TWO_PI
-# Taylor coefficients of cos in r²: (-1)^k / (2k)!, k = 12 .. 0 (Horner order).
-_COS_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(12, -1, -1))
-# and of sin r / r in r²: (-1)^k / (2k+1)!, k = 12 .. 0 (truncation π²⁷/27! = 3e-15).
-_SIN_COEFFS = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(12, -1, -1))
+# Cody and Waite's two-part π/2 (fdlibm's ``pio2_1``, its first 33 bits, and ``pio2_1t`` = π/2 - pio2_1):
+# n·_PIO2_HI is exact for |n| < 2^20 (|argument| < 1.6e6 rad), so the reduced argument is good to ~1e-22.
+_TWO_OVER_PI = 2.0 / math.pi
+_PIO2_HI = 1.57079632673412561417e+00
+_PIO2_LO = 6.07710050650619224932e-11
+# Cephes' sin.c minimax coefficients on [-π/4, π/4] (Moshier 1989): sin r = r + r³ S(r²), cos r = 1 - r²/2 + r⁴ C(r²),
+# within 1.2e-16 of libm's there (Horner in r²).
+_SIN_COEFFS = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
+               -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1)
+_COS_COEFFS = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
+               2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
 _BLOCK = 1024
 
 
 @numba.njit(inline="always", cache=True)
-def _cos(a: float) -> float:  # pragma: no cover - compiled
-    r = a - _TWO_PI * float(np.floor(a * _INV_TWO_PI + 0.5))
-    r2 = r * r
-    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12 = _COS_COEFFS
-    return ((((((((((((c0 * r2 + c1) * r2 + c2) * r2 + c3) * r2 + c4) * r2 + c5) * r2 + c6) * r2 + c7) * r2
-                   + c8) * r2 + c9) * r2 + c10) * r2 + c11) * r2 + c12)
-
-
-@numba.njit(inline="always", cache=True)
 def _cos_sin(a: float) -> tuple[float, float]:  # pragma: no cover - compiled
-    """``(cos a, sin a)`` from one argument reduction (the cosine's bits are those of ``_cos``)."""
-    r = a - _TWO_PI * float(np.floor(a * _INV_TWO_PI + 0.5))
-    r2 = r * r
-    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12 = _COS_COEFFS
-    c = ((((((((((((c0 * r2 + c1) * r2 + c2) * r2 + c3) * r2 + c4) * r2 + c5) * r2 + c6) * r2 + c7) * r2
-                + c8) * r2 + c9) * r2 + c10) * r2 + c11) * r2 + c12)
-    s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11, s12 = _SIN_COEFFS
-    s = r * ((((((((((((s0 * r2 + s1) * r2 + s2) * r2 + s3) * r2 + s4) * r2 + s5) * r2 + s6) * r2 + s7) * r2
-                     + s8) * r2 + s9) * r2 + s10) * r2 + s11) * r2 + s12)
+    """``(cos a, sin a)``: the quadrant n = round(a / (π/2)), r = a - n π/2 in [-π/4, π/4], both polynomials,
+    then the quadrant's swap and signs (selects: the loop stays branch-free and vectorised)."""
+    n = float(np.floor(a * _TWO_OVER_PI + 0.5))
+    r = (a - n * _PIO2_HI) - n * _PIO2_LO
+    z = r * r
+    s0, s1, s2, s3, s4, s5 = _SIN_COEFFS
+    c0, c1, c2, c3, c4, c5 = _COS_COEFFS
+    sr = r + (r * z) * (((((s0 * z + s1) * z + s2) * z + s3) * z + s4) * z + s5)
+    cr = (1.0 - 0.5 * z) + (z * z) * (((((c0 * z + c1) * z + c2) * z + c3) * z + c4) * z + c5)
+    q = n - 4.0 * float(np.floor(n * 0.25))  # n mod 4 in {0, 1, 2, 3}
+    odd = (q == 1.0) | (q == 3.0)  # cos(r + π/2) = -sin r, sin(r + π/2) = cos r
+    c = sr if odd else cr
+    s = cr if odd else sr
+    c = -c if (q == 1.0) | (q == 2.0) else c
+    s = -s if q >= 2.0 else s
     return c, s
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(inline="always", cache=True)
+def _cos(a: float) -> float:  # pragma: no cover - compiled
+    """``cos a`` (the bits of :func:`_cos_sin`'s; LLVM drops the unused sine)."""
+    return _cos_sin(a)[0]
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
 def turbulence_sum(
     out: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray, k: np.ndarray,
     amp: np.ndarray, omega: np.ndarray, phase: np.ndarray,
@@ -124,7 +142,7 @@ def turbulence_sum(
         out[p0:p1, 2] = o2
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
 def _sum_and_jacobian_blocks(
     out: np.ndarray, jac: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, t: np.ndarray,
     k: np.ndarray, amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, b0: int, b1: int,

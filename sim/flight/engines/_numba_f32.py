@@ -18,7 +18,14 @@ the machine's load). Also measured and not kept: 16 lanes per block, 1.34-1.39x;
 LLVM forced to vectorise 16 wide (``-force-vector-width=16``, a process-global LLVM option, set
 only in the compiling child: float32 in zmm, float64 in zmm pairs; 3,213 instructions per 16
 drones against 2,051 per 8, a third of them stack spills): 1.46-1.49x, but a process that
-compiled without the option would run other machine code (see ``_cached_machine_code``).
+compiled without the option would run other machine code (see ``_cached_machine_code``). That
+figure compared processes; built properly (the option set in the compile child and around an
+in-process fallback compile, tested; branch speed32, d9bdd0e, reverted) and measured in one process
+against this kernel (alternating single-thread rounds, kernel CPU time, 4,000 drones, gusty-rtk,
+6 rounds, load ~6; its cached object code was 16 wide: 1,903 zmm packed-single instructions against
+134 here): **0.99x** at the default 250 Hz position loop (0.965-1.015) and 1.01x with every loop at
+1 kHz (0.93-1.02), so not kept. In the same rounds this kernel ran at 1.37x the float64 one at
+250 Hz (1.367-1.378) and 1.33x at 1 kHz (1.31-1.33).
 
 Multi-rate as the float64 kernel (``IsmcGains.position_rate_hz``): the step's body is
 :func:`_lane_step32`, inlined into two lane loops (outer loop on / held), the branch outside them;
