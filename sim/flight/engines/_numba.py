@@ -41,7 +41,7 @@ the first-order term of the flown-minus-planned displacement, clamped
 cosines per drone-step inside the kernel.
 
 ``cache=True`` keeps the compiled kernel on disk (``__pycache__``), so only the first
-run on a machine pays the compile time (about a minute of CPU).
+run on a machine pays the compile time (about 6 min of CPU and 2.6 GiB: see "Compile cost" below).
 
 What bounds the lane step (issue 20): neither its flops nor its memory traffic, but its
 dependency chains in the out-of-order window. llvm-mca (LLVM 14's Ice Lake model, its nearest
@@ -106,14 +106,41 @@ runs' Θ_ref); the command filter, the attitude law, the allocation, the estimat
 run every 1 ms step, so a drone-step is still a full step of rigid-body flight with every error
 model. The condition is uniform over the lanes, so it sits outside the lane loop: the step loop
 has two lane loops, each the body :func:`_lane_step` inlined with ``outer`` a constant (True or
-False), both branch-free and vectorised (two bodies to compile: ~5 min of CPU on this loaded
-machine, against the 1-2 min of the single body).
+False), both branch-free and vectorised (two bodies to compile: see "Compile cost").
 Measured first (a throwaway copy of this kernel with the outer loop removed, alternating
 single-thread rounds in one process, kernel CPU time, 4,000 drones, gusty-rtk): the lane step
 without the outer loop ran at 1.74x the full step (range 1.73-1.75 over 6 rounds), so the outer
 loop is ~43 % of the step. As built (``benchmarks/bench_precision.py -k float32_against``, 6
 rounds): 250 Hz 1.44x the kernel with every loop at 1 kHz (1.43-1.46); the float32 kernel at
 250 Hz 1.76x the float64 1 kHz one (in an earlier run of the same rounds, 100 Hz: 1.47x, 1.99x).
+
+Compile cost (a cold cache; ``python -m benchmarks.kernel_compile_cost float64 float32``: a child
+process compiling the kernel's specialisation on an empty ``NUMBA_CACHE_DIR``, its CPU time and peak
+RSS; measured with the machine shared by other compiles, load ~10 on its 2 cores): float64 351 s of
+CPU, 2,659 MiB; float32 360 s, 2,634 MiB. Where it goes (wall time of numba's passes in the same
+runs, float64/float32): numba's parfor *fusion* pass over the kernel 50/56 %, the parfor pre-lowering
+and lowering of the kernel and its gufunc 26/18 %, numba inlining the two lane steps 9/12 %, and LLVM
+itself only 4/2 % (time under numba's LLVM lock): the cost is numba's Python passes, not LLVM.
+Tried and measured (the same session; speed by ``python -m benchmarks.kernel_ab``, alternating
+single-thread rounds in one process against a copy of main's module, 4,000 drones, gusty-rtk, 6
+rounds), not kept:
+
+* each lane loop an ``njit(cache=True)`` function of its own (the kernel's fastmath flags and error
+  model), called from the step loop once per block-step: 81 s and 1,670 MiB (float64), 77 s and
+  1,689 MiB (float32), i.e. 4.3-4.7x less CPU, results bit-identical to main's (positions, final
+  states, statistics, telemetry; a process that compiled matched one that loaded; the engine and
+  multi-rate tests passed), but the kernel ran at 0.80x (float64, 0.803-0.809) and 0.74x (float32,
+  0.737-0.745) of main's. Not analysed;
+  suspects: the call per step passes ~90 scalars (numba flattens the tuples) and the invariants are
+  broadcast again at each call, and the loop, no longer in the function that allocates the scratch,
+  has a trip count LLVM cannot know (8); untried: the constants through an array, the loop's trip
+  count made known;
+* the whole ``prange`` body (the step loop with both lane loops) an ``njit`` function of its own,
+  called once per block and chunk, so that the parfor passes see one call: still compiling after 337 s
+  of CPU (float64) and 331 s (float32), against main's 351 s and 360 s (stopped there). So taking
+  the body out of the parfor passes does not cut it: the cost follows the size of the one function
+  that holds both lane steps, whichever pass spends it (the split above, one lane step per function,
+  is what cut it).
 
 Single precision: :mod:`sim.flight.engines._numba_f32` is this step with the control laws in
 float32 (``precision="float32"``, opt-in): 1.30-1.41x this kernel, within 1 mm of its flights,
