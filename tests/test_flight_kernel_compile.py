@@ -161,6 +161,30 @@ def test_a_workers_memory_cap_is_soft_and_the_compiling_child_lifts_it(tmp_path)
     assert any((tmp_path / "cache").rglob("*stand_in*.nbi")), "the child did not compile into the cache"
 
 
+_FAIL_IN_CHILD = """
+import os
+if os.getpid() != int(os.environ["STAND_IN_PARENT"]):
+    raise RuntimeError("the stand-in refuses to compile in a child")
+"""
+
+
+def test_a_failed_compiling_child_says_why_and_this_process_compiles(tmp_path, monkeypatch, caplog):
+    # The child's output was captured and dropped: when it failed, nothing said why before this
+    # process compiled the kernel itself (minutes, and bits that may differ from the cache's).
+    (tmp_path / "kernel_stand_in.py").write_text(_STAND_IN + _FAIL_IN_CHILD)
+    monkeypatch.setenv("STAND_IN_PARENT", str(os.getpid()))
+    cache = tmp_path / "cache"
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    fn = _fresh_stand_in(tmp_path, monkeypatch)
+    with caplog.at_level("WARNING", logger=K.__name__):
+        K._cached_machine_code(fn, (2.0, 3.0))
+    assert fn(2.0, 3.0) == 7.0 and len(fn.signatures) == 1
+    failed = [r.getMessage() for r in caplog.records if "compiling process failed" in r.getMessage()]
+    assert len(failed) == 1 and "refuses to compile in a child" in failed[0], caplog.text
+
+
 @pytest.mark.slow
 def test_cli_bench_sim_on_a_cold_cache_says_it_compiles(tmp_path):
     # End to end (minutes of CPU: a real compile of the flight kernel on an empty cache).

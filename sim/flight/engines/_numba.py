@@ -248,6 +248,10 @@ __all__ = ["COMPILE_NOTE", "LANES", "run_chunk_numba"]
 #: specialisation before a compile that the disk cache cannot spare: a first run sat silent for
 #: minutes otherwise. The CLI prints ``sim``'s warnings on stderr (``app.cli``).
 COMPILE_NOTE = "compiling the flight kernel for this machine (first run, a few minutes of CPU; cached afterwards)"
+# The compiling child's first statement: its soft data limit up to the hard one (see _cached_machine_code).
+_LIFT_DATA_LIMIT = ("import resource; _h = resource.getrlimit(resource.RLIMIT_DATA)[1]; "
+                    "resource.setrlimit(resource.RLIMIT_DATA, (_h, _h))")
+_COMPILE_TIMEOUT_S = 4 * 3600.0
 _log = logging.getLogger(__name__)
 
 #: Drones per block: the lane loop's trip count (one AVX-512 or two AVX2 vectors of float64). Eight,
@@ -1293,31 +1297,29 @@ def _cached_machine_code(dispatcher: Any, args: tuple[Any, ...]) -> None:
         if not _in_disk_cache(dispatcher, sig):
             _log.warning(COMPILE_NOTE)
             func = dispatcher.py_func
-            code = ("import pickle, sys, importlib; "
+            # The child's first statement lifts its soft data limit to the hard one: a server's worker
+            # caps its data (app.tasks.limit_memory, 2 GiB by default) and LLVM compiling the two lane
+            # bodies needs ~2.6 GiB. In the child's own code, not a ``preexec_fn``: that runs between
+            # fork and exec, which is unsafe in a process with threads (a worker has them).
+            code = (f"{_LIFT_DATA_LIMIT}; import pickle, sys, importlib; "
                     f"f = getattr(importlib.import_module({func.__module__!r}), {func.__qualname__!r}); "
                     "f.compile(pickle.loads(sys.stdin.buffer.read()))")
             # The child imports this process's code: its sys.path as PYTHONPATH ('' is the working
             # directory), and ``-P`` so that the child's own working directory does not come first
             # (another checkout's ``sim`` there was imported instead, and this process compiled).
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(p or os.getcwd() for p in sys.path))
-            subprocess.run([sys.executable, "-P", "-c", code], input=pickle.dumps(sig), env=env,
-                           capture_output=True, timeout=1800, check=False, preexec_fn=_lift_data_limit)
+            # No short timeout: at a timeout this process compiles the kernel itself from the start
+            # (slower, and its bits differ from the cache's); a compile measured 28-32 min of wall
+            # time at a load of 8-10 on this 2-core machine (351 s of CPU alone).
+            done = subprocess.run([sys.executable, "-P", "-c", code], input=pickle.dumps(sig), env=env,
+                                  capture_output=True, timeout=_COMPILE_TIMEOUT_S, check=False)
+            if done.returncode != 0:
+                tail = done.stderr.decode(errors="replace").strip().splitlines()[-3:]
+                _log.warning("the flight kernel's compiling process failed (%s); compiling here instead",
+                             " / ".join(tail) or f"exit {done.returncode}")
     except (AttributeError, OSError, subprocess.SubprocessError, pickle.PicklingError):  # pragma: no cover
         return
     dispatcher.compile(sig)  # from the cache when the child wrote it
-
-
-def _lift_data_limit() -> None:
-    """In the compile child: the soft data limit up to the hard one. A server's worker caps its data
-    (app.tasks.limit_memory, 2 GiB by default) and LLVM compiling the two lane bodies needs more, so on
-    a cold cache every simulation in a worker failed with MemoryError."""
-    try:
-        import resource
-
-        _, hard = resource.getrlimit(resource.RLIMIT_DATA)
-        resource.setrlimit(resource.RLIMIT_DATA, (hard, hard))
-    except (ImportError, ValueError, OSError):  # pragma: no cover - not on this platform
-        pass
 
 
 def _in_disk_cache(dispatcher: Any, sig: tuple[Any, ...]) -> bool:
