@@ -69,6 +69,16 @@ def square():
 
 
 @pytest.fixture(scope="module")
+def square_id(client, square) -> str:
+    """The four-drone square stored through the module's API ``client`` (a module defines ``client``)."""
+    from formations import dump_show
+
+    r = client.post("/api/shows", content=dump_show(square), headers={"content-type": "application/json"})
+    assert r.status_code == 201, r.text
+    return str(r.json()["id"])
+
+
+@pytest.fixture(scope="module")
 def square_plan(square):
     from sim import plan_show
 

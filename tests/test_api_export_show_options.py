@@ -11,17 +11,9 @@ from __future__ import annotations
 import pytest
 
 from app.exports import ExportError, export_show
-from formations import dump_show
 from tests.conftest import app_client
 
 client = app_client("showopts", workers=1)
-
-
-@pytest.fixture(scope="module")
-def square_id(client, square):
-    r = client.post("/api/shows", content=dump_show(square), headers={"content-type": "application/json"})
-    assert r.status_code == 201, r.text
-    return r.json()["id"]
 
 
 CASES = [

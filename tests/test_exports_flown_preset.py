@@ -125,13 +125,6 @@ def test_cli_export_refuses_a_bad_preset_or_seed(square, tmp_path, capsys, argv,
 client = app_client("flown", workers=1)
 
 
-@pytest.fixture(scope="module")
-def square_id(client, square):
-    r = client.post("/api/shows", content=dump_show(square), headers={"content-type": "application/json"})
-    assert r.status_code == 201, r.text
-    return r.json()["id"]
-
-
 def test_api_export_takes_preset_and_seed(client, square_id, flights):
     r = client.get(f"/api/shows/{square_id}/export/waypoints-csv",
                    params={"source": "simulated", "fps": 25, "preset": "gusty-rtk", "seed": 3})
