@@ -882,27 +882,33 @@ def _plain_key(key: str) -> str:
         return f"{stem.replace('_', ' ')} ({_UNITS[suffix]})"
     return key.replace("_", " ")
 _NAMED_LISTS = {"formations": "formation", "points": "point", "colors": "colour", "lights": "light",
-                "home": "home position"}
+                "home": "home position", "effects": "light effect"}
+#: Objects that hold one named list and add nothing a designer needs when a field follows:
+#: 'lights.effects[0].end_s' is 'light effect 1, end (s)', not 'lights, effects, effects 1, end (s)'.
+_SILENT_PARENTS = {"lights"}
+
+
+def _said_alone(key: str) -> str:
+    """A key with no index after it: a list's name as it is ('points'), any other field in words."""
+    return key.replace("_", " ") if key in _NAMED_LISTS else _plain_key(key)
 
 
 def plain_path(path: str, show: Any = None) -> str:
     """A show file path in plain words: 'formations[1].points[5][2]' -> 'formation 2 "Heart", point 6, z'.
 
     Indices count from 1 as people do; a formation is named when ``show`` (the document) has its name.
+    A field that holds a list is said once, with its item's number ('effects[0]' -> 'light effect 1').
     """
     words: list[str] = []
     last = ""
-    pending = ""  # a list's name, said only if no index follows ("points" alone stays "points")
+    pending = ""  # the last key, said when no index follows it ("points" alone stays "points")
     node = show
     for key, index in re.findall(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]", path):
         if key:
-            if pending:
-                words.append(pending)
-            last = key
+            if pending and pending not in _SILENT_PARENTS:
+                words.append(_said_alone(pending))
+            last = pending = key
             node = node.get(key) if isinstance(node, dict) else None
-            pending = key.replace("_", " ") if key in _NAMED_LISTS else ""
-            if key not in _NAMED_LISTS:
-                words.append(_plain_key(key))
             continue
         pending = ""
         i = int(index)
@@ -915,5 +921,5 @@ def plain_path(path: str, show: Any = None) -> str:
             label += f' "{node["name"]}"'
         words.append(label)
     if pending:
-        words.append(pending)
+        words.append(_said_alone(pending))
     return ", ".join(words) or "the show"

@@ -135,6 +135,7 @@ def test_a_large_draft_is_validated_in_a_worker_too(client):
     ("settings.geo.heading_deg", "settings, geo, heading (°)"),
     ("home.grid.rows", "home, grid, rows"),
     ("formations[7].colors[3]", "formation 8, colour 4"),
+    ("lights.effects[0].end_s", "light effect 1, end (s)"),
     ("", "the show"),
 ])
 def test_plain_path(path, words):

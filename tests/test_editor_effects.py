@@ -141,7 +141,9 @@ def test_a_refused_effect_shows_its_error_in_the_panel(ui: Page) -> None:
     page.get_by_label("Effect end (s)").fill("0")
     page.get_by_label("Effect end (s)").dispatch_event("change")
     page.keyboard.press("Control+s")
-    expect(page.locator('#effects-panel [data-error-for="lights"]')).to_contain_text("effects[0].end_s")
+    # In the designer's words (CI of 2295181: 'lights, effects, effects 1, end (s)').
+    expect(page.locator('#effects-panel [data-error-for="lights"]')).to_contain_text(
+        "light effect 1, end (s): must be more than 0")
     page.get_by_role("button", name="Undo Effect end (s)").click()
     assert ui.state("s.show.lights.effects[0].end_s") == 10
     page.keyboard.press("Control+s")

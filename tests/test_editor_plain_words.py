@@ -34,9 +34,12 @@ def test_plain_path_says_paths_as_the_server_does():
     doc["formations"].append(dict(doc["formations"][0], name="Heart"))
     paths = ["formations[1].points[5][2]", "formations[0].hold_s", "settings.max_accel_mps2", "formations[1].points",
              "home.grid.spacing_m", "lights[0].duty", "formations[3].colors[2]", "formations[0].points[1][7]",
-             "settings.geofence.x_min_m", "drones"]
+             "settings.geofence.x_min_m", "drones", "lights.effects[0].end_s", "lights.effects[2].effect.duty",
+             "groups.a"]
     got = _node([("plainPath", [p, doc]) for p in paths])
     assert got == [plain_path(p, doc) for p in paths]
+    # A list field is said once with its item's number (CI: 'lights, effects, effects 1, end (s)').
+    assert got[paths.index("lights.effects[0].end_s")] == "light effect 1, end (s)"
 
 
 @pytest.mark.skipif(NODE is None, reason="node is not installed")

@@ -15,13 +15,20 @@ export function namesPath(msg, path) {
 const AXES = ["x", "y", "z"];
 /** A field's unit suffix in words (formations/_show.py, _UNITS): 'hold_s' -> 'hold (s)'. */
 const UNITS = { s: "s", m: "m", mps: "m/s", mps2: "m/s²", mps3: "m/s³", deg: "°", rad: "rad", hz: "Hz" };
-const NAMED_LISTS = { formations: "formation", points: "point", colors: "colour", lights: "light", home: "home position" };
+const NAMED_LISTS = { formations: "formation", points: "point", colors: "colour", lights: "light", home: "home position", effects: "light effect" };
+/** Objects that hold one named list and add nothing when a field follows ('lights.effects[0]': 'light effect 1'). */
+const SILENT_PARENTS = new Set(["lights"]);
 
 /** @param {string} key a field name -> in words, its unit in brackets ('max_accel_mps2' -> 'max accel (m/s²)') */
 function plainKey(key) {
   const i = key.lastIndexOf("_");
   const unit = i > 0 ? UNITS[key.slice(i + 1)] : undefined;
   return unit ? `${key.slice(0, i).replace(/_/g, " ")} (${unit})` : key.replace(/_/g, " ");
+}
+
+/** @param {string} key a key with no index after it: a list's name as it is ('points'), any other field in words */
+function saidAlone(key) {
+  return key in NAMED_LISTS ? key.replace(/_/g, " ") : plainKey(key);
 }
 
 /**
@@ -34,15 +41,13 @@ function plainKey(key) {
 export function plainPath(path, show) {
   const words = [];
   let last = "";
-  let pending = "";
+  let pending = ""; // the last key, said when no index follows it
   let node = show;
   for (const [, key, index] of path.matchAll(/([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]/g)) {
     if (key) {
-      if (pending) words.push(pending);
-      last = key;
+      if (pending && !SILENT_PARENTS.has(pending)) words.push(saidAlone(pending));
+      last = pending = key;
       node = node && typeof node === "object" && !Array.isArray(node) ? node[key] : undefined;
-      pending = key in NAMED_LISTS ? key.replace(/_/g, " ") : "";
-      if (!(key in NAMED_LISTS)) words.push(plainKey(key));
       continue;
     }
     pending = "";
@@ -56,7 +61,7 @@ export function plainPath(path, show) {
     if (last === "formations" && node && typeof node.name === "string") label += ` "${node.name}"`;
     words.push(label);
   }
-  if (pending) words.push(pending);
+  if (pending) words.push(saidAlone(pending));
   return words.join(", ");
 }
 
