@@ -252,10 +252,10 @@ MAX_DRAFT_PROBLEMS = 50
 def _draft_problems(doc: dict[str, Any], problems: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The first :data:`MAX_DRAFT_PROBLEMS` problems, each also saying where in plain words (named
     formations), and a last line counting the others."""
-    from formations import plain_path
+    from formations import plain_words
 
     out = [{"loc": list(p.get("loc", ())), "path": p.get("path", ""), "msg": p["msg"],
-            "where": plain_path(p.get("path", ""), doc)} for p in problems[:MAX_DRAFT_PROBLEMS]]
+            **plain_words(p.get("path", ""), doc)} for p in problems[:MAX_DRAFT_PROBLEMS]]
     if len(problems) > MAX_DRAFT_PROBLEMS:
         more = len(problems) - MAX_DRAFT_PROBLEMS
         out.append({"loc": [], "path": "", "msg": f"and {more} more problem{'s' if more > 1 else ''}",

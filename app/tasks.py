@@ -308,24 +308,37 @@ def validate_show_data(data: bytes | dict[str, Any], *, draft: bool = False) -> 
     try:
         return ShowData.of(parse_show(data))
     except ShowValidationError as exc:
-        if not draft:
-            raise TaskFailure(FailureKind.INVALID, exc.errors) from None
-        doc = data
+        doc: Any = data
         if isinstance(data, bytes | bytearray):
             try:
                 doc = json.loads(bytes(data).decode("utf-8"))
             except (UnicodeDecodeError, ValueError, RecursionError):
-                # Not even JSON text: nothing a draft could keep.
-                raise TaskFailure(FailureKind.INVALID, exc.errors) from None
+                # Not even JSON text: nothing a draft could keep, no formation to name.
+                raise TaskFailure(FailureKind.INVALID, _worded(exc.errors, None)) from None
+        if not draft:
+            raise TaskFailure(FailureKind.INVALID, _worded(exc.errors, doc)) from None
         if not isinstance(doc, dict):
             raise TaskFailure(FailureKind.INVALID, [{"loc": [], "path": "", "msg": "a draft must be a JSON "
                                                      "object (a show file, however unfinished)"}]) from None
         return ShowData.draft(doc, exc.errors)
 
 
-def _plan_failure(exc: Exception) -> TaskFailure:
+def _worded(errors: list[dict[str, Any]], doc: Any) -> list[dict[str, Any]]:
+    """``ShowValidationError.errors``, each also saying where in plain words (``formations.plain_words``; the
+    formations named from ``doc``, the document as sent)."""
+    from formations import plain_words
+
+    return [{**e, **plain_words(e.get("path") or "", doc)} for e in errors]
+
+
+def _plan_failure(exc: Exception, show: Any = None) -> TaskFailure:
+    """A plan's refusal as the 422 problem naming its field, in plain words too (``show``: the parsed show, so
+    that its formations are named)."""
+    from formations import plain_words
+
     path = getattr(exc, "path", "") or ""
-    problem: dict[str, Any] = {"loc": ["show", *path_loc(path)], "path": path, "msg": str(exc)}
+    problem: dict[str, Any] = {"loc": ["show", *path_loc(path)], "path": path, "msg": str(exc),
+                               **plain_words(path, show)}
     if getattr(exc, "minimum_s", None) is not None:
         problem["minimum_s"] = exc.minimum_s  # type: ignore[attr-defined]
     if getattr(exc, "earliest_s", None) is not None:
@@ -335,10 +348,13 @@ def _plan_failure(exc: Exception) -> TaskFailure:
 
 def forced_problems(plan: Any) -> list[dict[str, Any]]:
     """The transitions ``plan`` flies shorter than the limits allow (``ShowPlan.forced``), as the 422 problems
-    that the exports give for them (``loc``, ``path``, ``msg``, ``minimum_s``): what the 3D preview and a
-    simulation say about a show they play as designed."""
-    return [{"loc": ["show", *path_loc(f.path)], "path": f.path, "msg": f.message, "minimum_s": f.minimum_s}
-            for f in getattr(plan, "forced", ())]
+    that the exports give for them (``loc``, ``path``, ``msg``, ``minimum_s``, and ``where`` in plain words):
+    what the 3D preview and a simulation say about a show they play as designed."""
+    from formations import plain_words
+
+    names = {"formations": [{"name": name} for name, _ in plan.formation_segments()]}
+    return [{"loc": ["show", *path_loc(f.path)], "path": f.path, "msg": f.message, "minimum_s": f.minimum_s,
+             **plain_words(f.path, names)} for f in getattr(plan, "forced", ())]
 
 
 def path_loc(path: str) -> list[str | int]:
@@ -378,7 +394,7 @@ def check_task(show_text: str) -> dict[str, Any]:
     try:
         plan = plan_show(show, enforce_limits=False)
     except PlanError as exc:
-        raise _plan_failure(exc) from None
+        raise _plan_failure(exc, show) from None
     report = check_plan(plan).to_json()
     _add_violation_points(plan, len(show.formations), report)
     return {"plan": plan_summary(plan), "report": report}
@@ -476,11 +492,11 @@ def _plan_job(show_text: str, progress: Progress, *, enforce_limits: bool = True
     ``enforce_limits``: as in ``plan_show`` (False: a transition forced too short is flown as asked)."""
     from sim import PlanError, plan_show
 
+    show = _show(show_text)
     try:
-        plan = plan_show(_show(show_text), enforce_limits=enforce_limits,
-                         progress=progress.scaled(0.0, PLAN_SHARE))
+        plan = plan_show(show, enforce_limits=enforce_limits, progress=progress.scaled(0.0, PLAN_SHARE))
     except PlanError as exc:
-        raise _plan_failure(exc) from None
+        raise _plan_failure(exc, show) from None
     progress.check_cancelled(force=True)
     return plan
 
@@ -707,7 +723,7 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
         from sim import PlanError
 
         if isinstance(exc.__cause__, PlanError):  # the show cannot be planned: name its field as the check does
-            raise _plan_failure(exc.__cause__) from None
+            raise _plan_failure(exc.__cause__, show) from None
         field = exc.field  # the query option at fault; None: the show (or the format) itself
         raise TaskFailure(FailureKind.INVALID, [{"loc": ["query", field] if field else ["query"],
                                                  "path": field or "", "msg": str(exc)}]) from None
@@ -715,7 +731,7 @@ def export_task(show_text: str, fmt: str, options: dict[str, Any]) -> dict[str, 
         from sim import PlanError
 
         if isinstance(exc, PlanError):
-            raise _plan_failure(exc) from None
+            raise _plan_failure(exc, show) from None
         raise
     return {
         "filename": res.filename,
@@ -739,10 +755,11 @@ def viewer_plan_task(show_text: str) -> Any:
     """
     from sim import PlanError, plan_show
 
+    show = _show(show_text)
     try:
-        return plan_show(_show(show_text), enforce_limits=False)
+        return plan_show(show, enforce_limits=False)
     except PlanError as exc:
-        raise _plan_failure(exc) from None
+        raise _plan_failure(exc, show) from None
 
 
 def viewer_flight_task(show_text: str, options: dict[str, Any]) -> tuple[Any, Any]:

@@ -47,6 +47,7 @@ from formations._show import hex_to_rgb as hex_to_rgb
 from formations._show import load_show as load_show
 from formations._show import parse_show as parse_show
 from formations._show import plain_path as plain_path
+from formations._show import plain_words as plain_words
 from formations._show import rgb_to_hex as rgb_to_hex
 from formations._show import show_json_schema as show_json_schema
 
@@ -85,6 +86,7 @@ __all__ = [
     "load_show",
     "parse_show",
     "plain_path",
+    "plain_words",
     "rgb_to_hex",
     "show_json_schema",
     "lights_problem",

@@ -908,18 +908,44 @@ def plain_path(path: str, show: Any = None) -> str:
             if pending and pending not in _SILENT_PARENTS:
                 words.append(_said_alone(pending))
             last = pending = key
-            node = node.get(key) if isinstance(node, dict) else None
+            node = _child(node, key)
             continue
         pending = ""
         i = int(index)
-        node = node[i] if isinstance(node, list) and i < len(node) else None
+        node = node[i] if isinstance(node, list | tuple) and i < len(node) else None
         if last == "points" and words and words[-1].startswith("point "):
             words.append(_AXES.get(i, f"coordinate {i + 1}"))
             continue
         label = f"{_NAMED_LISTS.get(last, last.replace('_', ' '))} {i + 1}"
-        if last == "formations" and isinstance(node, dict) and isinstance(node.get("name"), str):
-            label += f' "{node["name"]}"'
+        name = _child(node, "name")
+        if last == "formations" and isinstance(name, str):
+            label += f' "{name}"'
         words.append(label)
     if pending:
         words.append(_said_alone(pending))
     return ", ".join(words) or "the show"
+
+
+def _child(node: Any, key: str) -> Any:
+    """``node[key]`` of a JSON document, or the field ``key`` of a validated model (``ShowFile``); else None."""
+    if isinstance(node, dict):
+        return node.get(key)
+    if isinstance(node, BaseModel) and key in type(node).model_fields:
+        return getattr(node, key)
+    return None
+
+
+_IN_FORMATION = re.compile(r"^formations\[(\d+)\]\.?(.*)$")
+
+
+def plain_words(path: str, show: Any = None) -> dict[str, str]:
+    """What a problem at ``path`` says in plain words: ``where`` (:func:`plain_path`) and, for a field inside a
+    formation, ``where_in_formation``: the words below it, for the formation's own card ('hold (s)',
+    'point 6, z'), which names the formation already.
+
+    ``show`` is the document (a dict) or the validated :class:`ShowFile` (formations are named from it)."""
+    out = {"where": plain_path(path, show)}
+    m = _IN_FORMATION.match(path)
+    if m and m.group(2):
+        out["where_in_formation"] = plain_path(m.group(2))
+    return out

@@ -1,7 +1,10 @@
 """Mapping of failures to HTTP answers; every error body has a ``detail``.
 
-422 bodies always list ``{"loc", "path", "msg"}`` problems, whether the request
-failed FastAPI's parameter validation or the show file's own rules. Job and task
+422 bodies always list ``{"loc", "path", "msg", "where"}`` problems, whether the request
+failed FastAPI's parameter validation or the show file's own rules: ``where`` says the
+field in the designer's words (``formations.plain_words``, the one place that words a
+path; the editor shows it as it comes), and a field inside a formation also says
+``where_in_formation`` (for that formation's card). Job and task
 errors carry a kind (:class:`app.jobs.ErrorKind`, :class:`app.tasks.FailureKind`);
 :data:`STATUS_OF_KIND` is the one place that turns kinds into HTTP statuses. Any
 other exception is a bug: its traceback is logged with a request id, and the
@@ -24,7 +27,7 @@ from app.api.models import error_responses as error_responses  # documented next
 from app.jobs import ErrorKind, JobFinished, JobNotFound, JobsBusy, TaskError
 from app.store import RevisionConflict, ShowNotFound, StoreError
 from app.tasks import FailureKind, TaskFailure, path_loc
-from formations import plain_path
+from formations import plain_words
 
 if TYPE_CHECKING:
     from app.store import ShowRecord
@@ -53,7 +56,10 @@ def job_body(snapshot: dict[str, Any]) -> dict[str, Any]:
     """A job snapshot as the API answers it: its error also carries the HTTP ``status`` of its kind."""
     error = snapshot.get("error")
     if error is not None and "status" not in error:
-        snapshot = {**snapshot, "error": {**error, "status": status_of(error.get("kind"))}}
+        error = {**error, "status": status_of(error.get("kind"))}
+        if "detail" in error:
+            error["detail"] = with_words(error["detail"])
+        snapshot = {**snapshot, "error": error}
     return snapshot
 
 
@@ -88,6 +94,24 @@ def loc_path(loc: list[str | int] | tuple[str | int, ...]) -> str:
     return out
 
 
+def with_words(problems: Any) -> Any:
+    """``problems`` (a 422 ``detail``) with each problem saying ``where`` in plain words, when it does not yet.
+
+    A problem made knowing the show (its validation, a plan's refusal) already says it, formations named;
+    the others are worded from their path alone. A path inside the request's ``show`` (``PUT``'s
+    ``{"revision", "show"}``) is worded as the show's own field. Anything but a list of problems is as it is.
+    """
+    if not isinstance(problems, list):
+        return problems
+    out = []
+    for p in problems:
+        if isinstance(p, dict) and "msg" in p and "where" not in p:
+            path = str(p.get("path") or "")
+            p = {**p, **plain_words(path.removeprefix("show.") if path != "show" else "")}
+        out.append(p)
+    return out
+
+
 def show_problems(errors: list[dict[str, Any]], *, prefix: tuple[str | int, ...] = ()) -> list[dict[str, Any]]:
     """``ShowValidationError.errors`` as API problems located in the request body under ``prefix``.
 
@@ -101,8 +125,9 @@ def show_problems(errors: list[dict[str, Any]], *, prefix: tuple[str | int, ...]
         from_path = path_loc(err.get("path") or "")
         if len(from_path) > len(loc):
             loc = from_path
-        out.append({"loc": ["body", *prefix, *loc], "path": path, "msg": err["msg"]})
-    return out
+        words: dict[str, Any] = {k: err[k] for k in ("where", "where_in_formation") if k in err}
+        out.append({"loc": ["body", *prefix, *loc], "path": path, "msg": err["msg"], **words})
+    return with_words(out)
 
 
 def draft_problems(record: ShowRecord) -> list[dict[str, Any]] | None:
@@ -110,7 +135,8 @@ def draft_problems(record: ShowRecord) -> list[dict[str, Any]] | None:
     if record.problems is None:
         return None
     problems: list[dict[str, Any]] = json.loads(record.problems)
-    return [{**p, "where": p.get("where") or plain_path(p.get("path", ""))} for p in problems]
+    # Drafts stored before the words were kept with them are worded from their paths.
+    return [{**plain_words(p.get("path", "")), **p} for p in problems]
 
 
 def require_valid(record: ShowRecord, action: str) -> ShowRecord:
@@ -137,7 +163,7 @@ def _validation_problems(exc: RequestValidationError) -> list[dict[str, Any]]:
         # Body fields are named relative to the body; query/path parameters by their own name.
         rel = loc[1:] if loc and loc[0] in ("body", "query", "path", "header", "cookie") else loc
         out.append({"loc": loc, "path": loc_path(rel), "msg": err.get("msg", "invalid"), "type": err.get("type")})
-    return out
+    return with_words(out)
 
 
 def _json(status: int, body: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
@@ -149,7 +175,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
-        return _json(exc.status, {"detail": exc.detail, **exc.extra}, exc.headers)
+        return _json(exc.status, {"detail": with_words(exc.detail), **exc.extra}, exc.headers)
 
     @app.exception_handler(RequestValidationError)
     async def _request_invalid(_: Request, exc: RequestValidationError) -> JSONResponse:
@@ -192,7 +218,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(TaskFailure)
     async def _task_failed(_: Request, exc: TaskFailure) -> JSONResponse:
-        return _json(status_of(exc.kind), {"detail": exc.detail})
+        return _json(status_of(exc.kind), {"detail": with_words(exc.detail)})
 
     @app.exception_handler(TaskError)
     async def _task_error(request: Request, exc: TaskError) -> JSONResponse:

@@ -25,6 +25,10 @@ class Problem(BaseModel):
     loc: list[str | int] = Field(description="Where: 'body', 'query' or 'path', then the field's keys and indices.")
     path: str = Field(description="The field as a JSON path inside the body, e.g. 'formations[2].hold_s'.")
     msg: str = Field(description="Why it was rejected.")
+    where: str | None = Field(None, description="The field in the designer's words, e.g. 'formation 3 \"Heart\", "
+                              "hold (s)' (formations named, counted from 1).")
+    where_in_formation: str | None = Field(None, description="For a field inside a formation: the words below "
+                                           "it, e.g. 'hold (s)' or 'point 6, z'.")
 
 
 class ValidationErrorOut(BaseModel):

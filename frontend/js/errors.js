@@ -12,59 +12,6 @@ export function namesPath(msg, path) {
   return msg.startsWith(`${path}:`) || msg.startsWith(`${path} `);
 }
 
-const AXES = ["x", "y", "z"];
-/** A field's unit suffix in words (formations/_show.py, _UNITS): 'hold_s' -> 'hold (s)'. */
-const UNITS = { s: "s", m: "m", mps: "m/s", mps2: "m/s²", mps3: "m/s³", deg: "°", rad: "rad", hz: "Hz" };
-const NAMED_LISTS = { formations: "formation", points: "point", colors: "colour", lights: "light", home: "home position", effects: "light effect" };
-/** Objects that hold one named list and add nothing when a field follows ('lights.effects[0]': 'light effect 1'). */
-const SILENT_PARENTS = new Set(["lights"]);
-
-/** @param {string} key a field name -> in words, its unit in brackets ('max_accel_mps2' -> 'max accel (m/s²)') */
-function plainKey(key) {
-  const i = key.lastIndexOf("_");
-  const unit = i > 0 ? UNITS[key.slice(i + 1)] : undefined;
-  return unit ? `${key.slice(0, i).replace(/_/g, " ")} (${unit})` : key.replace(/_/g, " ");
-}
-
-/** @param {string} key a key with no index after it: a list's name as it is ('points'), any other field in words */
-function saidAlone(key) {
-  return key in NAMED_LISTS ? key.replace(/_/g, " ") : plainKey(key);
-}
-
-/**
- * A show file path in the designer's words, as the server's plain_path (formations/_show.py) says it:
- * 'formations[1].points[5][2]' -> 'formation 2 "Heart", point 6, z' (from 1, as people count; the formation
- * named when `show` has it).
- * @param {string} path @param {any} [show]
- * @returns {string}
- */
-export function plainPath(path, show) {
-  const words = [];
-  let last = "";
-  let pending = ""; // the last key, said when no index follows it
-  let node = show;
-  for (const [, key, index] of path.matchAll(/([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]/g)) {
-    if (key) {
-      if (pending && !SILENT_PARENTS.has(pending)) words.push(saidAlone(pending));
-      last = pending = key;
-      node = node && typeof node === "object" && !Array.isArray(node) ? node[key] : undefined;
-      continue;
-    }
-    pending = "";
-    const i = Number(index);
-    node = Array.isArray(node) ? node[i] : undefined;
-    if (last === "points" && words.length && words[words.length - 1].startsWith("point ")) {
-      words.push(AXES[i] ?? `coordinate ${i + 1}`);
-      continue;
-    }
-    let label = `${NAMED_LISTS[last] ?? last.replace(/_/g, " ")} ${i + 1}`;
-    if (last === "formations" && node && typeof node.name === "string") label += ` "${node.name}"`;
-    words.push(label);
-  }
-  if (pending) words.push(saidAlone(pending));
-  return words.join(", ");
-}
-
 /** pydantic's phrasing of a rule -> the editor's (the editor's own checks say "at least 0.1" too). */
 /** @type {[RegExp, string][]} */
 const PLAIN_RULES = [
@@ -94,19 +41,34 @@ export function plainMsg(msg) {
 }
 
 /**
- * A problem as the designer reads it: where (a settings field by its label, a formation by number and name,
- * else the server's `where` or the path in words, as the server says them), what (plainMsg), and the server's own text
- * for an operator (`raw`).
- * @param {{path?: string, msg: string, where?: string}} p @param {any} [show]
+ * A problem as the designer reads it: where (a settings field by its label, else the server's `where`: the
+ * path in the designer's words, formations by number and name, worded on the server, formations/_show.py
+ * plain_words), what (plainMsg), and the server's own text for an operator (`raw`).
+ * @param {{path?: string, msg: string, where?: string|null}} p
  * @returns {{where: string, msg: string, raw: string}}
  */
-export function describe(p, show) {
+export function describe(p) {
   const path = p.path || "";
   const input = path && typeof document !== "undefined" && document.querySelector(`#form-settings [data-path="${CSS.escape(path)}"]`);
   const label = input && input.id ? document.querySelector(`label[for="${CSS.escape(input.id)}"]`) : null;
-  const where = label ? label.textContent.trim() : p.where || plainPath(path, show) || "the show";
+  const where = label ? label.textContent.trim() : p.where || path || "the show";
   const msg = namesPath(p.msg, path) ? p.msg.slice(path.length).replace(/^[:\s]+/, "") : p.msg;
   return { where, msg: plainMsg(msg), raw: path && !namesPath(p.msg, path) ? `${path}: ${p.msg}` : p.msg };
+}
+
+/**
+ * A formation's problem as its own card says it: where in the formation in the server's words
+ * (`where_in_formation`: "hold (s)", "point 2, z"; the card names the formation) and the rule in words. A
+ * message that starts with its own path ("formations[1].arrive_at_s = 4 s is too early ...") says those words
+ * in its place.
+ * @param {{msg: string, where_in_formation?: string|null}} p @param {string} path @param {string} inner the path
+ *   below the formation ("" for the formation itself)
+ * @returns {string}
+ */
+function onCard(p, path, inner) {
+  const words = inner ? p.where_in_formation || inner : "";
+  if (namesPath(p.msg, path)) return words ? `${words}${p.msg.slice(path.length)}` : p.msg;
+  return `${words ? `${words}: ` : ""}${plainMsg(p.msg)}`;
 }
 
 /** Formation problems by index, read by the timeline when it renders. */
@@ -134,7 +96,7 @@ export function setError(key, message) {
 
 /**
  * Show the problems of a rejected show next to the settings field or formation they name.
- * @param {{path: string, msg: string}[]} problems
+ * @param {{path: string, msg: string, where?: string|null, where_in_formation?: string|null}[]} problems
  * @param {(msg: string) => void} fallback for problems not tied to a visible control
  * @returns {number[]} formation indices that have a problem
  */
@@ -145,9 +107,7 @@ export function showShowErrors(problems, fallback) {
     const m = /^formations\[(\d+)\]\.?(.*)$/.exec(path);
     if (m) {
       const k = Number(m[1]);
-      // On the formation's own card: where in it ("hold (s)", "point 2, z") and the rule in words.
-      const where = m[2] && !namesPath(p.msg, path) ? `${plainPath(m[2])}: ` : "";
-      if (!formationProblems.has(k)) formationProblems.set(k, `${where}${plainMsg(p.msg)}`);
+      if (!formationProblems.has(k)) formationProblems.set(k, onCard(p, path, m[2]));
       formations.push(k);
       continue;
     }

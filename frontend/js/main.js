@@ -89,9 +89,13 @@ const preview = new Preview(state, persist, () => requestAnimationFrame(() => vi
 const playhead = new Playhead(state, timeline, preview);
 const exportMenu = new ExportMenu(state, persist, { onFormationProblems: () => timeline.render() });
 // The music lane (issue 18) places unpinned formations where the last check planned them.
+/** @type {Promise<void>} the checks asked for by pins, one after the other */
+let pinChecks = Promise.resolve();
 const music = new MusicLane(state, {
   plan: () => (report.result ? report.result.plan : null),
   previewOpen: () => preview.isOpen,
+  // The plan says whether the pinned time can be flown (its refusal lands on the formation's card).
+  pinned: () => { pinChecks = pinChecks.then(() => report.run()); },
 });
 const renderReport = report.render.bind(report);
 report.render = () => { renderReport(); music.draw(); };
@@ -181,7 +185,7 @@ function renderDraft() {
     const b = document.createElement("button");
     b.type = "button";
     // In the designer's words; the server's own text stays at hand for an operator (the tooltip).
-    const said = describe(p, state.show);
+    const said = describe(p);
     b.textContent = `${said.where}: ${said.msg}`;
     b.title = said.raw;
     const m = /^formations\[(\d+)\]/.exec(p.path || "");
