@@ -116,7 +116,9 @@ def test_cli_writes_each_format(show, tmp_path, capsys):
         # --fps only where the format samples: the others refuse it (tests/test_exports_flown_preset.py).
         rate = ["--fps", "2"] if fmt in ("skybrush-csv", "waypoints-csv") else []
         place = ["--origin", "47.1,8.2,420"] if fmt in ORIGIN_FORMATS else []
-        code = main(["export", str(src), "--format", fmt, "-o", str(out), *place, "--heading", "15", *rate])
+        # --heading where the format uses it: the show file keeps its heading in settings.geo and refuses it.
+        heading = [] if fmt == "show" else ["--heading", "15"]
+        code = main(["export", str(src), "--format", fmt, "-o", str(out), *place, *heading, *rate])
         assert code == 0, capsys.readouterr().err
         data = out.read_bytes()
         if fmt == "show":
@@ -175,6 +177,9 @@ def test_cli_overwrites_atomically(show, tmp_path):
         (["--format", "crazyswarm", "--scale", "0"], "scale"),
         (["--format", "crazyswarm", "--offset", "1,2"], "--offset"),
         (["--format", "crazyswarm", "--offset", "1,2,x"], "--offset"),
+        # The show file keeps its heading in settings.geo: --heading was dropped without a word (review).
+        (["--format", "show", "--heading", "30"], "--heading"),
+        (["--format", "show", "--offset", "0,0,1"], "--offset"),
     ],
 )
 def test_cli_bad_options_exit_2(show, tmp_path, capsys, extra, reason):
@@ -184,6 +189,17 @@ def test_cli_bad_options_exit_2(show, tmp_path, capsys, extra, reason):
     err = capsys.readouterr().err
     assert reason in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_cli_takes_a_zero_offset_for_every_format_as_the_library_does(show, tmp_path, capsys):
+    """0,0,0 moves nothing (as --scale 1): ``export_show`` takes it for any format, and so does the CLI (it refused
+    it outside crazyswarm; failed before: exit 2). The file is the one written without it."""
+    src = _write_show(tmp_path, show)
+    plain, zero = tmp_path / "plain.json", tmp_path / "zero.json"
+    assert main(["export", str(src), "--format", "show", "-o", str(plain)]) == 0
+    assert main(["export", str(src), "--format", "show", "--offset", "0,0,0", "-o", str(zero)]) == 0, \
+        capsys.readouterr().err
+    assert zero.read_bytes() == plain.read_bytes() == export_show(show, "show", offset_m=(0.0, 0.0, 0.0)).content
 
 
 def test_cli_bad_paths_exit_2(show, tmp_path, capsys):

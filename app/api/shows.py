@@ -218,11 +218,11 @@ def _revision_from(body_value: Any, if_match: str | None) -> int:
         try:
             given = int(header)
         except ValueError:
-            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match",
+            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match", "where": "the If-Match header",
                                   "msg": "must be a revision number, e.g. \"3\""}]) from None
         # If-Match is a precondition whether or not the body names a revision too: both must agree.
         if body_value is not None and body_value != given:
-            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match",
+            raise ApiError(422, [{"loc": ["header", "if-match"], "path": "If-Match", "where": "the If-Match header",
                                   "msg": f"If-Match {given} and the body's revision {body_value!r} disagree"}])
         body_value = given
     if body_value is None:
@@ -410,6 +410,12 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.") or "show"
 
 
+def _query_problem(exc: Any) -> ApiError:
+    """An ``app.exports.ExportError`` about a query option as the 422 naming it (``loc`` ``["query", field]``)."""
+    field = exc.field or "format"
+    return ApiError(422, [{"loc": ["query", field], "path": field, "msg": str(exc)}])
+
+
 def _parse_origin(origin: str) -> tuple[float, float, float]:
     """The ``origin`` query as ``(lat, lon, alt_m)``, as the CLI's ``--origin`` (``app.exports.parse_origin``)."""
     from app.exports import ExportError, parse_origin
@@ -417,48 +423,33 @@ def _parse_origin(origin: str) -> tuple[float, float, float]:
     try:
         return parse_origin(origin)
     except ExportError as exc:
-        raise ApiError(422, [{"loc": ["query", "origin"], "path": "origin", "msg": str(exc)}]) from None
+        raise _query_problem(exc) from None
 
 
-def _parse_offset(offset: str) -> tuple[float, ...]:
+def _parse_offset(offset: str) -> tuple[float, float, float]:
     try:
         values = tuple(float(v) for v in offset.split(","))
     except ValueError:
         values = ()
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise ApiError(422, [{"loc": ["query", "offset"], "path": "offset", "msg": "must be 'x,y,z' in metres"}])
-    return values
+    return values[0], values[1], values[2]
 
 
 _PRESET_HELP = (f"With source=simulated: the flight's error-model preset (default {DEFAULT_FLIGHT_PRESET!r}, as a "
                 "simulation): the file holds the single flight the simulation panel flies.")
 
 
-def _check_unused(fmt: str, *, scale: bool, offset: bool, fps: bool, origin: bool) -> None:
-    """Refuse ``scale`` / ``offset`` (given, ``scale`` not 1), ``fps`` and ``origin`` for a format that does not
-    use them, as the CLI refuses ``--scale`` / ``--offset`` / ``--fps`` / ``--origin``
-    (``app.exports._core.check_unused_options``): they were dropped without a word."""
-    from app.exports import ExportError
-    from app.exports._core import check_unused_options
+def _check_options(fmt: str, **options: Any) -> None:
+    """Refuse what the exporter refuses (``app.exports.check_export_options``: an option the format does not use,
+    a flown source for a format of the exact plan, a value out of range), 422 naming the query option, before
+    any work; the ``show`` download, served from the store without an exporter, is checked the same way."""
+    from app.exports import ExportError, check_export_options
 
     try:
-        check_unused_options(fmt, scale=scale, offset=offset, fps=fps, origin=origin)
+        check_export_options(fmt, **options)
     except ExportError as exc:
-        raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
-
-
-def _check_show_options(*, source: Literal["planned", "simulated"], preset: str | None, seed: int | None,
-                        controller: str | None, disturbance: str | None) -> None:
-    """Refuse for the ``show`` download what its exporter refuses (``app.exports._show_json``): a flown source
-    and the options that choose a flight (422 naming the field)."""
-    from app.exports import ExportError, ExportOptions
-    from app.exports._core import check_planned
-
-    try:
-        check_planned("show", source)
-        ExportOptions(source=source, preset=preset, seed=seed, controller=controller, disturbance=disturbance)
-    except ExportError as exc:
-        raise ApiError(422, [{"loc": ["query", exc.field], "path": exc.field, "msg": str(exc)}]) from None
+        raise _query_problem(exc) from None
 
 
 @router.get(
@@ -485,12 +476,14 @@ async def export_show(
     # The bounds are app.exports.MAX_HEADING_DEG, which the CLI's --heading shares (a test keeps them equal).
     heading_deg: float | None = Query(None, ge=-360, le=360, description=(
         "Direction of the show's +y axis, degrees clockwise from north (default: the show's settings.geo "
-        "heading, else 0; given, it turns the show about its stored origin).")),
+        "heading, else 0; given, it turns the show about its stored origin; the show file refuses it with 422: "
+        "its heading is in settings.geo).")),
     source: Literal["planned", "simulated"] = Query("planned", description="Planned or simulated trajectories."),
     scale: float = Query(1.0, gt=0, le=10, description=(
         "Scale factor for positions (crazyswarm only, indoor shows; other formats refuse it with 422).")),
     offset: str | None = Query(None, description=(
-        "'x,y,z' metres added after scaling (crazyswarm only; other formats refuse it with 422).")),
+        "'x,y,z' metres added after scaling (crazyswarm only; other formats refuse it with 422 unless it is "
+        "0,0,0, which moves nothing).")),
     preset: Annotated[PresetName | None, Query(description=_PRESET_HELP)] = None,
     seed: int | None = Query(None, ge=0, le=MAX_SEED, description=(
         "With source=simulated: the flight's seed (default 0; the same seed flies the same flight).")),
@@ -508,17 +501,17 @@ async def export_show(
     formats = export_formats()
     if fmt not in formats:
         raise ApiError(404, f"unknown export format {fmt!r}; one of: {', '.join(formats)}")
-    _check_unused(fmt, scale=scale != 1.0, offset=offset is not None, fps=fps is not None,
-                  origin=origin is not None)
+    origin_v = _parse_origin(origin) if origin is not None else None
+    offset_m = _parse_offset(offset) if offset is not None else (0.0, 0.0, 0.0)
+    _check_options(fmt, fps=fps, origin=origin_v, heading_deg=heading_deg, source=source, scale=scale,
+                   offset_m=offset_m, preset=preset, seed=seed, controller=controller, disturbance=disturbance)
     record = deps.store(request).get(show_id)
     if fmt != "show":
         # The show file itself downloads as it is (a draft too: it is the user's work); every other
         # format needs a plan.
         require_valid(record, "exported")
     if fmt == "show":
-        # Served as stored, without the exporter: its checks here (a flown source or a flight's option was
-        # dropped without a word, where the CLI and the library refuse them).
-        _check_show_options(source=source, preset=preset, seed=seed, controller=controller, disturbance=disturbance)
+        # Served as stored, without the exporter (its options were checked as the exporter checks them, above).
         show_text = record.json
         assert show_text is not None  # ShowStore.get always loads the text (shows.json is NOT NULL)
 
@@ -535,8 +528,8 @@ async def export_show(
         options["heading_deg"] = heading_deg
     if fps is not None:
         options["fps"] = fps
-    if origin is not None:
-        options["origin"] = _parse_origin(origin)
+    if origin_v is not None:
+        options["origin"] = origin_v
     if fmt in AUDIO_FORMATS:
         audio = await asyncio.to_thread(_audio_track, request, show_id)
         if audio is not None:
@@ -544,7 +537,7 @@ async def export_show(
     if scale != 1.0:
         options["scale"] = scale
     if offset is not None:
-        options["offset_m"] = _parse_offset(offset)
+        options["offset_m"] = offset_m
     if preset is not None:
         options["preset"] = preset
     if seed is not None:

@@ -13,7 +13,14 @@ from app.cli._common import write_atomically as write_atomically
 # Formats that apply --scale / --offset, embed --audio, fly --source simulated: the API and the editor
 # read the same lists (app.exports._core).
 from app.exports._core import AUDIO_FORMATS as _AUDIO_FORMATS
-from app.exports._core import DEFAULT_FLIGHT_PRESET, FLIGHT_CONTROLLERS, FLIGHT_DISTURBANCES, FLIGHT_PRESETS, MAX_SEED
+from app.exports._core import (
+    DEFAULT_FLIGHT_PRESET,
+    FLIGHT_CONTROLLERS,
+    FLIGHT_DISTURBANCES,
+    FLIGHT_PRESETS,
+    HEADINGLESS_FORMATS,
+    MAX_SEED,
+)
 from app.exports._core import FLOWN_FORMATS as _FLOWN_FORMATS
 from app.exports._core import ORIGIN_FORMATS as _ORIGIN_FORMATS
 from app.exports._core import SAMPLED_FORMATS as _SAMPLED_FORMATS
@@ -136,14 +143,19 @@ def _export(args: argparse.Namespace) -> int:
         raise CliError(f"unknown format {args.format!r}; one of: {', '.join(EXPORT_FORMATS)}")
     # An option the format does not use would be dropped without a word (a show "scaled for indoors" written
     # at full size): refuse it, as --source simulated is refused for the exact formats.
+    # 0,0,0 moves nothing, as --scale 1 (app.exports.check_export_options: the library's and the API's rule too).
+    offset_m = parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0)
     unused = [(flag, formats) for flag, given, formats in (
-        ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", args.offset is not None, _SCALING_FORMATS),
+        ("--scale", args.scale != 1.0, _SCALING_FORMATS), ("--offset", any(offset_m), _SCALING_FORMATS),
         ("--fps", args.fps is not None, _SAMPLED_FORMATS),
         ("--origin", args.origin is not None, _ORIGIN_FORMATS),
         ("--audio", args.audio is not None, _AUDIO_FORMATS)) if given and args.format not in formats]
     if unused:
         flag, users = unused[0]
         raise CliError(f"{flag} is not used by format {args.format!r} (only by {', '.join(users)}); drop it")
+    if args.heading is not None and args.format in HEADINGLESS_FORMATS:
+        raise CliError(f"--heading is not used by format {args.format!r} (the show file keeps its heading in "
+                       "settings.geo); drop it")
     for flag, value in (("--preset", args.preset), ("--seed", args.seed), ("--controller", args.controller),
                         ("--disturbance", args.disturbance)):
         if value is not None and args.source != "simulated":
@@ -168,7 +180,7 @@ def _export(args: argparse.Namespace) -> int:
                 progress=update,
                 audio=audio,
                 scale=args.scale,
-                offset_m=parse_offset(args.offset) if args.offset is not None else (0.0, 0.0, 0.0),
+                offset_m=offset_m,
                 preset=args.preset,
                 seed=args.seed,
                 controller=args.controller,

@@ -24,6 +24,7 @@ from app.exports._core import ExportResult as ExportResult
 from app.exports._core import check_heading as check_heading
 from app.exports._core import parse_origin as parse_origin
 from app.exports._formats import EXPORT_FORMATS as EXPORT_FORMATS
+from app.exports._formats import check_export_options as check_export_options
 from app.exports._formats import export_plan as export_plan
 from app.exports._formats import export_show as export_show
 from app.exports._safety_report import REPORT_FORMATS as REPORT_FORMATS
@@ -40,6 +41,7 @@ from app.exports._tracks import show_bounds as show_bounds
 __all__ = [
     "MAX_HEADING_DEG",
     "check_heading",
+    "check_export_options",
     "parse_origin",
     "EXPORT_FORMATS",
     "REPORT_FORMATS",

@@ -209,15 +209,23 @@ DEFAULT_ORIGIN_ALT_M = 0.0
 ORIGIN_SYNTAX = "'latitude,longitude' or 'latitude,longitude,altitude_m'"
 
 
+#: Formats that ignore ``heading_deg``: the show file keeps its heading in ``settings.geo``.
+HEADINGLESS_FORMATS: tuple[str, ...] = ("show",)
+
+
 def check_unused_options(fmt: str, *, scale: bool = False, offset: bool = False, fps: bool = False,
-                         origin: bool = False) -> None:
-    """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` not the
-    identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside :data:`SAMPLED_FORMATS`,
-    ``origin`` outside :data:`ORIGIN_FORMATS`. The API, the CLI and :func:`export_plan` alike.
+                         origin: bool = False, heading: bool = False) -> None:
+    """Refuse an option given to a format that does not use it (each flag: given, and for ``scale`` / ``offset``
+    not the identity): ``scale`` / ``offset`` outside :data:`SCALING_FORMATS`, ``fps`` outside
+    :data:`SAMPLED_FORMATS`, ``origin`` outside :data:`ORIGIN_FORMATS`, ``heading`` in
+    :data:`HEADINGLESS_FORMATS`. The API, the CLI and :func:`export_plan` alike.
 
     Raises:
         ExportError: naming the option.
     """
+    if heading and fmt in HEADINGLESS_FORMATS:
+        raise ExportError(f"heading_deg is not used by format {fmt!r} (the show file keeps its heading in "
+                          "settings.geo); drop it", field="heading_deg")
     for name, given, users, what in (
         ("scale", scale, SCALING_FORMATS, "positions of an indoor show"),
         ("offset", offset, SCALING_FORMATS, "positions of an indoor show"),

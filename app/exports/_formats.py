@@ -16,12 +16,14 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from app.exports._core import (
+    FLOWN_FORMATS,
     ExportContext,
     ExportError,
     ExportOptions,
     ExportResult,
     ProgressFn,
     Source,
+    check_planned,
     check_unused_options,
 )
 
@@ -42,6 +44,40 @@ EXPORT_FORMATS: dict[str, str] = {
     "viser-html": "app.exports._viser_html:export_viser_html_file",
 }
 
+
+
+def check_export_options(
+    fmt: str,
+    *,
+    fps: float | None = None,
+    origin: tuple[float, float, float] | None = None,
+    heading_deg: float | None = None,
+    source: Source = "planned",
+    scale: float = 1.0,
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    preset: str | None = None,
+    seed: int | None = None,
+    controller: str | None = None,
+    disturbance: str | None = None,
+) -> None:
+    """Refuse the options :func:`export_show` would refuse for ``fmt`` (the same arguments, as given), before
+    any planning: an option ``fmt`` does not use (``check_unused_options``: ``scale`` 1 and a zero ``offset_m``
+    are the identity, as not given), a flown ``source`` for a format of the exact plan, any value out of range
+    (``ExportOptions``). The one rule for the library, the command line and the API (whose ``show`` download is
+    served from the store without an exporter, and asks this).
+
+    Raises:
+        ExportError: naming the option (``field``); an unknown format (no field).
+    """
+    if fmt not in EXPORT_FORMATS:
+        raise ExportError(f"unknown export format {fmt!r}; one of: {', '.join(EXPORT_FORMATS)}")
+    check_unused_options(fmt, scale=scale != 1.0, offset=any(v != 0.0 for v in offset_m), fps=fps is not None,
+                         origin=origin is not None, heading=heading_deg is not None)
+    if fmt not in FLOWN_FORMATS:
+        check_planned(fmt, source)
+    ExportOptions(fps=fps, origin=origin, heading_deg=0.0 if heading_deg is None else heading_deg, source=source,
+                  scale=scale, offset_m=offset_m, preset=preset, seed=seed, controller=controller,
+                  disturbance=disturbance)
 
 
 def _load_exporter(fmt: str) -> Callable[[ExportContext], ExportResult]:
@@ -105,8 +141,9 @@ def export_show(
     # An origin given to a format that holds local metres would be dropped without a word; the stored
     # settings.geo filled in below is the show's own and not checked.
     if fmt in EXPORT_FORMATS:  # an unknown one is export_plan's to name
-        check_unused_options(fmt, scale=scale != 1.0, offset=any(v != 0.0 for v in offset_m), fps=fps is not None,
-                             origin=origin is not None)
+        check_export_options(fmt, fps=fps, origin=origin, heading_deg=heading_deg, source=source, scale=scale,
+                             offset_m=offset_m, preset=preset, seed=seed, controller=controller,
+                             disturbance=disturbance)
     geo = show.settings.geo
     if origin is None and geo is not None:
         # The show's stored place on Earth, with the heading the caller gave, if any.
