@@ -185,3 +185,18 @@ def test_one_drone_summaries_read_right(tmp_path, capsys, argv):
     assert code == 0, err
     assert ": 1 drone, " in out.splitlines()[0], out
     assert "n/a m" not in out and "1 drones" not in out, out
+
+
+@pytest.mark.parametrize(("redirect", "says"), [("<&-", "stdin: is closed"), ("</dev/null", "stdin: is empty")])
+def test_a_closed_or_empty_stdin_is_said_in_one_line(redirect, says):
+    """``swarmshow check - <&-`` said "stdin: no such file" (``/dev/stdin`` names nothing once fd 0 is closed): the
+    operator read it as a missing file. Failed before: that message for the closed stdin."""
+    import sys
+
+    swarmshow = Path(sys.executable).with_name("swarmshow")
+    proc = subprocess.run(["bash", "-c", f'exec "$0" check - {redirect}', str(swarmshow)], capture_output=True,
+                          text=True, timeout=120)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, (proc.returncode, proc.stderr)
+    assert lines[0].startswith(f"swarmshow: error: {says}"), lines
+    assert "no such file" not in proc.stderr

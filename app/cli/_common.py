@@ -140,6 +140,9 @@ def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for st
     from formations import MAX_SHOW_FILE_BYTES, ShowValidationError, parse_show
 
     label = "stdin" if path == "-" else path
+    if path == "-" and not _stdin_open():
+        raise CliError("stdin: is closed; pipe a show file in (swarmshow home SHOW | swarmshow check -) or give "
+                       "its path")
     try:
         data = read_bounded("/dev/stdin" if path == "-" else path, MAX_SHOW_FILE_BYTES, what="show file")
     except CliError as exc:
@@ -152,6 +155,18 @@ def load_show_arg(path: str):  # -> formations.ShowFile (import kept lazy for st
         return parse_show(data)
     except ShowValidationError as exc:
         raise CliError(f"{label}: {exc.one_line()}") from exc
+
+
+def _stdin_open() -> bool:
+    """Whether this process has a standard input to read: ``<&-`` closes it, and Python then starts with
+    ``sys.stdin`` None (and ``/dev/stdin`` names no file: "no such file" misled)."""
+    if sys.stdin is None:
+        return False
+    try:
+        os.fstat(0)
+    except OSError:
+        return False
+    return True
 
 
 def count(n: int, noun: str) -> str:
