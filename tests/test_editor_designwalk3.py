@@ -55,6 +55,41 @@ def test_the_preview_pane_shows_the_scene_not_viser_s_mobile_panel(ui: Page, vie
     assert box["y"] + box["height"] <= pane["y"] + pane["height"] + 1, (box, pane)
 
 
+#: Records every interval timer the editor's own scripts start and stop (with where it was started), so that a test
+#: can see which still run.
+_INTERVALS = """(() => {
+  const set = window.setInterval.bind(window), clear = window.clearInterval.bind(window);
+  window.__intervals = new Map();
+  window.setInterval = (fn, ms, ...args) => {
+    const id = set(fn, ms, ...args);
+    window.__intervals.set(id, { ms, stack: new Error().stack || "" });
+    return id;
+  };
+  window.clearInterval = (id) => { window.__intervals.delete(id); clear(id); };
+})();"""
+
+
+def test_the_sheet_is_folded_by_watching_the_viewer_page_not_by_polling(ui: Page):
+    """Review: the preview polled the viewer's frame every 250 ms for as long as it was open. It now watches the
+    viewer page for changes (a MutationObserver on its body): the sheet is folded once viser renders it, and no
+    interval timer of the preview runs. Failed before: a 250 ms interval started in preview.js was running."""
+    page = ui.page
+    page.add_init_script(_INTERVALS)
+    page.set_viewport_size({"width": 1024, "height": 768})
+    ui.open_show(show_doc(name="No polling"))
+    page.locator("#btn-preview").click()
+    frame = page.frame_locator("#preview-frame")
+    # viser renders its bottom sheet after the page has loaded; the editor folds it once the viewer's link is in.
+    expect(frame.locator("[data-swarmshow-folded]")).to_have_count(1, timeout=90_000)
+    page.wait_for_function("() => window.swarmshow.playhead.preview.viewerState() !== null", timeout=60_000)
+    running = page.evaluate("() => [...window.__intervals.values()].filter((t) => /preview\\.js/.test(t.stack))")
+    assert running == [], running
+    # The watch is the observer, and it ends with the preview.
+    assert page.evaluate("() => window.swarmshow.playhead.preview.sheetWatch instanceof MutationObserver")
+    page.locator("#btn-preview-close").click()
+    assert page.evaluate("() => window.swarmshow.playhead.preview.sheetWatch === null")
+
+
 def test_a_submit_the_browser_blocks_replaces_the_last_answer_s_error(ui: Page):
     page = ui.page
     ui.open_show(show_doc(name="Stale error"))

@@ -34,8 +34,12 @@ export class Preview {
     this.startFormation = null;
     /** @type {number|null} the time a new viewer page starts at instead (a flight's closest pair), seconds */
     this.startTime = null;
-    /** @type {ReturnType<typeof setInterval>|null} the watch that folds viser's bottom sheet (foldSheet) */
+    /** @type {MutationObserver|null} the watch on the viewer page that folds viser's bottom sheet (foldSheet) */
     this.sheetWatch = null;
+    /** whether a fold is due at the next animation frame (the page's changes in one frame: one look) */
+    this.foldDue = false;
+    // Each viewer page is watched from its load: viser renders its panel (React) after the page has loaded.
+    this.frame.addEventListener("load", () => this._watchSheet());
     document.getElementById("btn-preview-close").addEventListener("click", () => this.close());
     document.getElementById("btn-preview-reload").addEventListener("click", () => this.load());
   }
@@ -65,8 +69,7 @@ export class Preview {
 
   /** Hide the preview. */
   close() {
-    if (this.sheetWatch !== null) clearInterval(this.sheetWatch);
-    this.sheetWatch = null;
+    this._unwatchSheet();
     this.wrap.hidden = true;
     this.button.setAttribute("aria-pressed", "false");
     this._layout();
@@ -83,6 +86,38 @@ export class Preview {
    * keeps them (a Mantine Collapse). A sheet the designer unfolds stays unfolded; a new one (a new page, a
    * re-mount) is folded again.
    */
+  /**
+   * Watch the viewer page now in the frame for viser's bottom sheet: a MutationObserver on its body (elements
+   * added or removed anywhere below it; a playing show's readouts change text, not elements), each frame's
+   * changes looked at once. Nothing runs while the page does not change, and nothing once the preview is closed.
+   */
+  _watchSheet() {
+    this._unwatchSheet();
+    if (!this.isOpen) return;
+    let doc = null;
+    try {
+      doc = this.frame.contentDocument;
+    } catch {
+      return;
+    }
+    if (!doc || !doc.body) return;
+    this.foldSheet();
+    this.sheetWatch = new MutationObserver(() => {
+      if (this.foldDue) return;
+      this.foldDue = true;
+      requestAnimationFrame(() => {
+        this.foldDue = false;
+        this.foldSheet();
+      });
+    });
+    this.sheetWatch.observe(doc.body, { childList: true, subtree: true });
+  }
+
+  _unwatchSheet() {
+    if (this.sheetWatch !== null) this.sheetWatch.disconnect();
+    this.sheetWatch = null;
+  }
+
   foldSheet() {
     let doc = null;
     try {
@@ -166,6 +201,5 @@ export class Preview {
     // A fresh viewer page: each page is its own viewer client and starts on the show just loaded
     // (other tabs' viewers keep theirs).
     this.frame.src = "/viser/";
-    if (this.sheetWatch === null) this.sheetWatch = setInterval(() => this.foldSheet(), 250);
   }
 }
