@@ -232,3 +232,36 @@ def test_the_lane_drives_the_viewer_before_the_sound_has_started(ui: Page, tmp_p
     page.evaluate("() => window.soundStarted()")
     page.get_by_role("button", name="Play or pause the music and the playhead").click()
     _clock(ui.base, show_id, lambda c: not c["playing"])
+
+
+def test_a_pinned_arrival_the_transition_cannot_make_is_refused_at_once(ui: Page):
+    """Review: the editor took a pinned arrival that no transition can make (shorter than the limits allow) without
+    a word; the designer learnt it at Simulate. A pin now has the plan say so at once (the check's 422), on the
+    formation's card in the designer's words, with the earliest arrival the planner finds. Failed before: the card
+    stayed clean after the pin."""
+    from formations import parse_show
+    from sim import PlanError, plan_show
+    from tests.test_api_jobs import show_doc
+
+    page = ui.page
+    doc = show_doc("Too soon")
+    doc["formations"].append({**doc["formations"][0], "name": "Lifted",
+                              "points": [[x, y, z + 20] for x, y, z in doc["formations"][0]["points"]]})
+    ui.open_show(doc)
+    page.get_by_label("Name of formation 2").click()
+    assert ui.state("s.current") == 1
+    page.evaluate("() => window.swarmshow.music.seek(1.5)")
+    page.get_by_role("button", name="Pin the current formation's arrival at the playhead").click()
+    pinned = ui.state("s.show.formations[1].arrive_at_s")
+    assert pinned == pytest.approx(1.5, abs=0.25)
+    # The independent reference: the planner's own refusal of the same show.
+    pinned_doc = ui.state("s.show")
+    with pytest.raises(PlanError) as info:
+        plan_show(parse_show(pinned_doc))
+    assert info.value.path == "formations[1].arrive_at_s"
+    card = page.locator('.tl-card[data-index="1"] .field-error')
+    expect(card).to_contain_text(f"arrive at (s) = {pinned:g} s is too early", timeout=120_000)
+    expect(card).to_contain_text(f"earliest feasible arrival is {info.value.earliest_s:.1f} s")
+    # Unpinned, the next check clears it.
+    page.get_by_role("button", name="Unpin the current formation's cue times").click()
+    expect(card).to_have_count(0, timeout=120_000)

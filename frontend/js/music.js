@@ -30,8 +30,9 @@ export const FIRST_ANALYSIS_NOTE = "The first analysis on a server compiles the 
 export class MusicLane {
   /**
    * @param {import("./state.js").EditorState} state
-   * @param {{plan: () => any, previewOpen: () => boolean}} parts the last fresh check's plan summary, and
-   *   whether the 3D preview is open
+   * @param {{plan: () => any, previewOpen: () => boolean, pinned?: (k: number) => void}} parts the last fresh
+   *   check's plan summary, whether the 3D preview is open, and what to do once a cue time is pinned (the check
+   *   that says at once whether the transition can make it)
    */
   constructor(state, parts) {
     this.state = state;
@@ -354,6 +355,9 @@ export class MusicLane {
         if (f.arrive_at_s != null && f.arrive_at_s >= t) delete f.arrive_at_s;
       }
     });
+    // A pin the transition cannot make (shorter than the limits allow) is refused by the plan: the designer
+    // learns it now, on the formation's card, rather than at Simulate.
+    if (this.parts.pinned) this.parts.pinned(k);
   }
 
   /**
@@ -369,6 +373,7 @@ export class MusicLane {
     st.edit(`Unpin "${f.name}"`, () => {
       for (const x of fields) delete st.show.formations[k][x];
     });
+    if (this.parts.pinned) this.parts.pinned(k);
   }
 
   _x(t) {
