@@ -61,10 +61,21 @@ def test_cli_montecarlo_default_run_is_the_default_single_flight(tmp_path, capsy
 
 def test_cli_montecarlo_with_a_disturbance_keeps_flying_it(tmp_path, capsys):
     """``--runs K --disturbance wind`` (no preset): the ideal vehicle in that wind, as before (the preset's own
-    wind would count twice)."""
-    code = main(["simulate", str(_show_file(tmp_path)), "--runs", "1", "--disturbance", "wind", "--json"])
-    mc = json.loads(capsys.readouterr().out)
-    assert code in (0, 1) and mc["preset"] is None
+    wind would count twice). The report records the disturbance, and the wind was flown: the same run in still
+    air (``--preset ideal``: the ideal vehicle, no error model at all) deviates differently from the plan.
+    (Review: the test checked only ``preset is None``, which a run that dropped the wind passes too.)"""
+    show = _show_file(tmp_path)
+    code = main(["simulate", str(show), "--runs", "1", "--disturbance", "wind", "--json"])
+    windy = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and windy["preset"] is None and windy["disturbance"] == "wind"
+    assert sim_flight.error_preset("ideal") == sim_flight.ErrorModel()  # so --preset ideal is the same vehicle
+    code = main(["simulate", str(show), "--runs", "1", "--preset", "ideal", "--json"])
+    still = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and still["preset"] == "ideal" and still["disturbance"] == "none"
+    assert (windy["seed0"], windy["controller"], windy["engine"]) == (still["seed0"], still["controller"],
+                                                                      still["engine"])
+    assert windy["deviation"]["per_drone_max_m"] != still["deviation"]["per_drone_max_m"], (windy["deviation"],
+                                                                                          still["deviation"])
 
 
 client = app_client("mcdefault", workers=1)

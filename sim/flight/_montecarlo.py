@@ -513,6 +513,10 @@ class MonteCarloResult:
             "preset": self.preset,
             "engine": self.engine,
             "controller": self.options.controller,
+            # The fleet-wide disturbance flown (a preset's own wind is in its error models instead): what the
+            # runs were flown in is part of what they say.
+            "disturbance": (self.options.disturbance if isinstance(self.options.disturbance, str)
+                            else self.options.disturbance.name),
             "confidence": self.confidence,
             "min_distance_m": limit,
             "flown_distance_tolerance_m": FLOWN_DISTANCE_TOLERANCE_M,
