@@ -160,13 +160,28 @@ def _heart(n: int, size: float) -> np.ndarray:
 
 
 def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """(m,) whether each 2-D point is inside the closed polygon (even-odd ray casting, vectorised)."""
-    x, y = points[:, :1], points[:, 1:2]
+    """(m,) whether each 2-D point is inside the closed polygon (even-odd ray casting, vectorised).
+
+    Only the (edge, point) pairs whose ray can cross are formed: edge a -> b crosses the ray of a
+    point at height y exactly when min(a_y, b_y) <= y < max(a_y, b_y) (the half-open rule of
+    ``(a_y > y) != (b_y > y)``), a contiguous run of the points sorted by y. A point's ray meets
+    a few edges, so the work is O((m + V) log m) rather than the m x V of testing every edge (the
+    3072-vertex heart outline: m x 3072 per lattice, seconds per filled heart).
+    """
+    x, y = points[:, 0], points[:, 1]
     a, b = vertices, np.roll(vertices, -1, axis=0)
-    crosses = (a[:, 1] > y) != (b[:, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    return np.asarray((crosses & (x < x_at)).sum(axis=1) % 2 == 1, dtype=np.bool_)
+    order = np.argsort(y, kind="stable")
+    y_sorted = y[order]
+    lo = np.searchsorted(y_sorted, np.minimum(a[:, 1], b[:, 1]), side="left")
+    hi = np.searchsorted(y_sorted, np.maximum(a[:, 1], b[:, 1]), side="left")
+    counts = hi - lo
+    edge = np.repeat(np.arange(len(a)), counts)  # (pairs,) edge of each (edge, point) pair
+    run_start = np.cumsum(counts) - counts
+    point = order[lo[edge] + np.arange(len(edge)) - run_start[edge]]  # (pairs,) its point
+    ae, be, yp = a[edge], b[edge], y[point]
+    x_at = ae[:, 0] + (yp - ae[:, 1]) * (be[:, 0] - ae[:, 0]) / (be[:, 1] - ae[:, 1])
+    hits = np.bincount(point[x[point] < x_at], minlength=len(points))
+    return np.asarray(hits % 2 == 1, dtype=np.bool_)
 
 
 def _hex_lattice(step: float, half: float) -> np.ndarray:

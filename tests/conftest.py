@@ -442,6 +442,9 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     _warm_up.stop()
+    live_server = sys.modules.get("tests.live_server")  # imported only where a test used it
+    if live_server is not None:
+        live_server.close_chromiums()
 
 
 @pytest.fixture(scope="session")

@@ -304,16 +304,59 @@ def server_for(name: str, **kwargs: Any) -> Any:
     return _server
 
 
-@contextlib.contextmanager
-def chromium_browser(*args: str) -> Iterator[object]:
-    """Debian's chromium under Playwright, headless, with extra command-line ``args``; ``expect(...)``
-    retries for :data:`EXPECT_TIMEOUT_MS`."""
-    from playwright import sync_api
+class _Chromiums:
+    """The test session's one Playwright driver and its chromium browsers, one for each set of command-line
+    arguments: launched on first use and reused by the browser modules after it (a driver and browser start
+    took about 2 s of each module's setup), launched again if it crashed (disconnected), so a crash still
+    stays with the module it happened in. Playwright's sync API allows one driver a thread: every browser of
+    the session comes from this one. Closed by :func:`close_chromiums` at the end of the session."""
 
-    sync_api.expect.set_options(timeout=EXPECT_TIMEOUT_MS)
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=list(args))
-        try:
-            yield b
-        finally:
-            b.close()
+    def __init__(self) -> None:
+        self.driver: Any = None
+        self.browsers: dict[tuple[str, ...], Any] = {}
+
+    def get(self, args: tuple[str, ...]) -> Any:
+        from playwright import sync_api
+
+        sync_api.expect.set_options(timeout=EXPECT_TIMEOUT_MS)
+        if self.driver is None:
+            self.driver = sync_api.sync_playwright().start()
+        b = self.browsers.get(args)
+        if b is None or not b.is_connected():
+            b = self.driver.chromium.launch(executable_path=CHROMIUM, headless=True, args=list(args))
+            self.browsers[args] = b
+        return b
+
+    def close(self) -> None:
+        for b in self.browsers.values():
+            with contextlib.suppress(Exception):  # one that crashed is gone already
+                b.close()
+        self.browsers.clear()
+        if self.driver is not None:
+            self.driver.stop()
+            self.driver = None
+
+
+_chromiums = _Chromiums()
+
+
+def close_chromiums() -> None:
+    """Close the session's browsers and Playwright driver (tests/conftest.py, at the end of the session)."""
+    _chromiums.close()
+
+
+@contextlib.contextmanager
+def chromium_browser(*args: str) -> Iterator[Any]:
+    """Debian's chromium under Playwright, headless, with extra command-line ``args``; ``expect(...)``
+    retries for :data:`EXPECT_TIMEOUT_MS`. The session's browser for these ``args`` (:class:`_Chromiums`);
+    the contexts (and their pages) opened while it is held are closed on exit, as closing a browser of its
+    own did: nothing one module leaves open (a page playing in 3D) runs on beside the next."""
+    b = _chromiums.get(tuple(args))
+    before = set(b.contexts)
+    try:
+        yield b
+    finally:
+        if b.is_connected():
+            for ctx in b.contexts:
+                if ctx not in before:
+                    ctx.close()

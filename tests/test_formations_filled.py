@@ -105,3 +105,31 @@ def test_too_many_points_say_the_largest_that_fits() -> None:
     generate_shape("disc", m, size_m=30.0, min_spacing_m=3.0)
     # A hexagonal packing of 3 m in a 30 m disc holds about π·15²/(√3/2·9) ≈ 90.
     assert 60 <= m <= 100
+
+
+def _even_odd_every_edge(q: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Brute-force even-odd rule: every point's rightward ray against every edge (m x V), counting an edge
+    whose half-open y-range [min, max) holds the point's height and which lies right of it there."""
+    a, b = vertices, np.roll(vertices, -1, axis=0)
+    y = q[:, 1:2]
+    spans = (np.minimum(a[:, 1], b[:, 1]) <= y) & (y < np.maximum(a[:, 1], b[:, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return (spans & (q[:, :1] < x_at)).sum(axis=1) % 2 == 1
+
+
+@pytest.mark.parametrize("outline", ["heart", "star"])
+def test_inside_polygon_is_the_even_odd_rule_on_every_edge(outline: str) -> None:
+    """The filled shapes' inside test (edges paired only with the points at their heights) says what the
+    even-odd rule over every edge says: on lattices, random points, points rounded onto shared heights, and
+    the polygon's own vertices (rays through a vertex)."""
+    from formations._shapes import _HEART, _hex_lattice, _inside_polygon, _star_vertices
+
+    rng = np.random.default_rng(7)
+    for size in (5.0, 37.3, 200.0):
+        poly = _HEART * size if outline == "heart" else _star_vertices(size, 5, 0.5)
+        for q in (_hex_lattice(size / 25, size / 2), rng.uniform(-size, size, (600, 2)),
+                  np.round(rng.uniform(-size, size, (600, 2)), 1), poly.copy()):
+            inside = _inside_polygon(q, poly)
+            assert np.array_equal(inside, _even_odd_every_edge(q, poly))
+            assert 0 < inside.sum() < len(q)

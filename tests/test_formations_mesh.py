@@ -466,7 +466,9 @@ def test_cli_mesh(capsys, tmp_path):
     doc = json.loads(out.read_text())
     assert len(doc["points"]) == 40 and brute_min_dist(np.array(doc["points"])) >= 2.0
     capsys.readouterr()
-    code = cli_main(["formation", "mesh", str(src), "--drones", "5000", "--size", "10"])
+    # 60 drones where 12 fit: the error path as 5000 took it, without 5000 points relaxed to find the size that
+    # would fit them (17-26 s here, 15 s of it in relax; 60: 1.7-3.7 s).
+    code = cli_main(["formation", "mesh", str(src), "--drones", "60", "--size", "10"])
     err = capsys.readouterr().err
     assert code == 2 and "largest N that fits" in err and len(err.strip().splitlines()) == 1
     bad = tmp_path / "bad.obj"

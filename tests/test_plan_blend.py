@@ -69,9 +69,11 @@ def test_box_minimum_matches_a_brute_force_grid(seed) -> None:
     got = _box_min_sq(r0, c1, c2, (lo1[0], lo1[1]), (lo2[0], lo2[1]))
     u = np.linspace(lo1[0], lo1[1], 301)
     w = np.linspace(lo2[0], lo2[1], 301)
-    v = (r0[:, None, None, :] + u[None, :, None, None] * c1[:, None, None, :]
-         + w[None, None, :, None] * c2[:, None, None, :])
-    grid = (v**2).sum(-1).reshape(k, -1).min(axis=1)
+    sq = np.zeros((k, len(u), len(w)))  # |r0 + u·c1 + w·c2|² on the grid, one axis at a time (no (k, 301, 301, 3))
+    for a in range(3):
+        sq += (r0[:, a, None, None] + u[None, :, None] * c1[:, a, None, None]
+               + w[None, None, :] * c2[:, a, None, None]) ** 2
+    grid = sq.reshape(k, -1).min(axis=1)
     assert np.all(got <= grid + 1e-9)
     step = max(lo1[1] - lo1[0], lo2[1] - lo2[0]) / 300
     bound = (np.linalg.norm(c1, axis=1) + np.linalg.norm(c2, axis=1)) * step
