@@ -118,8 +118,9 @@ def test_a_formation_card_with_a_problem_keeps_its_name_and_message(ui: Page):
     assert sizes["error"] >= 12 and "earliest feasible" in sizes["errorText"], sizes
     assert sizes["scrolls"], sizes
     sync_api.expect(card.locator(".tl-name")).to_have_value("Formation 2")
-    # The message names its field once (it read "arrive_at_s: formations[1].arrive_at_s = 20 s is too early").
-    assert sizes["errorText"].startswith("formations[1].arrive_at_s = 20"), sizes["errorText"]
+    # The message names its field once, in the designer's words from the server's 'where_in_formation'
+    # (it read "arrive_at_s: formations[1].arrive_at_s = 20 s is too early", then the raw path once).
+    assert sizes["errorText"].startswith("arrive at (s) = 20 s is too early"), sizes["errorText"]
     report = page.locator("#report-body").inner_text()
     assert "Not checked: formations[1].arrive_at_s = 20" in report, report
 
