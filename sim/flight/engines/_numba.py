@@ -130,11 +130,21 @@ rounds), not kept:
   1,689 MiB (float32), i.e. 4.3-4.7x less CPU, results bit-identical to main's (positions, final
   states, statistics, telemetry; a process that compiled matched one that loaded; the engine and
   multi-rate tests passed), but the kernel ran at 0.80x (float64, 0.803-0.809) and 0.74x (float32,
-  0.737-0.745) of main's. Not analysed;
-  suspects: the call per step passes ~90 scalars (numba flattens the tuples) and the invariants are
-  broadcast again at each call, and the loop, no longer in the function that allocates the scratch,
-  has a trip count LLVM cannot know (8); untried: the constants through an array, the loop's trip
-  count made known;
+  0.737-0.745) of main's; 0.73x (0.65-0.81) and 0.91x (0.85-0.93) in a later session at load 6-10
+  (branch splitfast, 4833f15). Why, from the cached object code (``objdump``): LLVM vectorises a
+  lane function only at its *second* optimisation, when numba links its IR into the kernel's module
+  (the function's own library is scalar: 859 scalar-double operations, no packed ones), and it stays
+  a function called per block-step whose every call runs a prologue of 586 (outer loop) / 438 (held)
+  instructions before its vector pass of 2,157 / 1,350: 151 broadcasts of the scalar constants and
+  step inputs to zmm, 154 zmm stores spilling them, 70 argument loads, 85 constant-pool addresses,
+  ~30 % more instructions per step at 250 Hz (in this kernel that work sits outside the step loop).
+  Tried on the split, not kept: ``njit(forceinline=True)`` (61 s, but LLVM inlines at its first, O0
+  pass and the kernel's lane loops come out scalar); a second ``forceinline`` level so the wrapper's
+  library vectorises first (only the held loop vectorised, 339 s); the constants and step inputs
+  through two small arrays instead of ~75 scalar arguments (0.97x the split, bit-identical: the
+  argument passing is not the cost); the constants as 49 per-lane scratch fields (0.98x, not
+  bit-identical). Untried: a block's whole step loop in one function per outer-loop phase, or
+  vectorising the lane function in its own library so that ``forceinline`` carries vector code;
 * the whole ``prange`` body (the step loop with both lane loops) an ``njit`` function of its own,
   called once per block and chunk, so that the parfor passes see one call: still compiling after 337 s
   of CPU (float64) and 331 s (float32), against main's 351 s and 360 s (stopped there). So taking
