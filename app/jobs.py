@@ -264,6 +264,7 @@ class JobManager:
         self._closed = True
         with self._lock:
             unfinished = [j for j in self._jobs.values() if not j.terminal]
+            interactive_busy = len(self._free_slots) < self.settings.max_interactive_tasks
         for job in unfinished:
             self._cancel_job(job, reason="server shutting down")
         if self._flags is not None:
@@ -275,7 +276,11 @@ class JobManager:
                 processes += list(getattr(pool, "_processes", {}).values())
                 pool.shutdown(wait=False, cancel_futures=True)
         # A worker deep in a long step (a big check) reports no progress; give it a moment, then stop it.
-        deadline = time.monotonic() + 3.0
+        # With no job and no interactive task out, a worker has nothing to finish (at most its warm-up's
+        # imports, which never end early): a short grace for an idle one to take its exit sentinel, not the
+        # 3 s that every stop of an idle server used to wait out (tests/test_jobs_close.py).
+        grace_s = 3.0 if unfinished or interactive_busy else 0.25
+        deadline = time.monotonic() + grace_s
         for p in processes:
             p.join(max(0.0, deadline - time.monotonic()))
             if p.is_alive():
