@@ -107,7 +107,8 @@ def test_export_refusal_marks_the_formation_card(ui: Page):
     page.get_by_role("button", name="Export in the chosen format").click()
     expect(page.locator("#export-error")).to_contain_text("formations[1].transition_s", timeout=60_000)
     expect(card).to_have_class("tl-card has-problem")
-    expect(card.locator(".field-error")).to_contain_text("transition_s")
+    # The card says its field in the designer's words (the server's where_in_formation).
+    expect(card.locator(".field-error")).to_contain_text("transition (s) = 0.2 s is shorter")
     expect(page.locator('.tl-card[data-index="0"]')).not_to_have_class("tl-card has-problem")
 
 

@@ -117,6 +117,7 @@ def test_live_viewer_websocket_outlives_the_header_timeout(tmp_path):
     import contextlib
     import socket
     import time
+    from concurrent.futures import ThreadPoolExecutor
 
     import httpx
     from websockets.asyncio.client import connect
@@ -143,7 +144,10 @@ def test_live_viewer_websocket_outlives_the_header_timeout(tmp_path):
     try:
         slow = socket.create_connection(("127.0.0.1", server.port), timeout=10)
         slow.sendall(b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ")
-        open_s, close_code = asyncio.run(hold_open())
+        # In a thread of its own: the session's shared Playwright (tests/live_server.py) keeps its sync API's
+        # event loop set on the main thread once a browser module has run, and asyncio.run refuses to nest.
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            open_s, close_code = pool.submit(asyncio.run, hold_open()).result()
         assert close_code is None and open_s >= 3 * timeout_s - 0.1, (open_s, close_code)
         assert slow.recv(1024) == b""  # the slow-header connection was still closed
         slow.close()
